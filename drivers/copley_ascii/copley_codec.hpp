@@ -1,0 +1,42 @@
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fieldgate::copley {
+
+// Copley ASCII framing (shared/protocols/copley-ascii.md §1–3): `[N ][.a ]cmd args\r` out,
+// `ok`, `v n…`, `r n` or `e code` back, each ended by CR.
+
+// Node 0 is the amplifier on the serial port and gets no prefix; 1–127 are reached through it.
+std::string encode_command(int node, char axis, std::string_view command);
+
+// Length of the first CR-terminated line in buf, or 0 when no CR has arrived yet.
+std::size_t frame_length(std::string_view buf);
+
+struct ParsedReply {
+  enum class Kind { ok, values, register_value, error, malformed };
+  Kind kind = Kind::malformed;
+  std::vector<int64_t> values;  // for values, register_value and error (the code)
+};
+
+// Lenient on input as the digest advises: optional space after v, r, e; several values;
+// negative numbers; a stray LF before or after.
+ParsedReply parse_reply(std::string_view line);
+
+// App. E text for an error code, "unknown error code" for codes the manual does not list.
+std::string_view error_text(int64_t code);
+
+// Parses a node address as written in a config: "0".."127", optionally ".a"/".b"/".c".
+struct Address {
+  int node = 0;
+  char axis = 0;
+};
+std::optional<Address> parse_address(std::string_view text, std::string& error);
+
+inline constexpr int64_t kCanFailure = 32;  // e 32: forwarded node does not answer
+
+}  // namespace fieldgate::copley

@@ -1,0 +1,137 @@
+#include "drivers/copley_ascii/copley_family.hpp"
+
+#include <fmt/format.h>
+
+#include "drivers/copley_ascii/copley_codec.hpp"
+
+namespace fieldgate {
+
+std::optional<NodeAddress> CopleyFamily::parse_address(std::string_view text,
+                                                       std::string& error) const {
+  auto a = copley::parse_address(text, error);
+  if (!a) return std::nullopt;
+  NodeAddress n;
+  n.number = a->node;
+  n.axis = a->axis;
+  n.text = std::to_string(a->node) + (a->axis ? std::string(".") + a->axis : std::string());
+  return n;
+}
+
+void CopleyFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
+  const auto check = [&](const CommandTemplate& t, const SourceMark& mark,
+                         const std::string& what) {
+    const std::string& s = t.source();
+    if (s.empty()) return;
+    if (s.find('\r') != std::string::npos || s.find('\n') != std::string::npos)
+      diagnostics.error(mark,
+                        fmt::format("{}: the family adds the CR; remove it from '{}'", what, s));
+    if (s.find("  ") != std::string::npos || s.front() == ' ' || s.back() == ' ')
+      diagnostics.error(mark, fmt::format("{}: Copley commands take exactly one space between "
+                                          "tokens (manual §2.1): '{}'",
+                                          what, s));
+    const char code = s.front();
+    if (std::string_view("sgctri").find(code) == std::string_view::npos ||
+        (s.size() > 1 && s[1] != ' '))
+      diagnostics.error(mark, fmt::format("{}: '{}' does not start with a Copley command code "
+                                          "(s, g, c, t, r, i) and a space",
+                                          what, s));
+  };
+  for (const auto& p : model.points) {
+    if (p.read) {
+      check(p.read->request, p.mark, "point " + p.name + " read");
+      if (p.read->format != NumberFormat::decimal)
+        diagnostics.error(p.mark, fmt::format("point {}: Copley replies are decimal", p.name));
+      if (p.read->object)
+        diagnostics.error(p.mark,
+                          fmt::format("point {}: objects are for the canopen family", p.name));
+    }
+    if (p.write) check(p.write->request, p.mark, "point " + p.name + " write");
+  }
+  for (const auto& a : model.actions)
+    for (const auto& s : a.steps)
+      if (s.kind == ActionStep::Kind::send) check(s.command, s.mark, "action " + a.name);
+}
+
+Reply interpret_copley_reply(const NodeAddress& node, const Request& request,
+                             std::string_view line) {
+  Reply reply;
+  const auto parsed = copley::parse_reply(line);
+  switch (parsed.kind) {
+    case copley::ParsedReply::Kind::ok:
+      if (request.expect == Request::Expect::ack) {
+        reply.status = Reply::Status::ok;
+      } else {
+        reply.status = Reply::Status::garbled;
+        reply.text = "'ok' where a value was expected";
+      }
+      break;
+    case copley::ParsedReply::Kind::values:
+    case copley::ParsedReply::Kind::register_value:
+      if (request.expect == Request::Expect::values) {
+        reply.status = Reply::Status::ok;
+        reply.values = parsed.values;
+      } else {
+        reply.status = Reply::Status::garbled;
+        reply.text = "a value where 'ok' was expected";
+      }
+      break;
+    case copley::ParsedReply::Kind::error: {
+      const int64_t code = parsed.values.front();
+      reply.device_code = code;
+      reply.text = fmt::format("e {}: {}", code, copley::error_text(code));
+      // Through the gateway amplifier, e 32 means the addressed node did not answer on CAN.
+      reply.status = (code == copley::kCanFailure && node.number != 0)
+                         ? Reply::Status::unreachable
+                         : Reply::Status::device_error;
+      break;
+    }
+    case copley::ParsedReply::Kind::malformed:
+      reply.status = Reply::Status::garbled;
+      reply.text = std::string(line);
+      break;
+  }
+  return reply;
+}
+
+asio::awaitable<Reply> CopleyFamily::transact(Link& link, const NodeAddress& node,
+                                              const Request& request, const LinkTiming& timing) {
+  // Replies carry no address: anything left over from an earlier exchange would be taken for
+  // this one's reply.
+  link.discard_input();
+  const std::string frame = copley::encode_command(node.number, node.axis, request.command);
+  if (auto ec = co_await link.send(frame)) {
+    Reply r;
+    r.status = Reply::Status::link_down;
+    r.text = ec.message();
+    co_return r;
+  }
+  const auto read = co_await link.read_frame(copley::frame_length, timing);
+  Reply r;
+  switch (read.status) {
+    case LinkRead::Status::frame:
+      co_return interpret_copley_reply(node, request, read.frame);
+    case LinkRead::Status::timeout:
+      r.status = read.partial.empty() ? Reply::Status::timeout : Reply::Status::garbled;
+      r.text = read.partial.empty() ? "no reply" : "incomplete reply '" + read.partial + "'";
+      co_return r;
+    case LinkRead::Status::overflow:
+      r.status = Reply::Status::garbled;
+      r.text = "reply longer than any Copley reply";
+      co_return r;
+    case LinkRead::Status::error:
+      r.status = Reply::Status::link_down;
+      r.text = read.error.message();
+      co_return r;
+  }
+  co_return r;
+}
+
+std::size_t CopleyFamily::estimate_wire_chars(const NodeAddress& node,
+                                              const Request& request) const {
+  const std::size_t request_chars =
+      copley::encode_command(node.number, node.axis, request.command).size();
+  // A typical reply: "v -2147483648\r" or "ok\r".
+  return request_chars + (request.expect == Request::Expect::values ? 14 : 3);
+}
+
+}  // namespace fieldgate

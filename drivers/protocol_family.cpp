@@ -1,0 +1,33 @@
+#include "drivers/protocol_family.hpp"
+
+namespace fieldgate {
+
+std::string_view to_string(Reply::Status status) {
+  switch (status) {
+    case Reply::Status::ok:
+      return "ok";
+    case Reply::Status::device_error:
+      return "device error";
+    case Reply::Status::unreachable:
+      return "unreachable";
+    case Reply::Status::timeout:
+      return "timeout";
+    case Reply::Status::garbled:
+      return "garbled reply";
+    case Reply::Status::link_down:
+      return "link down";
+  }
+  return "?";
+}
+
+void ProtocolFamily::validate_model(const Model&, Diagnostics&) const {}
+
+asio::awaitable<void> ProtocolFamily::on_link_open(Link&, const LinkTiming&) {
+  co_return;
+}
+
+std::size_t ProtocolFamily::estimate_wire_chars(const NodeAddress&, const Request& request) const {
+  return request.command.size() + 16;
+}
+
+}  // namespace fieldgate

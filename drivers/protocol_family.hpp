@@ -1,0 +1,73 @@
+#pragma once
+
+#include <boost/asio/awaitable.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "drivers/link.hpp"
+#include "mapping/diagnostics.hpp"
+#include "mapping/model.hpp"
+
+namespace fieldgate {
+
+// A node's place on its bus, canonicalised by the family from the config's `address`.
+struct NodeAddress {
+  std::string text;  // canonical form, for logs and maps
+  int number = 0;    // node ID, unit number, device number
+  char axis = 0;     // axis letter where the family has one, else 0
+};
+
+struct Request {
+  enum class Expect { ack, values };
+  std::string command;  // rendered command, without addressing
+  Expect expect = Expect::ack;
+  NumberFormat format = NumberFormat::decimal;
+};
+
+struct Reply {
+  enum class Status {
+    ok,            // acknowledged (and values, for a read)
+    device_error,  // the controller refused: code and text say why
+    unreachable,   // a forwarding node says the target does not answer
+    timeout,       // nothing, or nothing complete, within the reply timeout
+    garbled,       // bytes arrived that are not a valid reply to this request
+    link_down,     // the transport failed
+  };
+  Status status = Status::timeout;
+  std::vector<int64_t> values;
+  int64_t device_code = 0;
+  std::string text;  // error text, or the offending bytes for garbled replies
+};
+
+std::string_view to_string(Reply::Status status);
+
+// A protocol family: addressing, framing and reply grammar of one controller family. The codec
+// parts are pure functions tested against the manuals' transcripts; transact() glues them to a
+// Link for one request/reply exchange.
+class ProtocolFamily {
+ public:
+  virtual ~ProtocolFamily() = default;
+  virtual std::string_view name() const = 0;
+  virtual std::optional<NodeAddress> parse_address(std::string_view text,
+                                                   std::string& error) const = 0;
+  // Family-specific checks of a model once its family is known.
+  virtual void validate_model(const Model& model, Diagnostics& diagnostics) const;
+  // Runs every time the transport (re)opens, before the first transaction.
+  virtual asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing);
+  virtual asio::awaitable<Reply> transact(Link& link, const NodeAddress& node,
+                                          const Request& request, const LinkTiming& timing) = 0;
+  // Characters on the wire for a request and its typical reply (poll budget estimate).
+  virtual std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const;
+};
+
+using FamilyPtr = std::shared_ptr<ProtocolFamily>;
+
+FamilyPtr make_family(std::string_view name);
+std::vector<std::string> family_names();
+
+}  // namespace fieldgate

@@ -1,0 +1,36 @@
+#pragma once
+
+#include <boost/asio/awaitable.hpp>
+#include <boost/asio/buffer.hpp>
+
+#include <cstddef>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <utility>
+
+namespace fieldgate {
+
+namespace asio = boost::asio;
+
+// A byte stream to one field link: a serial port or a serial device server's TCP socket.
+// Only the bus that owns it calls it, one operation at a time.
+class ByteTransport {
+ public:
+  virtual ~ByteTransport() = default;
+  virtual asio::awaitable<std::error_code> open() = 0;
+  virtual void close() = 0;
+  virtual bool is_open() const = 0;
+  virtual asio::awaitable<std::error_code> write(std::string_view bytes) = 0;
+  // Completes when at least one byte arrived; cancellable through the awaiting coroutine's
+  // cancellation slot, so `read_some(...) || timer` works.
+  virtual asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
+      asio::mutable_buffer buffer) = 0;
+  // Drops whatever the OS has buffered but nobody read yet.
+  virtual void discard_input() = 0;
+  virtual std::string describe() const = 0;
+  // Wire time of one character in microseconds (0 when unknown, e.g. TCP).
+  virtual double char_time_us() const = 0;
+};
+
+}  // namespace fieldgate

@@ -1,0 +1,75 @@
+#include "drivers/transport/serial_transport.hpp"
+
+#include <fmt/format.h>
+#include <termios.h>
+
+#include <boost/asio/as_tuple.hpp>
+#include <boost/asio/use_awaitable.hpp>
+#include <boost/asio/write.hpp>
+
+namespace fieldgate {
+
+namespace {
+constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
+}
+
+double serial_char_time_us(const SerialSettings& s) {
+  const unsigned bits = 1 + s.data_bits + (s.parity == 'N' ? 0 : 1) + s.stop_bits;
+  return s.baud == 0 ? 0.0 : 1e6 * bits / s.baud;
+}
+
+SerialTransport::SerialTransport(asio::any_io_executor executor, SerialSettings settings)
+    : settings_(std::move(settings)), port_(executor) {}
+
+asio::awaitable<std::error_code> SerialTransport::open() {
+  boost::system::error_code ec;
+  port_.open(settings_.device, ec);
+  if (ec) co_return std::error_code(ec.value(), std::generic_category());
+  using sp = asio::serial_port_base;
+  const sp::parity::type parity = settings_.parity == 'E'   ? sp::parity::even
+                                  : settings_.parity == 'O' ? sp::parity::odd
+                                                            : sp::parity::none;
+  port_.set_option(sp::baud_rate(settings_.baud), ec);
+  if (!ec) port_.set_option(sp::character_size(settings_.data_bits), ec);
+  if (!ec) port_.set_option(sp::parity(parity), ec);
+  if (!ec)
+    port_.set_option(
+        sp::stop_bits(settings_.stop_bits == 2 ? sp::stop_bits::two : sp::stop_bits::one), ec);
+  if (!ec) port_.set_option(sp::flow_control(sp::flow_control::none), ec);
+  if (ec) {
+    port_.close();
+    co_return std::error_code(ec.value(), std::generic_category());
+  }
+  ::tcflush(port_.native_handle(), TCIOFLUSH);
+  co_return std::error_code{};
+}
+
+void SerialTransport::close() {
+  boost::system::error_code ignored;
+  port_.close(ignored);
+}
+
+asio::awaitable<std::error_code> SerialTransport::write(std::string_view bytes) {
+  auto [ec, n] =
+      co_await asio::async_write(port_, asio::buffer(bytes.data(), bytes.size()), use_tuple);
+  (void)n;
+  co_return ec ? std::error_code(ec.value(), std::generic_category()) : std::error_code{};
+}
+
+asio::awaitable<std::pair<std::error_code, std::size_t>> SerialTransport::read_some(
+    asio::mutable_buffer buffer) {
+  auto [ec, n] = co_await port_.async_read_some(buffer, use_tuple);
+  co_return std::pair{ec ? std::error_code(ec.value(), std::generic_category()) : std::error_code{},
+                      n};
+}
+
+void SerialTransport::discard_input() {
+  if (port_.is_open()) ::tcflush(port_.native_handle(), TCIFLUSH);
+}
+
+std::string SerialTransport::describe() const {
+  return fmt::format("{} {} {}{}{}", settings_.device, settings_.baud, settings_.data_bits,
+                     settings_.parity, settings_.stop_bits);
+}
+
+}  // namespace fieldgate

@@ -1,0 +1,39 @@
+#pragma once
+
+#include <boost/asio/any_io_executor.hpp>
+#include <boost/asio/serial_port.hpp>
+
+#include "drivers/transport/byte_transport.hpp"
+
+namespace fieldgate {
+
+struct SerialSettings {
+  std::string device;
+  unsigned baud = 9600;
+  unsigned data_bits = 8;
+  char parity = 'N';  // N, E, O
+  unsigned stop_bits = 1;
+};
+
+double serial_char_time_us(const SerialSettings& settings);
+
+class SerialTransport final : public ByteTransport {
+ public:
+  SerialTransport(asio::any_io_executor executor, SerialSettings settings);
+
+  asio::awaitable<std::error_code> open() override;
+  void close() override;
+  bool is_open() const override { return port_.is_open(); }
+  asio::awaitable<std::error_code> write(std::string_view bytes) override;
+  asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
+      asio::mutable_buffer buffer) override;
+  void discard_input() override;
+  std::string describe() const override;
+  double char_time_us() const override { return serial_char_time_us(settings_); }
+
+ private:
+  SerialSettings settings_;
+  asio::serial_port port_;
+};
+
+}  // namespace fieldgate

@@ -1,0 +1,337 @@
+#include "gateway/bus_runtime.hpp"
+
+#include <boost/asio/as_tuple.hpp>
+#include <boost/asio/use_awaitable.hpp>
+
+#include <algorithm>
+
+#include "drivers/transport/serial_transport.hpp"
+#include "drivers/transport/tcp_transport.hpp"
+#include "gateway/log.hpp"
+
+namespace fieldgate {
+
+namespace {
+constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
+using Clock = std::chrono::steady_clock;
+
+std::unique_ptr<ByteTransport> make_transport(asio::any_io_executor ex, const TransportConfig& t) {
+  if (t.kind == TransportConfig::Kind::tcp)
+    return std::make_unique<TcpTransport>(ex, t.host, t.port, serial_char_time_us(t.serial));
+  return std::make_unique<SerialTransport>(ex, t.serial);
+}
+}  // namespace
+
+struct BusRuntime::PendingCommand {
+  PendingCommand(asio::any_io_executor ex) : done(ex, 1) {}
+  int node = 0;
+  Request request;
+  CommandOptions options;
+  asio::experimental::channel<void(boost::system::error_code, Reply)> done;
+};
+
+BusRuntime::BusRuntime(asio::any_io_executor executor, const BusConfig& config,
+                       int first_node_index, ProcessImage& image, NodeUpdated on_update)
+    : executor_(executor),
+      config_(config),
+      first_node_index_(first_node_index),
+      image_(image),
+      on_update_(std::move(on_update)),
+      transport_(make_transport(executor, config.transport)),
+      link_(*transport_),
+      wake_(executor) {
+  int index = first_node_index;
+  for (const auto& n : config.nodes) {
+    NodeRuntime rt;
+    rt.index = index;
+    rt.config = &n;
+    nodes_.push_back(rt);
+    auto& img = image_.node(index);
+    img.points.assign(n.model->points.size(), {});
+    img.setpoints.clear();
+    for (const auto& s : n.model->setpoints) {
+      const auto it = n.setpoints.find(s.name);
+      img.setpoints.push_back(it != n.setpoints.end() ? it->second : s.default_value);
+    }
+    // One poll item per distinct request: points that share a reply share a transaction.
+    std::vector<PollItem> items;
+    for (std::size_t p = 0; p < n.model->points.size(); ++p) {
+      const auto& point = n.model->points[p];
+      if (!point.read || point.poll_class.empty()) continue;
+      const std::string command = point.read->request.source();
+      const auto period = n.period_of(point.poll_class);
+      auto existing = std::find_if(items.begin(), items.end(), [&](const PollItem& it) {
+        return it.request.command == command && it.period == period;
+      });
+      if (existing == items.end()) {
+        PollItem item;
+        item.node = index;
+        item.request = Request{command, Request::Expect::values, point.read->format};
+        item.period = period;
+        items.push_back(std::move(item));
+        existing = std::prev(items.end());
+      }
+      existing->targets.push_back({static_cast<int>(p), point.read->field});
+    }
+    for (auto& it : items) plan_.add(std::move(it));
+    ++index;
+  }
+}
+
+BusRuntime::~BusRuntime() = default;
+
+bool BusRuntime::owns_node(int node_index) const {
+  return node_index >= first_node_index_ &&
+         node_index < first_node_index_ + static_cast<int>(nodes_.size());
+}
+
+const NodeConfig& BusRuntime::node_config(int node_index) const {
+  return *nodes_.at(static_cast<std::size_t>(node_index - first_node_index_)).config;
+}
+
+BusRuntime::NodeRuntime& BusRuntime::node(int node_index) {
+  return nodes_.at(static_cast<std::size_t>(node_index - first_node_index_));
+}
+
+void BusRuntime::stop() {
+  stopping_ = true;
+  wake_.cancel();
+  transport_->close();
+}
+
+asio::awaitable<Reply> BusRuntime::submit(int node_index, Request request, CommandOptions options) {
+  auto& n = node(node_index);
+  if (image_.node(n.index).state == NodeState::offline || !transport_->is_open()) {
+    Reply r;
+    r.status = Reply::Status::unreachable;
+    r.text = transport_->is_open() ? "node is offline" : "bus link is down";
+    co_return r;
+  }
+  auto cmd = std::make_shared<PendingCommand>(executor_);
+  cmd->node = node_index;
+  cmd->request = std::move(request);
+  cmd->options = options;
+  commands_.push_back(cmd);
+  wake_.cancel();
+  auto [ec, reply] = co_await cmd->done.async_receive(use_tuple);
+  if (ec) {
+    Reply r;
+    r.status = Reply::Status::link_down;
+    r.text = "gateway stopping";
+    co_return r;
+  }
+  co_return reply;
+}
+
+void BusRuntime::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
+  auto& img = image_.node(n.index);
+  if (img.state == state) return;
+  const auto old = img.state;
+  img.state = state;
+  if (state == NodeState::online) {
+    log::notice("bus {}: node {} ({}) online{}", config_.name, n.config->name,
+                n.config->address.text, old == NodeState::offline ? " again" : "");
+    plan_.restart_node(n.index, Clock::now());
+  } else if (state == NodeState::offline) {
+    log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name,
+                 n.config->address.text, why);
+    n.next_probe = Clock::now() + config_.timing.probe_interval;
+  }
+}
+
+void BusRuntime::all_nodes_offline(std::string_view why) {
+  for (auto& n : nodes_) set_state(n, NodeState::offline, why);
+}
+
+void BusRuntime::record(NodeRuntime& n, const Reply& reply) {
+  auto& c = image_.node(n.index).counters;
+  switch (reply.status) {
+    case Reply::Status::ok:
+      c.consecutive_timeouts = 0;
+      c.last_good = Clock::now();
+      c.ever_good = true;
+      set_state(n, NodeState::online, {});
+      break;
+    case Reply::Status::device_error:
+      // The node answered, so it is there; the error belongs to the command.
+      c.consecutive_timeouts = 0;
+      ++c.errors;
+      ++counters_.errors;
+      c.last_device_error = reply.device_code;
+      c.last_error_text = reply.text;
+      set_state(n, NodeState::online, {});
+      break;
+    case Reply::Status::garbled:
+      ++c.errors;
+      ++counters_.errors;
+      c.last_error_text = reply.text;
+      break;
+    case Reply::Status::timeout:
+    case Reply::Status::unreachable:
+    case Reply::Status::link_down:
+      ++c.timeouts;
+      ++counters_.timeouts;
+      ++c.consecutive_timeouts;
+      c.last_error_text = reply.text;
+      if (c.consecutive_timeouts >= static_cast<uint32_t>(config_.timing.offline_after) ||
+          image_.node(n.index).state == NodeState::offline)
+        set_state(n, NodeState::offline,
+                  reply.status == Reply::Status::unreachable ? reply.text : "no reply");
+      break;
+  }
+}
+
+asio::awaitable<Reply> BusRuntime::transact(NodeRuntime& n, const Request& request, int retries,
+                                            bool accept_no_reply) {
+  Reply reply;
+  for (int attempt = 0; attempt <= retries; ++attempt) {
+    if (attempt > 0) {
+      ++counters_.retries;
+      ++image_.node(n.index).counters.retries;
+    }
+    reply =
+        co_await config_.family->transact(link_, n.config->address, request, config_.timing.link);
+    ++counters_.transactions;
+    ++image_.node(n.index).counters.transactions;
+    if (accept_no_reply && reply.status == Reply::Status::timeout) {
+      reply.status = Reply::Status::ok;
+      break;
+    }
+    if (reply.status == Reply::Status::link_down) break;
+    if (reply.status != Reply::Status::timeout && reply.status != Reply::Status::garbled) break;
+    if (attempt < retries) record(n, reply);
+  }
+  record(n, reply);
+  if (reply.status == Reply::Status::link_down) {
+    log::error("bus {}: link failed: {}", config_.name, reply.text);
+    transport_->close();
+  }
+  co_await link_.pause(config_.timing.inter_frame_gap);
+  co_return reply;
+}
+
+asio::awaitable<void> BusRuntime::run_poll(std::size_t item_index) {
+  auto& item = plan_.item(item_index);
+  auto& n = node(item.node);
+  const bool probing = image_.node(n.index).state == NodeState::offline;
+  const Request request = item.request;
+  const auto targets = item.targets;
+  Reply reply = co_await transact(n, request, probing ? 0 : config_.timing.retries, false);
+  const auto now = Clock::now();
+  if (probing) {
+    n.next_probe = now + config_.timing.probe_interval;
+  } else {
+    plan_.completed(item_index, now);
+  }
+  if (reply.status != Reply::Status::ok) co_return;
+  auto& img = image_.node(n.index);
+  for (const auto& t : targets) {
+    if (t.field >= static_cast<int>(reply.values.size())) {
+      ++img.counters.errors;
+      img.counters.last_error_text = "reply has fewer values than the model expects";
+      continue;
+    }
+    img.points[static_cast<std::size_t>(t.point)] = {
+        reply.values[static_cast<std::size_t>(t.field)], now, true};
+  }
+  if (on_update_) on_update_(n.index);
+}
+
+asio::awaitable<void> BusRuntime::open_link() {
+  auto delay = config_.timing.reconnect_min;
+  while (!stopping_) {
+    const auto ec = co_await transport_->open();
+    if (!ec) {
+      counters_.link_up = true;
+      ++counters_.reconnects;
+      log::notice("bus {}: opened {}", config_.name, transport_->describe());
+      link_error_logged_ = false;
+      co_await config_.family->on_link_open(link_, config_.timing.link);
+      for (auto& n : nodes_)
+        if (image_.node(n.index).state == NodeState::offline) n.next_probe = Clock::now();
+      co_return;
+    }
+    counters_.link_up = false;
+    if (!link_error_logged_) {
+      log::error(
+          "bus {}: cannot open {}: {} (retrying with back-off up to {} s)", config_.name,
+          transport_->describe(), ec.message(),
+          std::chrono::duration_cast<std::chrono::seconds>(config_.timing.reconnect_max).count());
+      link_error_logged_ = true;
+    }
+    all_nodes_offline("bus link is down");
+    while (!commands_.empty()) {
+      Reply r;
+      r.status = Reply::Status::unreachable;
+      r.text = "bus link is down";
+      commands_.front()->done.try_send(boost::system::error_code{}, r);
+      commands_.pop_front();
+    }
+    wake_.expires_after(delay);
+    co_await wake_.async_wait(use_tuple);
+    delay = std::min(delay * 2, config_.timing.reconnect_max);
+  }
+}
+
+asio::awaitable<void> BusRuntime::run() {
+  plan_.start(Clock::now());
+  while (!stopping_) {
+    if (!transport_->is_open()) {
+      counters_.link_up = false;
+      co_await open_link();
+      continue;
+    }
+    if (!commands_.empty()) {
+      auto cmd = commands_.front();
+      commands_.pop_front();
+      ++counters_.commands;
+      auto& n = node(cmd->node);
+      Reply reply;
+      if (image_.node(n.index).state == NodeState::offline) {
+        reply.status = Reply::Status::unreachable;
+        reply.text = "node is offline";
+      } else {
+        // Commands are not retried: a lost reply may hide a command the device already ran.
+        reply = co_await transact(n, cmd->request, 0, cmd->options.accept_no_reply);
+      }
+      cmd->done.try_send(boost::system::error_code{}, std::move(reply));
+      continue;
+    }
+    const auto now = Clock::now();
+    auto due = plan_.next(
+        [&](int node_index) { return image_.node(node_index).state != NodeState::offline; });
+    std::optional<std::size_t> probe;
+    SteadyTime probe_when = SteadyTime::max();
+    for (auto& n : nodes_) {
+      if (image_.node(n.index).state != NodeState::offline) continue;
+      if (n.next_probe < probe_when) {
+        if (auto item = plan_.probe_item(n.index)) {
+          probe = item;
+          probe_when = n.next_probe;
+        }
+      }
+    }
+    std::optional<std::size_t> chosen;
+    SteadyTime when = SteadyTime::max();
+    if (due) {
+      chosen = due->item;
+      when = due->when;
+    }
+    if (probe && probe_when < when) {
+      chosen = probe;
+      when = probe_when;
+    }
+    if (chosen && when <= now) {
+      co_await run_poll(*chosen);
+      continue;
+    }
+    wake_.expires_at(when);
+    co_await wake_.async_wait(use_tuple);
+  }
+  while (!commands_.empty()) {
+    commands_.front()->done.try_send(asio::error::operation_aborted, Reply{});
+    commands_.pop_front();
+  }
+}
+
+}  // namespace fieldgate

@@ -1,0 +1,93 @@
+#pragma once
+
+#include <boost/asio/any_io_executor.hpp>
+#include <boost/asio/awaitable.hpp>
+#include <boost/asio/experimental/channel.hpp>
+#include <boost/asio/steady_timer.hpp>
+
+#include <deque>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "drivers/link.hpp"
+#include "drivers/protocol_family.hpp"
+#include "drivers/transport/byte_transport.hpp"
+#include "gateway/gateway_config.hpp"
+#include "gateway/poll_plan.hpp"
+#include "gateway/process_image.hpp"
+
+namespace fieldgate {
+
+struct CommandOptions {
+  bool accept_no_reply = false;  // silence counts as success (e.g. a reset)
+};
+
+struct BusCounters {
+  uint64_t transactions = 0;
+  uint64_t timeouts = 0;
+  uint64_t errors = 0;
+  uint64_t retries = 0;
+  uint64_t reconnects = 0;
+  uint64_t commands = 0;
+  bool link_up = false;
+};
+
+// Owns one field link: the only coroutine that touches its transport. Serialises commands from
+// Modbus writes (first) with polls (spread over time), one transaction in flight.
+class BusRuntime {
+ public:
+  using NodeUpdated = std::function<void(int node_index)>;
+
+  BusRuntime(asio::any_io_executor executor, const BusConfig& config, int first_node_index,
+             ProcessImage& image, NodeUpdated on_update);
+  ~BusRuntime();
+
+  // Runs until stop(); spawn it on the io_context.
+  asio::awaitable<void> run();
+  void stop();
+
+  // Queues a command ahead of polls and returns its reply once the device answered (or failed).
+  // A command for an offline node fails at once as unreachable.
+  asio::awaitable<Reply> submit(int node_index, Request request, CommandOptions options = {});
+
+  const BusConfig& config() const { return config_; }
+  const BusCounters& counters() const { return counters_; }
+  const LinkStats& link_stats() const { return link_.stats(); }
+  bool owns_node(int node_index) const;
+  const NodeConfig& node_config(int node_index) const;
+
+ private:
+  struct PendingCommand;
+  struct NodeRuntime {
+    int index = 0;
+    const NodeConfig* config = nullptr;
+    SteadyTime next_probe{};
+  };
+
+  asio::awaitable<void> open_link();
+  asio::awaitable<Reply> transact(NodeRuntime& node, const Request& request, int retries,
+                                  bool accept_no_reply);
+  asio::awaitable<void> run_poll(std::size_t item_index);
+  void record(NodeRuntime& node, const Reply& reply);
+  void set_state(NodeRuntime& node, NodeState state, std::string_view why);
+  void all_nodes_offline(std::string_view why);
+  NodeRuntime& node(int node_index);
+
+  asio::any_io_executor executor_;
+  const BusConfig& config_;
+  int first_node_index_;
+  ProcessImage& image_;
+  NodeUpdated on_update_;
+  std::unique_ptr<ByteTransport> transport_;
+  Link link_;
+  PollPlan plan_;
+  std::vector<NodeRuntime> nodes_;
+  std::deque<std::shared_ptr<PendingCommand>> commands_;
+  asio::steady_timer wake_;
+  BusCounters counters_;
+  bool stopping_ = false;
+  bool link_error_logged_ = false;
+};
+
+}  // namespace fieldgate

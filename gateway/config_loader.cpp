@@ -1,0 +1,387 @@
+#include "gateway/config_loader.hpp"
+
+#include <fmt/format.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <set>
+
+#include "gateway/poll_budget.hpp"
+#include "mapping/model_loader.hpp"
+#include "mapping/yaml_reader.hpp"
+
+namespace fieldgate {
+
+microseconds NodeConfig::period_of(const std::string& poll_class) const {
+  if (const auto it = poll_periods.find(poll_class); it != poll_periods.end()) return it->second;
+  if (const auto* c = model->find_poll_class(poll_class)) return c->period;
+  return microseconds{0};
+}
+
+std::vector<NodeBinding> GatewayConfig::node_bindings() const {
+  std::vector<NodeBinding> bindings;
+  int index = 0;
+  for (const auto& bus : buses)
+    for (const auto& node : bus.nodes)
+      bindings.push_back({node.unit_id, index++, node.name, bus.name, node.model});
+  return bindings;
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+class ConfigParser {
+ public:
+  ConfigParser(YamlReader& reader) : r_(reader) {}
+
+  std::optional<GatewayConfig> parse(const YAML::Node& root) {
+    if (!root.IsDefined()) return std::nullopt;
+    if (!r_.expect_map(root, "gateway configuration")) return std::nullopt;
+    r_.reject_unknown_keys(root, {"modbus", "models", "buses"}, "gateway configuration");
+    GatewayConfig config;
+    config.file = r_.file();
+    if (root["modbus"]) parse_modbus(root["modbus"], config.modbus);
+    parse_model_dirs(root["models"], config);
+    for (const auto& dir : config.model_dirs) library_.load_directory(dir, r_.diagnostics());
+    if (auto buses = r_.require(root, "buses", "gateway configuration");
+        buses && r_.expect_sequence(*buses, "buses")) {
+      for (const auto& bus : *buses) parse_bus(bus, config);
+    }
+    return config;
+  }
+
+ private:
+  // ${NAME} is replaced by the environment variable, so one config serves several machines.
+  std::optional<std::string> expand(const YAML::Node& node, std::string_view what) {
+    auto text = r_.string(node, what);
+    if (!text) return std::nullopt;
+    std::string out;
+    for (size_t i = 0; i < text->size(); ++i) {
+      if ((*text)[i] == '$' && i + 1 < text->size() && (*text)[i + 1] == '{') {
+        const auto close = text->find('}', i);
+        if (close == std::string::npos) {
+          r_.error(node, fmt::format("{}: unterminated ${{ in '{}'", what, *text));
+          return std::nullopt;
+        }
+        const std::string name = text->substr(i + 2, close - i - 2);
+        const char* value = std::getenv(name.c_str());
+        if (!value) {
+          r_.error(node, fmt::format("{}: environment variable {} is not set", what, name));
+          return std::nullopt;
+        }
+        out += value;
+        i = close;
+      } else {
+        out += (*text)[i];
+      }
+    }
+    return out;
+  }
+
+  void parse_modbus(const YAML::Node& node, ModbusConfig& m) {
+    if (!r_.expect_map(node, "modbus")) return;
+    r_.reject_unknown_keys(
+        node,
+        {"listen", "max_clients", "idle_timeout", "word_order", "offline_reads", "writes_enabled"},
+        "modbus");
+    if (const auto listen = node["listen"]) {
+      if (auto text = r_.string(listen, "modbus listen")) {
+        // host:port, [v6]:port
+        const auto colon = text->rfind(':');
+        std::optional<int64_t> port;
+        if (colon != std::string::npos) port = parse_integer_text(text->substr(colon + 1));
+        if (!port || *port < 1 || *port > 65535) {
+          r_.error(listen, fmt::format("modbus listen: expected ADDRESS:PORT such as "
+                                       "127.0.0.1:1502 or [::]:502, found '{}'",
+                                       *text));
+        } else {
+          std::string host = text->substr(0, colon);
+          if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+            host = host.substr(1, host.size() - 2);
+          m.address = host.empty() ? "0.0.0.0" : host;
+          m.port = static_cast<uint16_t>(*port);
+        }
+      }
+    }
+    if (node["max_clients"])
+      m.max_clients = static_cast<std::size_t>(
+          r_.integer(node["max_clients"], "modbus max_clients", 1, 1024).value_or(32));
+    if (node["idle_timeout"])
+      m.idle_timeout =
+          r_.duration(node["idle_timeout"], "modbus idle_timeout").value_or(m.idle_timeout);
+    if (const auto wo = node["word_order"]) {
+      auto text = r_.string(wo, "modbus word_order");
+      if (text) {
+        if (auto order = parse_word_order(*text))
+          m.word_order = *order;
+        else
+          r_.error(wo, fmt::format("modbus word_order: expected high_first or low_first, found "
+                                   "'{}'",
+                                   *text));
+      }
+    }
+    if (const auto o = node["offline_reads"]) {
+      auto text = r_.string(o, "modbus offline_reads");
+      if (text && *text == "exception")
+        m.offline_reads = OfflineReads::exception;
+      else if (text && *text == "last_value")
+        m.offline_reads = OfflineReads::last_value;
+      else if (text)
+        r_.error(o, fmt::format("modbus offline_reads: expected exception or last_value, found "
+                                "'{}'",
+                                *text));
+    }
+    if (node["writes_enabled"])
+      m.writes_enabled = r_.boolean(node["writes_enabled"], "modbus writes_enabled").value_or(true);
+  }
+
+  void parse_model_dirs(const YAML::Node& node, GatewayConfig& config) {
+    const fs::path base = fs::path(r_.file()).parent_path();
+    auto add = [&](const YAML::Node& item) {
+      if (auto dir = expand(item, "models")) {
+        fs::path p(*dir);
+        if (p.is_relative()) p = base / p;
+        config.model_dirs.push_back(p.lexically_normal().string());
+      }
+    };
+    if (!node) {
+      config.model_dirs.push_back((base / "models").lexically_normal().string());
+    } else if (node.IsScalar()) {
+      add(node);
+    } else if (r_.expect_sequence(node, "models")) {
+      for (const auto& item : node) add(item);
+    }
+  }
+
+  void parse_timing(const YAML::Node& node, BusTiming& t, const std::string& where) {
+    if (!r_.expect_map(node, where)) return;
+    r_.reject_unknown_keys(
+        node,
+        {"reply_timeout", "byte_timeout", "inter_frame_gap", "turnaround", "retries",
+         "offline_after", "probe_interval", "reconnect_min", "reconnect_max"},
+        where);
+    auto dur = [&](const char* key, microseconds& out) {
+      if (node[key]) out = r_.duration(node[key], where + " " + key).value_or(out);
+    };
+    dur("reply_timeout", t.link.reply_timeout);
+    dur("byte_timeout", t.link.byte_timeout);
+    dur("inter_frame_gap", t.inter_frame_gap);
+    dur("turnaround", t.turnaround);
+    dur("probe_interval", t.probe_interval);
+    dur("reconnect_min", t.reconnect_min);
+    dur("reconnect_max", t.reconnect_max);
+    if (node["retries"])
+      t.retries =
+          static_cast<int>(r_.integer(node["retries"], where + " retries", 0, 10).value_or(1));
+    if (node["offline_after"])
+      t.offline_after = static_cast<int>(
+          r_.integer(node["offline_after"], where + " offline_after", 1, 100).value_or(3));
+    if (t.link.reply_timeout.count() <= 0)
+      r_.error(node["reply_timeout"], where + " reply_timeout: must be greater than 0");
+    if (t.link.byte_timeout.count() <= 0)
+      r_.error(node["byte_timeout"], where + " byte_timeout: must be greater than 0");
+    if (t.reconnect_max < t.reconnect_min)
+      r_.error(node, where + ": reconnect_max is smaller than reconnect_min");
+  }
+
+  void parse_serial(const YAML::Node& node, SerialSettings& s, const std::string& where,
+                    bool device_required) {
+    if (!r_.expect_map(node, where)) return;
+    if (device_required)
+      r_.reject_unknown_keys(node, {"device", "baud", "data_bits", "parity", "stop_bits"}, where);
+    if (device_required) {
+      if (auto d = r_.require(node, "device", where))
+        if (auto text = expand(*d, where + " device")) s.device = *text;
+    }
+    if (node["baud"])
+      s.baud = static_cast<unsigned>(
+          r_.integer(node["baud"], where + " baud", 50, 4000000).value_or(9600));
+    if (node["data_bits"])
+      s.data_bits = static_cast<unsigned>(
+          r_.integer(node["data_bits"], where + " data_bits", 5, 8).value_or(8));
+    if (node["stop_bits"])
+      s.stop_bits = static_cast<unsigned>(
+          r_.integer(node["stop_bits"], where + " stop_bits", 1, 2).value_or(1));
+    if (const auto p = node["parity"]) {
+      auto text = r_.string(p, where + " parity");
+      if (text && (*text == "none" || *text == "N"))
+        s.parity = 'N';
+      else if (text && (*text == "even" || *text == "E"))
+        s.parity = 'E';
+      else if (text && (*text == "odd" || *text == "O"))
+        s.parity = 'O';
+      else if (text)
+        r_.error(p, fmt::format("{} parity: expected none, even or odd, found '{}'", where, *text));
+    }
+  }
+
+  void parse_bus(const YAML::Node& node, GatewayConfig& config) {
+    if (!r_.expect_map(node, "bus")) return;
+    BusConfig bus;
+    bus.mark = r_.mark(node);
+    std::string where = "bus";
+    if (auto n = r_.require(node, "name", "bus"))
+      if (auto s = r_.string(*n, "bus name")) {
+        bus.name = *s;
+        where = "bus " + *s;
+        for (const auto& other : config.buses)
+          if (other.name == *s) r_.error(*n, fmt::format("{}: bus name is already used", where));
+      }
+    r_.reject_unknown_keys(node, {"name", "protocol", "serial", "tcp", "timing", "nodes"}, where);
+    if (auto p = r_.require(node, "protocol", where)) {
+      if (auto s = r_.string(*p, where + " protocol")) {
+        bus.protocol = *s;
+        bus.family = make_family(*s);
+        if (!bus.family) {
+          std::string known;
+          for (const auto& f : family_names()) known += (known.empty() ? "" : ", ") + f;
+          r_.error(*p, fmt::format("{}: unknown protocol '{}' (known: {})", where, *s, known));
+        }
+      }
+    }
+    const bool has_serial = static_cast<bool>(node["serial"]);
+    const bool has_tcp = static_cast<bool>(node["tcp"]);
+    if (has_serial == has_tcp) {
+      r_.error(node, fmt::format("{}: needs exactly one of 'serial' or 'tcp'", where));
+    } else if (has_serial) {
+      bus.transport.kind = TransportConfig::Kind::serial;
+      parse_serial(node["serial"], bus.transport.serial, where + " serial", true);
+    } else {
+      const auto tcp = node["tcp"];
+      bus.transport.kind = TransportConfig::Kind::tcp;
+      if (r_.expect_map(tcp, where + " tcp")) {
+        r_.reject_unknown_keys(tcp, {"host", "port", "baud", "data_bits", "parity", "stop_bits"},
+                               where + " tcp");
+        if (auto h = r_.require(tcp, "host", where + " tcp"))
+          bus.transport.host = expand(*h, where + " tcp host").value_or("");
+        if (auto p = r_.require(tcp, "port", where + " tcp"))
+          bus.transport.port =
+              static_cast<uint16_t>(r_.integer(*p, where + " tcp port", 1, 65535).value_or(0));
+        parse_serial(tcp, bus.transport.serial, where + " tcp", false);
+      }
+    }
+    if (node["timing"]) parse_timing(node["timing"], bus.timing, where + " timing");
+    if (auto nodes = r_.require(node, "nodes", where);
+        nodes && r_.expect_sequence(*nodes, where + " nodes")) {
+      for (const auto& n : *nodes) parse_node(n, bus, config, where);
+      if (nodes->size() == 0) r_.error(*nodes, where + ": has no nodes");
+    }
+    if (bus.family && r_.diagnostics().ok()) {
+      const auto budget = compute_poll_budget(bus);
+      if (budget.wire_seconds_per_second > 1.0)
+        config.warnings.push_back(fmt::format(
+            "{}: bus {}: the configured polls need {:.0f}% of the wire time at {} baud; poll "
+            "periods will stretch (raise the baud or lengthen the periods)",
+            to_string(bus.mark), bus.name, budget.wire_seconds_per_second * 100,
+            bus.transport.serial.baud));
+    }
+    config.buses.push_back(std::move(bus));
+  }
+
+  void parse_node(const YAML::Node& node, BusConfig& bus, GatewayConfig& config,
+                  const std::string& bus_where) {
+    if (!r_.expect_map(node, bus_where + " node")) return;
+    NodeConfig n;
+    n.mark = r_.mark(node);
+    std::string where = bus_where + " node";
+    if (auto name = r_.require(node, "name", where))
+      if (auto s = r_.string(*name, where + " name")) {
+        n.name = *s;
+        where = fmt::format("node {}", *s);
+        if (!node_names_.insert(*s).second)
+          r_.error(*name, fmt::format("{}: node name is already used", where));
+      }
+    r_.reject_unknown_keys(node, {"name", "address", "model", "unit_id", "poll", "setpoints"},
+                           where);
+    if (auto a = r_.require(node, "address", where)) {
+      if (auto text = r_.string(*a, where + " address"); text && bus.family) {
+        std::string error;
+        if (auto addr = bus.family->parse_address(*text, error)) {
+          n.address = *addr;
+          for (const auto& other : bus.nodes)
+            if (other.address.text == addr->text)
+              r_.error(*a, fmt::format("{}: address {} is already used by node {} on bus {}", where,
+                                       addr->text, other.name, bus.name));
+        } else {
+          r_.error(*a, fmt::format("{} address: {}", where, error));
+        }
+      }
+    }
+    if (auto m = r_.require(node, "model", where)) {
+      if (auto name = r_.string(*m, where + " model")) {
+        n.model = library_.find(*name);
+        if (!n.model) {
+          std::string known;
+          for (const auto& k : library_.names()) known += (known.empty() ? "" : ", ") + k;
+          r_.error(*m, fmt::format("{}: unknown model '{}' (models found: {})", where, *name,
+                                   known.empty() ? "none" : known));
+        } else if (bus.family && n.model->family != bus.protocol) {
+          r_.error(*m, fmt::format("{}: model {} is for family {}, but bus {} speaks {}", where,
+                                   *name, n.model->family, bus.name, bus.protocol));
+        } else if (bus.family && validated_.insert(n.model.get()).second) {
+          bus.family->validate_model(*n.model, r_.diagnostics());
+        }
+      }
+    }
+    if (auto u = r_.require(node, "unit_id", where)) {
+      if (auto id = r_.integer(*u, where + " unit_id", 1, 247)) {
+        n.unit_id = static_cast<uint8_t>(*id);
+        if (auto [it, fresh] = unit_ids_.emplace(n.unit_id, n.name); !fresh)
+          r_.error(
+              *u, fmt::format("{}: unit_id {} is already used by node {}", where, *id, it->second));
+      }
+    }
+    if (const auto poll = node["poll"]; poll && r_.expect_map(poll, where + " poll")) {
+      for (const auto& e : poll) {
+        const std::string cls = e.first.Scalar();
+        if (n.model && !n.model->find_poll_class(cls))
+          r_.error(e.first,
+                   fmt::format("{}: model {} has no poll class '{}'", where, n.model->name, cls));
+        if (auto d = r_.duration(e.second, where + " poll " + cls)) {
+          if (d->count() <= 0)
+            r_.error(e.second, fmt::format("{}: poll period must be greater than 0", where));
+          n.poll_periods[cls] = *d;
+        }
+      }
+    }
+    if (const auto sp = node["setpoints"]; sp && r_.expect_map(sp, where + " setpoints")) {
+      for (const auto& e : sp) {
+        const std::string name = e.first.Scalar();
+        const SetpointDef* def = n.model ? n.model->find_setpoint(name) : nullptr;
+        if (n.model && !def) {
+          r_.error(e.first,
+                   fmt::format("{}: model {} has no setpoint '{}'", where, n.model->name, name));
+          continue;
+        }
+        if (!def) continue;
+        const int64_t lo = def->min.value_or(min_value(def->type));
+        const int64_t hi = def->max.value_or(max_value(def->type));
+        if (auto v = r_.integer(e.second, where + " setpoint " + name, lo, hi))
+          n.setpoints[name] = *v;
+      }
+    }
+    (void)config;
+    bus.nodes.push_back(std::move(n));
+  }
+
+  YamlReader& r_;
+  ModelLibrary library_;
+  std::set<std::string> node_names_;
+  std::map<uint8_t, std::string> unit_ids_;
+  std::set<const Model*> validated_;
+};
+
+}  // namespace
+
+std::optional<LoadedConfig> load_gateway_config(const std::string& path, Diagnostics& diagnostics) {
+  YamlReader reader(path, diagnostics);
+  ConfigParser parser(reader);
+  auto gateway = parser.parse(reader.load_file());
+  if (!gateway || !diagnostics.ok()) return std::nullopt;
+  auto map = RegisterMap::build(gateway->node_bindings(), gateway->modbus.word_order, diagnostics);
+  if (!diagnostics.ok()) return std::nullopt;
+  return LoadedConfig{std::move(*gateway), std::move(map)};
+}
+
+}  // namespace fieldgate

@@ -1,0 +1,84 @@
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "drivers/link.hpp"
+#include "drivers/protocol_family.hpp"
+#include "drivers/transport/serial_transport.hpp"
+#include "mapping/diagnostics.hpp"
+#include "mapping/model.hpp"
+#include "mapping/register_map.hpp"
+#include "mapping/value_type.hpp"
+
+namespace fieldgate {
+
+using std::chrono::microseconds;
+
+enum class OfflineReads { exception, last_value };
+
+struct ModbusConfig {
+  std::string address = "0.0.0.0";
+  uint16_t port = 502;
+  std::size_t max_clients = 32;
+  microseconds idle_timeout{std::chrono::seconds(300)};
+  WordOrder word_order = WordOrder::high_first;
+  OfflineReads offline_reads = OfflineReads::exception;
+  bool writes_enabled = true;
+};
+
+struct BusTiming {
+  LinkTiming link;
+  microseconds inter_frame_gap{0};
+  microseconds turnaround{std::chrono::milliseconds(1)};  // expected device latency, for the budget
+  int retries = 1;
+  int offline_after = 3;
+  microseconds probe_interval{std::chrono::seconds(2)};
+  microseconds reconnect_min{std::chrono::milliseconds(500)};
+  microseconds reconnect_max{std::chrono::seconds(10)};
+};
+
+struct TransportConfig {
+  enum class Kind { serial, tcp };
+  Kind kind = Kind::serial;
+  SerialSettings serial;  // for tcp only baud and framing matter (wire time)
+  std::string host;
+  uint16_t port = 0;
+};
+
+struct NodeConfig {
+  std::string name;
+  NodeAddress address;
+  ModelPtr model;
+  uint8_t unit_id = 0;
+  std::map<std::string, microseconds> poll_periods;  // overrides of the model's classes
+  std::map<std::string, int64_t> setpoints;          // initial values, overriding defaults
+  SourceMark mark;
+
+  microseconds period_of(const std::string& poll_class) const;
+};
+
+struct BusConfig {
+  std::string name;
+  std::string protocol;
+  FamilyPtr family;
+  TransportConfig transport;
+  BusTiming timing;
+  std::vector<NodeConfig> nodes;
+  SourceMark mark;
+};
+
+struct GatewayConfig {
+  std::string file;
+  ModbusConfig modbus;
+  std::vector<std::string> model_dirs;
+  std::vector<BusConfig> buses;
+  std::vector<std::string> warnings;  // e.g. poll budgets that cannot be met
+
+  std::vector<NodeBinding> node_bindings() const;
+};
+
+}  // namespace fieldgate

@@ -1,0 +1,72 @@
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "mapping/register_map.hpp"
+
+namespace fieldgate {
+
+using SteadyTime = std::chrono::steady_clock::time_point;
+
+struct PointValue {
+  int64_t value = 0;
+  SteadyTime updated{};
+  bool valid = false;  // a good reply has been seen
+};
+
+enum class NodeState : uint16_t { starting = 0, online = 1, offline = 2 };
+std::string_view to_string(NodeState state);
+
+struct NodeCounters {
+  uint64_t transactions = 0;
+  uint64_t timeouts = 0;
+  uint64_t errors = 0;
+  uint64_t retries = 0;
+  uint32_t consecutive_timeouts = 0;
+  int64_t last_device_error = 0;
+  std::string last_error_text;
+  SteadyTime last_good{};
+  bool ever_good = false;
+};
+
+struct ActionState {
+  ActionStatus status = ActionStatus::idle;
+  uint16_t code = 0;
+  uint16_t error = 0;
+  uint16_t sequence = 0;
+  uint64_t generation = 0;  // a newer action supersedes the completion watch of an older one
+};
+
+// Action errors that are not device codes.
+inline constexpr uint16_t kActionErrorTimeout = 0xffff;
+inline constexpr uint16_t kActionErrorFailedCondition = 0xfffe;
+inline constexpr uint16_t kActionErrorUnreachable = 0xfffd;
+
+struct NodeImage {
+  std::vector<PointValue> points;  // by model point index
+  std::vector<int64_t> setpoints;  // by model setpoint index
+  NodeCounters counters;
+  NodeState state = NodeState::starting;
+  ActionState action;
+};
+
+// The latest value of every point with its time and quality, plus per-node diagnostics. Only
+// the io_context thread touches it, so it needs no locking.
+class ProcessImage {
+ public:
+  explicit ProcessImage(std::size_t node_count) : nodes_(node_count) {}
+  NodeImage& node(int index) { return nodes_.at(static_cast<std::size_t>(index)); }
+  const NodeImage& node(int index) const { return nodes_.at(static_cast<std::size_t>(index)); }
+  std::size_t size() const { return nodes_.size(); }
+
+  // The value of a diagnostic field as the Modbus map presents it.
+  int64_t diagnostic(int index, DiagnosticField field, SteadyTime now) const;
+
+ private:
+  std::vector<NodeImage> nodes_;
+};
+
+}  // namespace fieldgate

@@ -1,0 +1,201 @@
+#include "gateway/register_map_handler.hpp"
+
+#include "gateway/bus_runtime.hpp"
+#include "gateway/log.hpp"
+
+namespace fieldgate {
+
+using modbus::ExceptionCode;
+
+namespace {
+using Clock = std::chrono::steady_clock;
+
+Table to_table(modbus::RegisterTable t) {
+  return t == modbus::RegisterTable::holding_registers ? Table::holding_registers
+                                                       : Table::input_registers;
+}
+Table to_table(modbus::BitTable t) {
+  return t == modbus::BitTable::coils ? Table::coils : Table::discrete_inputs;
+}
+}  // namespace
+
+std::optional<ExceptionCode> exception_for(const Reply& reply) {
+  switch (reply.status) {
+    case Reply::Status::ok:
+      return std::nullopt;
+    case Reply::Status::device_error:
+      return ExceptionCode::server_device_failure;
+    case Reply::Status::unreachable:
+    case Reply::Status::timeout:
+    case Reply::Status::garbled:
+    case Reply::Status::link_down:
+      return ExceptionCode::gateway_target_failed;
+  }
+  return ExceptionCode::server_device_failure;
+}
+
+RegisterMapHandler::RegisterMapHandler(std::shared_ptr<const LoadedConfig> config,
+                                       ProcessImage& image, ActionRunner& actions, BusOf bus_of)
+    : config_(std::move(config)), image_(image), actions_(actions), bus_of_(std::move(bus_of)) {}
+
+std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit,
+                                                             const RegisterEntry& e,
+                                                             int64_t& value) const {
+  const auto& node = image_.node(unit.node_index);
+  switch (e.kind) {
+    case RegisterEntry::Kind::point:
+    case RegisterEntry::Kind::point_bit: {
+      const auto& pv = node.points[static_cast<std::size_t>(e.index)];
+      const bool offline = node.state != NodeState::online;
+      if (!pv.valid) return ExceptionCode::gateway_target_failed;
+      if (offline && config_->gateway.modbus.offline_reads == OfflineReads::exception)
+        return ExceptionCode::gateway_target_failed;
+      value = e.kind == RegisterEntry::Kind::point ? pv.value : ((pv.value >> e.bit) & 1);
+      return std::nullopt;
+    }
+    case RegisterEntry::Kind::setpoint:
+      value = node.setpoints[static_cast<std::size_t>(e.index)];
+      return std::nullopt;
+    case RegisterEntry::Kind::action_command:
+      value = node.action.code;
+      return std::nullopt;
+    case RegisterEntry::Kind::action_status:
+      value = static_cast<uint16_t>(node.action.status);
+      return std::nullopt;
+    case RegisterEntry::Kind::action_error:
+      value = node.action.error;
+      return std::nullopt;
+    case RegisterEntry::Kind::action_sequence:
+      value = node.action.sequence;
+      return std::nullopt;
+    case RegisterEntry::Kind::diagnostic:
+      value =
+          image_.diagnostic(unit.node_index, static_cast<DiagnosticField>(e.index), Clock::now());
+      return std::nullopt;
+  }
+  return ExceptionCode::server_device_failure;
+}
+
+modbus::ReadBitsResult RegisterMapHandler::read_bits(uint8_t unit_id, modbus::BitTable table,
+                                                     uint16_t address, uint16_t count) {
+  const UnitMap* unit = config_->register_map.unit(unit_id);
+  if (!unit) return ExceptionCode::gateway_path_unavailable;
+  std::vector<bool> bits;
+  bits.reserve(count);
+  for (uint32_t a = address; a < static_cast<uint32_t>(address) + count; ++a) {
+    const RegisterEntry* e = unit->find(to_table(table), static_cast<uint16_t>(a));
+    if (!e) return ExceptionCode::illegal_data_address;
+    int64_t value = 0;
+    if (auto ex = entry_value(*unit, *e, value)) return *ex;
+    bits.push_back(value != 0);
+  }
+  return bits;
+}
+
+modbus::ReadRegistersResult RegisterMapHandler::read_registers(uint8_t unit_id,
+                                                               modbus::RegisterTable table,
+                                                               uint16_t address, uint16_t count) {
+  const UnitMap* unit = config_->register_map.unit(unit_id);
+  if (!unit) return ExceptionCode::gateway_path_unavailable;
+  const WordOrder order = config_->register_map.word_order();
+  std::vector<uint16_t> words;
+  words.reserve(count);
+  uint32_t a = address;
+  const uint32_t end = static_cast<uint32_t>(address) + count;
+  while (a < end) {
+    const RegisterEntry* e = unit->find(to_table(table), static_cast<uint16_t>(a));
+    if (!e) return ExceptionCode::illegal_data_address;
+    int64_t value = 0;
+    if (auto ex = entry_value(*unit, *e, value)) return *ex;
+    const auto encoded = to_registers(e->type, value, order);
+    // A read may start or end inside a 32-bit value; it gets the words it covers.
+    for (uint32_t w = a - e->address; w < e->count && a < end; ++w, ++a)
+      words.push_back(encoded[w]);
+  }
+  return words;
+}
+
+asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
+    uint8_t unit_id, uint16_t address, std::span<const uint16_t> values) {
+  const UnitMap* unit = config_->register_map.unit(unit_id);
+  if (!unit) co_return ExceptionCode::gateway_path_unavailable;
+  const WordOrder order = config_->register_map.word_order();
+  const auto& modbus_config = config_->gateway.modbus;
+
+  // Check the whole request before anything reaches a controller.
+  struct Planned {
+    const RegisterEntry* entry;
+    int64_t value;
+  };
+  std::vector<Planned> plan;
+  const uint32_t end = static_cast<uint32_t>(address) + values.size();
+  for (uint32_t a = address; a < end;) {
+    const RegisterEntry* e = unit->find(Table::holding_registers, static_cast<uint16_t>(a));
+    if (!e || !e->writable) co_return ExceptionCode::illegal_data_address;
+    if (e->address != a || e->address + e->count > end)
+      co_return ExceptionCode::illegal_data_value;  // half of a 32-bit value
+    const int64_t value = from_registers(e->type, values.subspan(a - address, e->count), order);
+    if (!in_range(e->type, value)) co_return ExceptionCode::illegal_data_value;
+    std::optional<int64_t> min, max;
+    if (e->kind == RegisterEntry::Kind::point) {
+      const auto& p = unit->model->points[static_cast<std::size_t>(e->index)];
+      min = p.min;
+      max = p.max;
+    } else if (e->kind == RegisterEntry::Kind::setpoint) {
+      const auto& s = unit->model->setpoints[static_cast<std::size_t>(e->index)];
+      min = s.min;
+      max = s.max;
+    } else if (e->kind == RegisterEntry::Kind::action_command) {
+      if (!unit->model->find_action(static_cast<uint16_t>(value)))
+        co_return ExceptionCode::illegal_data_value;
+    }
+    if ((min && value < *min) || (max && value > *max)) co_return ExceptionCode::illegal_data_value;
+    if (!modbus_config.writes_enabled && e->kind != RegisterEntry::Kind::setpoint)
+      co_return ExceptionCode::illegal_function;
+    plan.push_back({e, value});
+    a += e->count;
+  }
+
+  auto& node = image_.node(unit->node_index);
+  for (const auto& [e, value] : plan) {
+    switch (e->kind) {
+      case RegisterEntry::Kind::setpoint:
+        node.setpoints[static_cast<std::size_t>(e->index)] = value;
+        break;
+      case RegisterEntry::Kind::point: {
+        const auto& p = unit->model->points[static_cast<std::size_t>(e->index)];
+        const int64_t v = value;
+        Request request{p.write->request.render([v](std::string_view) { return v; }),
+                        Request::Expect::ack, NumberFormat::decimal};
+        const Reply reply = co_await bus_of_(unit->node_index).submit(unit->node_index, request);
+        if (auto ex = exception_for(reply)) {
+          log::warning("unit {}: write of {} = {} failed: {}", unit_id, p.name, value,
+                       reply.text.empty() ? std::string(to_string(reply.status)) : reply.text);
+          co_return *ex;
+        }
+        if (p.readable()) {
+          auto& pv = node.points[static_cast<std::size_t>(e->index)];
+          pv = {value, Clock::now(), true};
+        }
+        break;
+      }
+      case RegisterEntry::Kind::action_command: {
+        const ActionDef* action = unit->model->find_action(static_cast<uint16_t>(value));
+        const Reply reply = co_await actions_.start(unit->node_index, unit->model, *action);
+        if (auto ex = exception_for(reply)) co_return *ex;
+        break;
+      }
+      default:
+        co_return ExceptionCode::illegal_data_address;
+    }
+  }
+  co_return modbus::WriteResult::success();
+}
+
+asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_coils(uint8_t unit_id, uint16_t,
+                                                                     std::vector<bool>) {
+  if (!config_->register_map.unit(unit_id)) co_return ExceptionCode::gateway_path_unavailable;
+  co_return ExceptionCode::illegal_data_address;
+}
+
+}  // namespace fieldgate

@@ -1,0 +1,46 @@
+#pragma once
+
+#include <functional>
+#include <memory>
+
+#include "gateway/action_runner.hpp"
+#include "gateway/config_loader.hpp"
+#include "gateway/modbus/request_handler.hpp"
+#include "gateway/process_image.hpp"
+
+namespace fieldgate {
+
+class BusRuntime;
+
+// Serves the register map: reads from the process image, writes confirmed through the buses.
+class RegisterMapHandler final : public modbus::RequestHandler {
+ public:
+  using BusOf = std::function<BusRuntime&(int node_index)>;
+
+  RegisterMapHandler(std::shared_ptr<const LoadedConfig> config, ProcessImage& image,
+                     ActionRunner& actions, BusOf bus_of);
+
+  modbus::ReadBitsResult read_bits(uint8_t unit, modbus::BitTable table, uint16_t address,
+                                   uint16_t count) override;
+  modbus::ReadRegistersResult read_registers(uint8_t unit, modbus::RegisterTable table,
+                                             uint16_t address, uint16_t count) override;
+  asio::awaitable<modbus::WriteResult> write_registers(uint8_t unit, uint16_t address,
+                                                       std::span<const uint16_t> values) override;
+  asio::awaitable<modbus::WriteResult> write_coils(uint8_t unit, uint16_t address,
+                                                   std::vector<bool> values) override;
+
+ private:
+  struct EntryValue;
+  std::optional<modbus::ExceptionCode> entry_value(const UnitMap& unit, const RegisterEntry& e,
+                                                   int64_t& value) const;
+
+  std::shared_ptr<const LoadedConfig> config_;
+  ProcessImage& image_;
+  ActionRunner& actions_;
+  BusOf bus_of_;
+};
+
+// How a bus reply answers a confirmed write: nullopt for success, else the exception.
+std::optional<modbus::ExceptionCode> exception_for(const Reply& reply);
+
+}  // namespace fieldgate

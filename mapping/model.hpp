@@ -1,0 +1,133 @@
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mapping/command_template.hpp"
+#include "mapping/diagnostics.hpp"
+#include "mapping/value_type.hpp"
+
+namespace fieldgate {
+
+// How a reply field is written on the wire; the family decodes it.
+enum class NumberFormat { decimal, hex, hex24 };
+
+// A CANopen object dictionary entry, for the canopen family.
+struct ObjectRef {
+  uint16_t index = 0;
+  uint8_t subindex = 0;
+  std::string data_type;  // CANopen data type name, e.g. INTEGER32
+};
+
+struct ReadSpec {
+  CommandTemplate request;  // without node addressing; the family adds it
+  int field = 0;            // which value of a multi-value reply
+  NumberFormat format = NumberFormat::decimal;
+  std::optional<ObjectRef> object;
+};
+
+struct WriteSpec {
+  CommandTemplate request;  // {value} is the value written
+  std::optional<ObjectRef> object;
+};
+
+struct BitDef {
+  std::string name;
+  int bit = 0;
+};
+
+struct PointDef {
+  std::string name;
+  std::string description;
+  ValueType type = ValueType::int32;
+  std::string units;
+  double scale = 1.0;  // engineering units per raw count, for documentation
+  std::optional<ReadSpec> read;
+  std::optional<WriteSpec> write;
+  std::string poll_class;  // empty: never polled (write-only)
+  std::vector<BitDef> bits;
+  std::optional<int64_t> min;
+  std::optional<int64_t> max;
+  SourceMark mark;
+
+  bool readable() const { return read.has_value(); }
+  bool writable() const { return write.has_value(); }
+  const BitDef* find_bit(const std::string& bit_name) const;
+};
+
+// A gateway-local parameter of actions (target, speed): written by the PLC, never sent on its
+// own, substituted into action steps.
+struct SetpointDef {
+  std::string name;
+  std::string description;
+  ValueType type = ValueType::int32;
+  std::string units;
+  double scale = 1.0;
+  int64_t default_value = 0;
+  std::optional<int64_t> min;
+  std::optional<int64_t> max;
+  SourceMark mark;
+};
+
+// done/failed test of an action against a polled point, optionally a single bit of it.
+struct Condition {
+  std::string point;
+  std::optional<int> bit;
+  int64_t equals = 0;
+};
+
+struct ActionStep {
+  enum class Kind { send, delay };
+  Kind kind = Kind::send;
+  CommandTemplate command;
+  std::chrono::microseconds duration{0};
+  // Device error codes that count as success for this step (e.g. Copley's e 32 after a remote
+  // reset), and whether no reply at all counts as success.
+  std::vector<int> accept_errors;
+  bool accept_no_reply = false;
+  SourceMark mark;
+};
+
+struct ActionDef {
+  std::string name;
+  std::string description;
+  uint16_t code = 0;  // written to the node's command register
+  std::vector<ActionStep> steps;
+  std::optional<Condition> done;
+  std::optional<Condition> failed;
+  std::chrono::microseconds timeout{std::chrono::seconds(30)};
+  bool bus_wide = false;  // affects every node on the bus (e.g. a broadcast stop)
+  SourceMark mark;
+};
+
+struct PollClassDef {
+  std::string name;
+  std::chrono::microseconds period{0};
+};
+
+struct Model {
+  std::string name;
+  std::string family;
+  std::string description;
+  std::vector<PollClassDef> poll_classes;
+  std::vector<PointDef> points;
+  std::vector<SetpointDef> setpoints;
+  std::vector<ActionDef> actions;
+  std::map<std::string, std::string> options;  // family-specific settings, validated by the family
+  SourceMark mark;
+
+  const PointDef* find_point(const std::string& point_name) const;
+  const SetpointDef* find_setpoint(const std::string& setpoint_name) const;
+  const ActionDef* find_action(const std::string& action_name) const;
+  const ActionDef* find_action(uint16_t code) const;
+  const PollClassDef* find_poll_class(const std::string& class_name) const;
+};
+
+using ModelPtr = std::shared_ptr<const Model>;
+
+}  // namespace fieldgate
