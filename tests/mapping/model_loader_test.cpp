@@ -1,0 +1,122 @@
+#include <gtest/gtest.h>
+
+#include "mapping/model_loader.hpp"
+
+namespace fieldgate {
+namespace {
+
+std::string first_error(const std::string& yaml) {
+  Diagnostics d;
+  load_model_text(yaml, "m.yaml", d);
+  return d.ok() ? std::string("no error")
+                : d.errors().front().message + " @" + std::to_string(d.errors().front().mark.line) +
+                      ":" + std::to_string(d.errors().front().mark.column);
+}
+
+constexpr const char* kHeader = "model: m\nfamily: copley-ascii\npoll_classes: {fast: 100ms}\n";
+
+TEST(ModelLoader, ShippedCopleyModelLoadsClean) {
+  Diagnostics d;
+  auto m = load_model_file(FIELDGATE_SOURCE_DIR "/config/models/copley-amplifier.yaml", d);
+  ASSERT_TRUE(d.ok()) << d.to_text();
+  ASSERT_TRUE(m);
+  EXPECT_EQ(m->family, "copley-ascii");
+  const auto* status = m->find_point("event_status");
+  ASSERT_TRUE(status);
+  ASSERT_TRUE(status->find_bit("in_motion"));
+  EXPECT_EQ(status->find_bit("in_motion")->bit, 27);
+  const auto* move = m->find_action("move_absolute");
+  ASSERT_TRUE(move);
+  ASSERT_TRUE(move->done);
+  EXPECT_EQ(move->done->bit, 27);
+  // Every action of issue 2 is there.
+  for (const char* a :
+       {"enable", "disable", "move_absolute", "move_relative", "home", "abort", "clear_faults"})
+    EXPECT_TRUE(m->find_action(a)) << a;
+}
+
+TEST(ModelLoader, UnknownKeyNamesLineColumnAndAlternatives) {
+  const auto e = first_error(std::string(kHeader) +
+                             "points:\n  p:\n    type: int32\n    red: g r0x32\n    poll: fast\n");
+  EXPECT_NE(e.find("unknown key 'red'"), std::string::npos) << e;
+  EXPECT_NE(e.find("read"), std::string::npos) << e;
+  EXPECT_NE(e.find("@7:5"), std::string::npos) << e;
+}
+
+TEST(ModelLoader, WrongTypeIsReported) {
+  const auto e =
+      first_error(std::string(kHeader) +
+                  "points:\n  p:\n    type: float64\n    read: g r0x32\n    poll: fast\n");
+  EXPECT_NE(e.find("unknown type 'float64'"), std::string::npos) << e;
+  EXPECT_NE(e.find("@6:11"), std::string::npos) << e;
+}
+
+TEST(ModelLoader, UnknownPollClass) {
+  const auto e = first_error(std::string(kHeader) +
+                             "points:\n  p:\n    type: int32\n    read: g r0x32\n    poll: slow\n");
+  EXPECT_NE(e.find("unknown poll class 'slow' (defined: fast)"), std::string::npos) << e;
+}
+
+TEST(ModelLoader, ActionPlaceholderMustBeASetpoint) {
+  const auto e =
+      first_error(std::string(kHeader) +
+                  "actions:\n  go:\n    code: 1\n    steps:\n      - s r0xca {target}\n");
+  EXPECT_NE(e.find("{target}"), std::string::npos) << e;
+  EXPECT_NE(e.find("not a setpoint"), std::string::npos) << e;
+}
+
+TEST(ModelLoader, DuplicateActionCodes) {
+  const auto e =
+      first_error(std::string(kHeader) +
+                  "actions:\n  a: {code: 1, steps: [t 1]}\n  b: {code: 1, steps: [t 0]}\n");
+  EXPECT_NE(e.find("code 1 is already used by action a"), std::string::npos) << e;
+}
+
+TEST(ModelLoader, DuplicatePointNames) {
+  const auto e = first_error(std::string(kHeader) +
+                             "points:\n  p: {type: int16, read: g r0x1, poll: fast}\n"
+                             "  p: {type: int16, read: g r0x2, poll: fast}\n");
+  EXPECT_NE(e.find("'p' is defined twice"), std::string::npos) << e;
+}
+
+TEST(ModelLoader, ConditionBitMustExist) {
+  const auto e =
+      first_error(std::string(kHeader) +
+                  "points:\n  s: {type: uint32, read: g r0xa0, poll: fast, bits: {m: 27}}\n"
+                  "actions:\n  go: {code: 1, steps: [t 1], done: {point: s, bit: moving, "
+                  "equals: 0}}\n");
+  EXPECT_NE(e.find("no bit named 'moving'"), std::string::npos) << e;
+}
+
+TEST(ModelLoader, LimitsMustFitTheType) {
+  const auto e =
+      first_error(std::string(kHeader) +
+                  "points:\n  p:\n    type: int16\n    write: s r0x1 {value}\n    max: 70000\n");
+  EXPECT_NE(e.find("max 70000 does not fit int16"), std::string::npos) << e;
+}
+
+TEST(ModelLoader, WriteTakesOnlyValue) {
+  const auto e =
+      first_error(std::string(kHeader) + "points:\n  p:\n    type: int16\n    write: s r0x1 {v}\n");
+  EXPECT_NE(e.find("only {value}"), std::string::npos) << e;
+}
+
+TEST(ModelLoader, SyntaxErrorHasPosition) {
+  const auto e = first_error("model: m\nfamily: [unclosed\n");
+  EXPECT_NE(e.find("YAML syntax"), std::string::npos) << e;
+}
+
+TEST(ModelLoader, CanopenObjectsParse) {
+  Diagnostics d;
+  auto m = load_model_text(
+      "model: c\nfamily: canopen\npoll_classes: {fast: 50ms}\npoints:\n"
+      "  pos: {type: int32, read: {object: '0x6064:0', data_type: INTEGER32}, poll: fast}\n",
+      "c.yaml", d);
+  ASSERT_TRUE(d.ok()) << d.to_text();
+  ASSERT_TRUE(m->points[0].read->object);
+  EXPECT_EQ(m->points[0].read->object->index, 0x6064);
+  EXPECT_EQ(m->points[0].read->object->data_type, "INTEGER32");
+}
+
+}  // namespace
+}  // namespace fieldgate
