@@ -111,6 +111,17 @@ std::optional<bool> ActionRunner::evaluate(const NodeImage& node, const Model& m
   return std::nullopt;
 }
 
+bool ActionRunner::refreshed_since(const NodeImage& node, const Model& model,
+                                   const std::string& condition_point, SteadyTime since) const {
+  const PointDef* p = model.find_point(condition_point);
+  if (!p) return true;
+  for (std::size_t i = 0; i < model.points.size(); ++i)
+    if (model.points[i].poll_class == p->poll_class && model.points[i].readable() &&
+        node.points[i].updated <= since)
+      return false;
+  return true;
+}
+
 // Holds the model so a reload cannot free the action it watches.
 asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
                                           const ActionDef& action, uint64_t generation,
@@ -121,6 +132,7 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
   list.push_back(&wake);
   const auto deadline = acknowledged + action.timeout;
   auto& node = image_.node(node_index);
+  std::optional<SteadyTime> settled_since;
   for (;;) {
     if (stopping_ || node.action.generation != generation) break;
     if (action.failed && evaluate(node, model, *action.failed, acknowledged).value_or(false)) {
@@ -128,7 +140,12 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
       node.action.error = kActionErrorFailedCondition;
       break;
     }
-    if (action.done && evaluate(node, model, *action.done, acknowledged).value_or(false)) {
+    if (action.done && !settled_since &&
+        evaluate(node, model, *action.done, acknowledged).value_or(false))
+      settled_since = Clock::now();
+    // Done only once every point polled with the condition's point was read again after the
+    // condition held, so a PLC that reads the position on `done` sees where the axis stopped.
+    if (settled_since && refreshed_since(node, model, action.done->point, *settled_since)) {
       node.action.status = ActionStatus::done;
       break;
     }

@@ -35,6 +35,8 @@ class ActionRunner {
  private:
   asio::awaitable<void> watch(int node_index, ModelPtr model, const ActionDef& action,
                               uint64_t generation, SteadyTime acknowledged);
+  bool refreshed_since(const NodeImage& node, const Model& model,
+                       const std::string& condition_point, SteadyTime since) const;
   std::optional<bool> evaluate(const NodeImage& node, const Model& model, const Condition& c,
                                SteadyTime acknowledged) const;
 

@@ -91,7 +91,7 @@ class ConfigParser {
         const auto colon = text->rfind(':');
         std::optional<int64_t> port;
         if (colon != std::string::npos) port = parse_integer_text(text->substr(colon + 1));
-        if (!port || *port < 1 || *port > 65535) {
+        if (!port || *port < 0 || *port > 65535) {  // 0: any free port (logged)
           r_.error(listen, fmt::format("modbus listen: expected ADDRESS:PORT such as "
                                        "127.0.0.1:1502 or [::]:502, found '{}'",
                                        *text));

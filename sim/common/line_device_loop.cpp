@@ -1,0 +1,217 @@
+#include "sim/common/line_device_loop.hpp"
+
+#include <poll.h>
+#include <signal.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cstdio>
+#include <system_error>
+
+namespace fieldgate::sim {
+namespace {
+
+volatile sig_atomic_t g_stop_signal = 0;
+
+void on_stop_signal(int signal_number) {
+  g_stop_signal = signal_number;
+}
+
+// A host that never reads would otherwise grow the outbox without bound.
+constexpr std::size_t kMaxOutbox = 1 << 20;
+
+}  // namespace
+
+std::string escape_bytes(std::string_view bytes) {
+  std::string out;
+  for (const char c : bytes) {
+    switch (c) {
+      case '\r':
+        out += "\\r";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      default:
+        if (c >= 0x20 && c < 0x7f) {
+          out += c;
+        } else {
+          char hex[8];
+          std::snprintf(hex, sizeof hex, "\\x%02x", static_cast<unsigned char>(c));
+          out += hex;
+        }
+    }
+  }
+  return out;
+}
+
+LineExchange::LineExchange(LineDeviceHooks hooks, LineDeviceOptions options, FaultInjection& faults)
+    : hooks_(std::move(hooks)),
+      options_(std::move(options)),
+      faults_(faults),
+      random_(options_.seed) {}
+
+void LineExchange::receive(SimTime now, std::string_view bytes) {
+  if (bytes.empty()) return;
+  if (!log_epoch_) log_epoch_ = now;
+  if (rx_.empty()) receive_wire_.first_byte(now);
+  if (hooks_.echo && !faults_.silence) {
+    const std::string echoed = hooks_.echo(bytes);
+    transmitter_.enqueue(now, echoed, options_.wire.enabled ? &options_.wire.timing : nullptr);
+  }
+  rx_.append(bytes);
+  while (!rx_.empty()) {
+    const std::size_t length = hooks_.frame(rx_);
+    if (length == 0) break;
+    const SimTime arrived = receive_wire_.complete(length, now, options_.wire);
+    requests_.push_back({rx_.substr(0, length), arrived});
+    rx_.erase(0, length);
+  }
+  if (rx_.size() > options_.max_pending) {
+    log(now, "overflow, discarded", rx_);
+    rx_.clear();
+  }
+}
+
+void LineExchange::advance(SimTime now, std::string& out) {
+  while (!requests_.empty() && requests_.front().arrived <= now) {
+    const PendingRequest request = std::move(requests_.front());
+    requests_.pop_front();
+    // Run it at the instant it arrived, so a late wake-up does not delay the reply schedule.
+    execute(request, request.arrived);
+  }
+  transmitter_.release(now, out);
+}
+
+std::optional<SimTime> LineExchange::next_deadline() const {
+  std::optional<SimTime> deadline = transmitter_.next_due();
+  if (!requests_.empty()) {
+    const SimTime arrived = requests_.front().arrived;
+    deadline = deadline ? std::min(*deadline, arrived) : arrived;
+  }
+  return deadline;
+}
+
+void LineExchange::execute(const PendingRequest& request, SimTime now) {
+  if (faults_.silence) {
+    log(now, "rx (silenced)", request.bytes);
+    return;
+  }
+  log(now, "rx", request.bytes);
+  const DeviceReply reply = hooks_.respond(request.bytes, now);
+  if (reply.new_baud) {
+    options_.wire.timing.set_baud(*reply.new_baud);
+    log(now, "baud " + std::to_string(*reply.new_baud), {});
+  }
+  if (reply.bytes.empty()) {
+    log(now, "tx (no reply)", {});
+    return;
+  }
+  std::string bytes = reply.bytes;
+  std::string_view note = "tx";
+  if (faults_.garbage_replies > 0) {
+    --faults_.garbage_replies;
+    bytes = garbage(bytes);
+    note = "tx (garbage)";
+  } else if (faults_.truncated_replies > 0) {
+    --faults_.truncated_replies;
+    bytes = truncated(bytes);
+    note = "tx (truncated)";
+  }
+  const SimTime start = now + options_.wire.turnaround + faults_.reply_delay + reply.extra_delay;
+  transmitter_.enqueue(start, bytes, options_.wire.enabled ? &options_.wire.timing : nullptr);
+  log(now, note, bytes);
+}
+
+std::string LineExchange::garbage(std::string_view reply) {
+  // Same length as the real reply and still terminated, so the host sees a complete line it
+  // cannot parse; `truncate` covers the missing-terminator case.
+  std::string out;
+  std::string_view body = reply;
+  std::string_view terminator;
+  while (!body.empty() && options_.terminators.find(body.back()) != std::string::npos) {
+    terminator = reply.substr(body.size() - 1);
+    body.remove_suffix(1);
+  }
+  std::uniform_int_distribution<int> byte(0, 255);
+  const std::size_t length = std::max<std::size_t>(1, body.size());
+  while (out.size() < length) {
+    const char c = static_cast<char>(byte(random_));
+    if (options_.terminators.find(c) == std::string::npos) out += c;
+  }
+  out += terminator;
+  return out;
+}
+
+std::string LineExchange::truncated(std::string_view reply) const {
+  while (!reply.empty() && options_.terminators.find(reply.back()) != std::string::npos) {
+    reply.remove_suffix(1);
+  }
+  return std::string(reply.substr(0, reply.size() / 2));
+}
+
+void LineExchange::log(SimTime now, std::string_view what, std::string_view bytes) const {
+  if (!options_.verbose) return;
+  const double t = log_epoch_ ? std::chrono::duration<double>(now - *log_epoch_).count() : 0.0;
+  std::fprintf(stderr, "[%10.6f] %s %.*s %s%s%s\n", t, options_.name.c_str(),
+               static_cast<int>(what.size()), what.data(), bytes.empty() ? "" : "\"",
+               escape_bytes(bytes).c_str(), bytes.empty() ? "" : "\"");
+}
+
+void run_line_device(PtyPort& port, ControlChannel& control, LineExchange& exchange) {
+  // Stop signals are blocked except inside ppoll(), so one cannot slip in between the check of
+  // g_stop_signal and the wait.
+  struct sigaction action {};
+  action.sa_handler = on_stop_signal;
+  sigemptyset(&action.sa_mask);
+  for (const int s : {SIGINT, SIGTERM, SIGHUP}) ::sigaction(s, &action, nullptr);
+  ::signal(SIGPIPE, SIG_IGN);
+  sigset_t stop_signals;
+  sigset_t wait_mask;
+  sigemptyset(&stop_signals);
+  for (const int s : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&stop_signals, s);
+  ::sigprocmask(SIG_BLOCK, &stop_signals, &wait_mask);
+  for (const int s : {SIGINT, SIGTERM, SIGHUP}) sigdelset(&wait_mask, s);
+
+  std::string outbox;
+  std::array<char, 4096> buffer{};
+  while (!control.quit_requested() && g_stop_signal == 0) {
+    SimTime now = SimClock::now();
+    exchange.advance(now, outbox);
+    if (!outbox.empty()) outbox.erase(0, port.write_some(outbox));
+    if (outbox.size() > kMaxOutbox) outbox.clear();
+
+    std::array<pollfd, 2> fds{};
+    fds[0] = {port.master_fd(), static_cast<short>(POLLIN | (outbox.empty() ? 0 : POLLOUT)), 0};
+    fds[1] = {control.input_fd(), POLLIN, 0};
+    const nfds_t count = control.input_fd() >= 0 ? 2 : 1;
+
+    timespec timeout{};
+    timespec* timeout_ptr = nullptr;
+    if (const auto deadline = exchange.next_deadline()) {
+      const auto wait = std::max(SimClock::duration::zero(), *deadline - now);
+      const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(wait).count();
+      timeout.tv_sec = static_cast<time_t>(ns / 1'000'000'000);
+      timeout.tv_nsec = static_cast<long>(ns % 1'000'000'000);
+      timeout_ptr = &timeout;
+    }
+    const int ready = ::ppoll(fds.data(), count, timeout_ptr, &wait_mask);
+    if (ready < 0) {
+      if (errno == EINTR) continue;
+      throw std::system_error(errno, std::generic_category(), "ppoll");
+    }
+    now = SimClock::now();
+    if (fds[0].revents & POLLIN) {
+      std::size_t n;
+      while ((n = port.read_some(buffer)) > 0) exchange.receive(now, {buffer.data(), n});
+    }
+    if (count > 1 && (fds[1].revents & (POLLIN | POLLHUP | POLLERR))) control.on_readable();
+  }
+  ::sigprocmask(SIG_UNBLOCK, &stop_signals, nullptr);
+}
+
+}  // namespace fieldgate::sim

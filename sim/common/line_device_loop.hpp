@@ -1,0 +1,98 @@
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <optional>
+#include <random>
+#include <string>
+#include <string_view>
+
+#include "sim/common/control_channel.hpp"
+#include "sim/common/pty_port.hpp"
+#include "sim/common/wire_pacing.hpp"
+
+namespace fieldgate::sim {
+
+// What a device answers to one request.
+struct DeviceReply {
+  std::string bytes;  // empty: the device stays silent (e.g. Copley's reset)
+  // The link changes rate before the reply leaves (Copley answers a baud change at the new rate).
+  std::optional<std::uint32_t> new_baud;
+  // Device latency on top of the turnaround, e.g. forwarding to another node.
+  std::chrono::microseconds extra_delay{0};
+};
+
+// How a family turns the byte stream into requests and requests into replies.
+struct LineDeviceHooks {
+  // Length of the complete request at the front of `pending`, terminator included; 0 while more
+  // bytes are needed. The family decides (CR for Copley, LF for IMS party line, …).
+  std::function<std::size_t(std::string_view pending)> frame;
+  // Executes one request at `now` and returns the reply.
+  std::function<DeviceReply(std::string_view request, SimTime now)> respond;
+  // Optional: bytes a device echoes as characters arrive (IMS, Whedco echo mode).
+  std::function<std::string(std::string_view received)> echo;
+};
+
+struct LineDeviceOptions {
+  WireEmulation wire;
+  // Stripped from the end of a reply before it is truncated.
+  std::string terminators = "\r\n";
+  // Unframed input beyond this is discarded, as an overflowing UART buffer would.
+  std::size_t max_pending = 4096;
+  std::uint32_t seed = 1;
+  bool verbose = false;  // log every request and reply to stderr
+  std::string name = "sim";
+};
+
+// The I/O-free core of a line-oriented device: frames requests, holds each until its bytes would
+// have crossed the wire, runs it, applies injected faults and schedules the reply at wire speed.
+// Time only moves when the caller passes it in, so tests need neither a PTY nor sleeps.
+class LineExchange {
+ public:
+  LineExchange(LineDeviceHooks hooks, LineDeviceOptions options, FaultInjection& faults);
+
+  // Bytes read from the host at `now`.
+  void receive(SimTime now, std::string_view bytes);
+  // Runs every request that has arrived by `now` (each at its arrival instant) and appends the
+  // reply bytes due by `now`.
+  void advance(SimTime now, std::string& out);
+  // When advance() next has something to do.
+  std::optional<SimTime> next_deadline() const;
+
+  std::uint32_t baud() const { return options_.wire.timing.baud(); }
+  // The device changed rate outside a reply (e.g. a reset injected from the control channel).
+  void set_baud(std::uint32_t baud) { options_.wire.timing.set_baud(baud); }
+  bool idle() const { return rx_.empty() && requests_.empty() && transmitter_.idle(); }
+
+ private:
+  struct PendingRequest {
+    std::string bytes;
+    SimTime arrived;
+  };
+
+  void execute(const PendingRequest& request, SimTime now);
+  std::string garbage(std::string_view reply);
+  std::string truncated(std::string_view reply) const;
+  void log(SimTime now, std::string_view what, std::string_view bytes) const;
+
+  LineDeviceHooks hooks_;
+  LineDeviceOptions options_;
+  FaultInjection& faults_;
+  std::string rx_;
+  ReceiveWire receive_wire_;
+  std::deque<PendingRequest> requests_;
+  PacedTransmitter transmitter_;
+  std::mt19937 random_;
+  std::optional<SimTime> log_epoch_;
+};
+
+// Serves `exchange` on `port` and `control` until the control channel says quit or SIGINT,
+// SIGTERM or SIGHUP arrives. One thread, one poll() over the PTY master and stdin.
+void run_line_device(PtyPort& port, ControlChannel& control, LineExchange& exchange);
+
+// "g r0x32\r" -> "g r0x32\\r", for logs and test messages.
+std::string escape_bytes(std::string_view bytes);
+
+}  // namespace fieldgate::sim
