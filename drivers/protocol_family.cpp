@@ -26,6 +26,13 @@ asio::awaitable<void> ProtocolFamily::on_link_open(Link&, const LinkTiming&) {
   co_return;
 }
 
+asio::awaitable<Reply> ProtocolFamily::send_urgent(Link&, const NodeAddress&, const Request& r) {
+  Reply reply;
+  reply.status = Reply::Status::device_error;
+  reply.text = "family " + std::string(name()) + " has no urgent commands ('" + r.command + "')";
+  co_return reply;
+}
+
 std::size_t ProtocolFamily::estimate_wire_chars(const NodeAddress&, const Request& request) const {
   return request.command.size() + 16;
 }

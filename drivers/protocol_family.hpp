@@ -27,6 +27,9 @@ struct Request {
   std::string command;  // rendered command, without addressing
   Expect expect = Expect::ack;
   NumberFormat format = NumberFormat::decimal;
+  // For every node on the link (a global stop or kill): the family sends it without a node
+  // address, as its manual defines the broadcast form.
+  bool bus_wide = false;
 };
 
 struct Reply {
@@ -61,6 +64,10 @@ class ProtocolFamily {
   virtual asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing);
   virtual asio::awaitable<Reply> transact(Link& link, const NodeAddress& node,
                                           const Request& request, const LinkTiming& timing) = 0;
+  // Sends a command that must not wait for the line (see CommandOptions::urgent). The default
+  // refuses: a family without such commands reports it instead of corrupting a transaction.
+  virtual asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,
+                                             const Request& request);
   // Characters on the wire for a request and its typical reply (poll budget estimate).
   virtual std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const;
 };

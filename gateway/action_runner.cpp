@@ -7,7 +7,7 @@
 
 #include <algorithm>
 
-#include "gateway/bus_runtime.hpp"
+#include "gateway/bus.hpp"
 #include "gateway/log.hpp"
 
 namespace fieldgate {
@@ -70,8 +70,10 @@ asio::awaitable<Reply> ActionRunner::start(int node_index, ModelPtr model_ptr,
       co_await t.async_wait(use_tuple);
       continue;
     }
-    Request request{step.command.render(lookup), Request::Expect::ack, NumberFormat::decimal};
-    reply = co_await bus.submit(node_index, request, CommandOptions{step.accept_no_reply});
+    Request request{step.command.render(lookup), Request::Expect::ack, NumberFormat::decimal,
+                    action.bus_wide};
+    reply =
+        co_await bus.submit(node_index, request, CommandOptions{step.accept_no_reply, step.urgent});
     // A device code the step accepts (e.g. Copley's e 32 after a remote reset) is success,
     // whether the family classed it as a device error or as the node being unreachable.
     const bool coded = reply.status == Reply::Status::device_error ||

@@ -13,14 +13,14 @@
 
 namespace fieldgate {
 
-class BusRuntime;
+class Bus;
 
 // Runs a model's action for a node: sends its steps through the node's bus, each confirmed
 // before the next, then watches the done/failed condition on freshly polled values and keeps
 // the node's action status (busy, done, error) up to date for the PLC's handshake.
 class ActionRunner {
  public:
-  using BusOf = std::function<BusRuntime&(int node_index)>;
+  using BusOf = std::function<Bus&(int node_index)>;
 
   ActionRunner(asio::any_io_executor executor, ProcessImage& image, BusOf bus_of);
   ~ActionRunner();

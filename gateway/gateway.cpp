@@ -20,24 +20,24 @@ Gateway::Gateway(asio::io_context& io, std::shared_ptr<const LoadedConfig> confi
     : io_(io),
       config_(std::move(config)),
       image_(count_nodes(config_->gateway)),
-      actions_(io.get_executor(), image_, [this](int n) -> BusRuntime& { return bus_of(n); }) {
+      actions_(io.get_executor(), image_, [this](int n) -> Bus& { return bus_of(n); }) {
   int first = 0;
   for (const auto& bus : config_->gateway.buses) {
-    buses_.push_back(std::make_unique<BusRuntime>(io.get_executor(), bus, first, image_,
-                                                  [this](int n) { actions_.node_updated(n); }));
+    buses_.push_back(make_bus(io.get_executor(), bus, first, image_,
+                              [this](int n) { actions_.node_updated(n); }));
     for (std::size_t i = 0; i < bus.nodes.size(); ++i)
       bus_of_node_.push_back(static_cast<int>(buses_.size() - 1));
     first += static_cast<int>(bus.nodes.size());
   }
-  handler_ = std::make_shared<RegisterMapHandler>(
-      config_, image_, actions_, [this](int n) -> BusRuntime& { return bus_of(n); });
+  handler_ = std::make_shared<RegisterMapHandler>(config_, image_, actions_,
+                                                  [this](int n) -> Bus& { return bus_of(n); });
 }
 
 Gateway::~Gateway() {
   stop();
 }
 
-BusRuntime& Gateway::bus_of(int node_index) {
+Bus& Gateway::bus_of(int node_index) {
   return *buses_.at(
       static_cast<std::size_t>(bus_of_node_.at(static_cast<std::size_t>(node_index))));
 }

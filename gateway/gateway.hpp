@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "gateway/action_runner.hpp"
-#include "gateway/bus_runtime.hpp"
+#include "gateway/bus.hpp"
 #include "gateway/config_loader.hpp"
 #include "gateway/modbus/tcp_server.hpp"
 #include "gateway/process_image.hpp"
@@ -27,16 +27,16 @@ class Gateway {
 
   const ProcessImage& image() const { return image_; }
   const modbus::ModbusTcpServer& server() const { return *server_; }
-  const std::vector<std::unique_ptr<BusRuntime>>& buses() const { return buses_; }
+  const std::vector<std::unique_ptr<Bus>>& buses() const { return buses_; }
   std::string status_line() const;
 
  private:
-  BusRuntime& bus_of(int node_index);
+  Bus& bus_of(int node_index);
 
   asio::io_context& io_;
   std::shared_ptr<const LoadedConfig> config_;
   ProcessImage image_;
-  std::vector<std::unique_ptr<BusRuntime>> buses_;
+  std::vector<std::unique_ptr<Bus>> buses_;
   std::vector<int> bus_of_node_;
   ActionRunner actions_;
   std::shared_ptr<RegisterMapHandler> handler_;

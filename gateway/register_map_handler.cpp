@@ -1,6 +1,6 @@
 #include "gateway/register_map_handler.hpp"
 
-#include "gateway/bus_runtime.hpp"
+#include "gateway/bus.hpp"
 #include "gateway/log.hpp"
 
 namespace fieldgate {

@@ -10,12 +10,12 @@
 
 namespace fieldgate {
 
-class BusRuntime;
+class Bus;
 
 // Serves the register map: reads from the process image, writes confirmed through the buses.
 class RegisterMapHandler final : public modbus::RequestHandler {
  public:
-  using BusOf = std::function<BusRuntime&(int node_index)>;
+  using BusOf = std::function<Bus&(int node_index)>;
 
   RegisterMapHandler(std::shared_ptr<const LoadedConfig> config, ProcessImage& image,
                      ActionRunner& actions, BusOf bus_of);

@@ -90,6 +90,7 @@ struct ActionStep {
   // reset), and whether no reply at all counts as success.
   std::vector<int> accept_errors;
   bool accept_no_reply = false;
+  bool urgent = false;  // sent at once, not queued behind a transaction holding the line
   SourceMark mark;
 };
 

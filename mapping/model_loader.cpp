@@ -359,7 +359,7 @@ class ModelParser {
     if (step.IsScalar()) {
       send = step;
     } else if (r_.expect_map(step, where + " step")) {
-      r_.reject_unknown_keys(step, {"send", "delay", "accept_errors", "accept_no_reply"},
+      r_.reject_unknown_keys(step, {"send", "delay", "accept_errors", "accept_no_reply", "urgent"},
                              where + " step");
       if (step["delay"]) {
         s.kind = ActionStep::Kind::delay;
@@ -374,6 +374,7 @@ class ModelParser {
         for (const auto& e : errors)
           if (auto v = r_.integer(e, where + " accept_errors", 0, 0xffffffff))
             s.accept_errors.push_back(static_cast<int>(*v));
+      if (step["urgent"]) s.urgent = r_.boolean(step["urgent"], where + " urgent").value_or(false);
       if (step["accept_no_reply"])
         s.accept_no_reply =
             r_.boolean(step["accept_no_reply"], where + " accept_no_reply").value_or(false);

@@ -13,49 +13,35 @@
 #include "drivers/link.hpp"
 #include "drivers/protocol_family.hpp"
 #include "drivers/transport/byte_transport.hpp"
+#include "gateway/bus.hpp"
 #include "gateway/gateway_config.hpp"
 #include "gateway/poll_plan.hpp"
 #include "gateway/process_image.hpp"
 
 namespace fieldgate {
 
-struct CommandOptions {
-  bool accept_no_reply = false;  // silence counts as success (e.g. a reset)
-};
-
-struct BusCounters {
-  uint64_t transactions = 0;
-  uint64_t timeouts = 0;
-  uint64_t errors = 0;
-  uint64_t retries = 0;
-  uint64_t reconnects = 0;
-  uint64_t commands = 0;
-  bool link_up = false;
-};
-
 // Owns one field link: the only coroutine that touches its transport. Serialises commands from
 // Modbus writes (first) with polls (spread over time), one transaction in flight.
-class BusRuntime {
+class SerialBus final : public Bus {
  public:
-  using NodeUpdated = std::function<void(int node_index)>;
-
-  BusRuntime(asio::any_io_executor executor, const BusConfig& config, int first_node_index,
-             ProcessImage& image, NodeUpdated on_update);
-  ~BusRuntime();
+  SerialBus(asio::any_io_executor executor, const BusConfig& config, int first_node_index,
+            ProcessImage& image, NodeUpdated on_update);
+  ~SerialBus() override;
 
   // Runs until stop(); spawn it on the io_context.
-  asio::awaitable<void> run();
-  void stop();
+  asio::awaitable<void> run() override;
+  void stop() override;
 
   // Queues a command ahead of polls and returns its reply once the device answered (or failed).
   // A command for an offline node fails at once as unreachable.
-  asio::awaitable<Reply> submit(int node_index, Request request, CommandOptions options = {});
+  asio::awaitable<Reply> submit(int node_index, Request request,
+                                CommandOptions options = {}) override;
 
-  const BusConfig& config() const { return config_; }
-  const BusCounters& counters() const { return counters_; }
+  const BusConfig& config() const override { return config_; }
+  const BusCounters& counters() const override { return counters_; }
   const LinkStats& link_stats() const { return link_.stats(); }
   bool owns_node(int node_index) const;
-  const NodeConfig& node_config(int node_index) const;
+  const NodeConfig& node_config(int node_index) const override;
 
  private:
   struct PendingCommand;

@@ -1,4 +1,4 @@
-#include "gateway/bus_runtime.hpp"
+#include "gateway/serial_bus.hpp"
 
 #include <boost/asio/as_tuple.hpp>
 #include <boost/asio/use_awaitable.hpp>
@@ -22,7 +22,7 @@ std::unique_ptr<ByteTransport> make_transport(asio::any_io_executor ex, const Tr
 }
 }  // namespace
 
-struct BusRuntime::PendingCommand {
+struct SerialBus::PendingCommand {
   PendingCommand(asio::any_io_executor ex) : done(ex, 1) {}
   int node = 0;
   Request request;
@@ -30,8 +30,8 @@ struct BusRuntime::PendingCommand {
   asio::experimental::channel<void(boost::system::error_code, Reply)> done;
 };
 
-BusRuntime::BusRuntime(asio::any_io_executor executor, const BusConfig& config,
-                       int first_node_index, ProcessImage& image, NodeUpdated on_update)
+SerialBus::SerialBus(asio::any_io_executor executor, const BusConfig& config, int first_node_index,
+                     ProcessImage& image, NodeUpdated on_update)
     : executor_(executor),
       config_(config),
       first_node_index_(first_node_index),
@@ -78,29 +78,41 @@ BusRuntime::BusRuntime(asio::any_io_executor executor, const BusConfig& config,
   }
 }
 
-BusRuntime::~BusRuntime() = default;
+SerialBus::~SerialBus() = default;
 
-bool BusRuntime::owns_node(int node_index) const {
+bool SerialBus::owns_node(int node_index) const {
   return node_index >= first_node_index_ &&
          node_index < first_node_index_ + static_cast<int>(nodes_.size());
 }
 
-const NodeConfig& BusRuntime::node_config(int node_index) const {
+const NodeConfig& SerialBus::node_config(int node_index) const {
   return *nodes_.at(static_cast<std::size_t>(node_index - first_node_index_)).config;
 }
 
-BusRuntime::NodeRuntime& BusRuntime::node(int node_index) {
+SerialBus::NodeRuntime& SerialBus::node(int node_index) {
   return nodes_.at(static_cast<std::size_t>(node_index - first_node_index_));
 }
 
-void BusRuntime::stop() {
+void SerialBus::stop() {
   stopping_ = true;
   wake_.cancel();
   transport_->close();
 }
 
-asio::awaitable<Reply> BusRuntime::submit(int node_index, Request request, CommandOptions options) {
+std::unique_ptr<Bus> make_bus(asio::any_io_executor executor, const BusConfig& config,
+                              int first_node_index, ProcessImage& image,
+                              Bus::NodeUpdated on_update) {
+  return std::make_unique<SerialBus>(executor, config, first_node_index, image,
+                                     std::move(on_update));
+}
+
+asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, CommandOptions options) {
   auto& n = node(node_index);
+  if (options.urgent) {
+    // Not queued: the line may be held by a transaction that only ends when this gets through.
+    ++counters_.commands;
+    co_return co_await config_.family->send_urgent(link_, n.config->address, request);
+  }
   if (image_.node(n.index).state == NodeState::offline || !transport_->is_open()) {
     Reply r;
     r.status = Reply::Status::unreachable;
@@ -123,7 +135,7 @@ asio::awaitable<Reply> BusRuntime::submit(int node_index, Request request, Comma
   co_return reply;
 }
 
-void BusRuntime::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
+void SerialBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
   auto& img = image_.node(n.index);
   if (img.state == state) return;
   const auto old = img.state;
@@ -139,11 +151,11 @@ void BusRuntime::set_state(NodeRuntime& n, NodeState state, std::string_view why
   }
 }
 
-void BusRuntime::all_nodes_offline(std::string_view why) {
+void SerialBus::all_nodes_offline(std::string_view why) {
   for (auto& n : nodes_) set_state(n, NodeState::offline, why);
 }
 
-void BusRuntime::record(NodeRuntime& n, const Reply& reply) {
+void SerialBus::record(NodeRuntime& n, const Reply& reply) {
   auto& c = image_.node(n.index).counters;
   switch (reply.status) {
     case Reply::Status::ok:
@@ -181,8 +193,8 @@ void BusRuntime::record(NodeRuntime& n, const Reply& reply) {
   }
 }
 
-asio::awaitable<Reply> BusRuntime::transact(NodeRuntime& n, const Request& request, int retries,
-                                            bool accept_no_reply) {
+asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& request, int retries,
+                                           bool accept_no_reply) {
   Reply reply;
   for (int attempt = 0; attempt <= retries; ++attempt) {
     if (attempt > 0) {
@@ -210,7 +222,7 @@ asio::awaitable<Reply> BusRuntime::transact(NodeRuntime& n, const Request& reque
   co_return reply;
 }
 
-asio::awaitable<void> BusRuntime::run_poll(std::size_t item_index) {
+asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
   auto& item = plan_.item(item_index);
   auto& n = node(item.node);
   const bool probing = image_.node(n.index).state == NodeState::offline;
@@ -237,7 +249,7 @@ asio::awaitable<void> BusRuntime::run_poll(std::size_t item_index) {
   if (on_update_) on_update_(n.index);
 }
 
-asio::awaitable<void> BusRuntime::open_link() {
+asio::awaitable<void> SerialBus::open_link() {
   auto delay = config_.timing.reconnect_min;
   while (!stopping_) {
     const auto ec = co_await transport_->open();
@@ -273,7 +285,7 @@ asio::awaitable<void> BusRuntime::open_link() {
   }
 }
 
-asio::awaitable<void> BusRuntime::run() {
+asio::awaitable<void> SerialBus::run() {
   plan_.start(Clock::now());
   while (!stopping_) {
     if (!transport_->is_open()) {

@@ -1,0 +1,56 @@
+#pragma once
+
+#include <boost/asio/any_io_executor.hpp>
+#include <boost/asio/awaitable.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+
+#include "drivers/protocol_family.hpp"
+#include "gateway/gateway_config.hpp"
+#include "gateway/process_image.hpp"
+
+namespace fieldgate {
+
+struct CommandOptions {
+  bool accept_no_reply = false;  // silence counts as success (e.g. a reset)
+  // Sent at once, even while another transaction occupies the line (e.g. a stop byte during a
+  // move that holds the line until it ends); the family decides what that means on the wire.
+  bool urgent = false;
+};
+
+struct BusCounters {
+  uint64_t transactions = 0;
+  uint64_t timeouts = 0;
+  uint64_t errors = 0;
+  uint64_t retries = 0;
+  uint64_t reconnects = 0;
+  uint64_t commands = 0;
+  bool link_up = false;
+};
+
+// One field link with its own scheduler. Serial links carry one transaction at a time
+// (SerialBus); a CAN bus overlaps transfers of different nodes.
+class Bus {
+ public:
+  using NodeUpdated = std::function<void(int node_index)>;
+
+  virtual ~Bus() = default;
+  // Runs until stop(); spawn it on the io_context.
+  virtual asio::awaitable<void> run() = 0;
+  virtual void stop() = 0;
+  // Queues a command ahead of polls and returns its reply once the device answered (or failed).
+  // A command for an offline node fails at once as unreachable.
+  virtual asio::awaitable<Reply> submit(int node_index, Request request,
+                                        CommandOptions options = {}) = 0;
+  virtual const BusConfig& config() const = 0;
+  virtual const BusCounters& counters() const = 0;
+  virtual const NodeConfig& node_config(int node_index) const = 0;
+};
+
+std::unique_ptr<Bus> make_bus(asio::any_io_executor executor, const BusConfig& config,
+                              int first_node_index, ProcessImage& image,
+                              Bus::NodeUpdated on_update);
+
+}  // namespace fieldgate
