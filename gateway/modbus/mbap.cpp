@@ -6,7 +6,9 @@
 namespace fieldgate::modbus {
 namespace {
 
-std::uint16_t get16(const std::uint8_t* p) { return static_cast<std::uint16_t>((p[0] << 8) | p[1]); }
+std::uint16_t get16(const std::uint8_t* p) {
+  return static_cast<std::uint16_t>((p[0] << 8) | p[1]);
+}
 
 }  // namespace
 
@@ -17,14 +19,13 @@ MbapHeader decode_mbap_header(std::span<const std::uint8_t, mbap_header_size> by
 void encode_adu(std::uint16_t transaction_id, std::uint8_t unit_id,
                 std::span<const std::uint8_t> pdu, std::vector<std::uint8_t>& out) {
   const auto length = static_cast<std::uint16_t>(pdu.size() + 1);
-  const std::uint8_t header[mbap_header_size] = {
-      static_cast<std::uint8_t>(transaction_id >> 8),
-      static_cast<std::uint8_t>(transaction_id & 0xFF),
-      0,
-      0,
-      static_cast<std::uint8_t>(length >> 8),
-      static_cast<std::uint8_t>(length & 0xFF),
-      unit_id};
+  const std::uint8_t header[mbap_header_size] = {static_cast<std::uint8_t>(transaction_id >> 8),
+                                                 static_cast<std::uint8_t>(transaction_id & 0xFF),
+                                                 0,
+                                                 0,
+                                                 static_cast<std::uint8_t>(length >> 8),
+                                                 static_cast<std::uint8_t>(length & 0xFF),
+                                                 unit_id};
   out.insert(out.end(), std::begin(header), std::end(header));
   out.insert(out.end(), pdu.begin(), pdu.end());
 }

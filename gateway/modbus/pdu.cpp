@@ -148,8 +148,7 @@ std::variant<Request, ExceptionCode> parse_request(std::span<const std::uint8_t>
   switch (static_cast<FunctionCode>(pdu[0])) {
     case FunctionCode::read_coils:
     case FunctionCode::read_discrete_inputs: {
-      const BitTable table =
-          pdu[0] == 0x01 ? BitTable::coils : BitTable::discrete_inputs;
+      const BitTable table = pdu[0] == 0x01 ? BitTable::coils : BitTable::discrete_inputs;
       return parse_read(pdu, max_read_bits, [table](std::uint16_t address, std::uint16_t count) {
         return ReadBitsRequest{table, address, count};
       });

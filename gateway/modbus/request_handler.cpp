@@ -18,7 +18,8 @@ Pdu read_bits(RequestHandler& handler, std::uint8_t unit, const ReadBitsRequest&
 Pdu read_registers(RequestHandler& handler, std::uint8_t unit, FunctionCode function,
                    RegisterTable table, std::uint16_t address, std::uint16_t count) {
   ReadRegistersResult result = handler.read_registers(unit, table, address, count);
-  if (!result.ok()) return encode_exception(static_cast<std::uint8_t>(function), result.exception());
+  if (!result.ok())
+    return encode_exception(static_cast<std::uint8_t>(function), result.exception());
   if (result.values().size() != count) {
     return encode_exception(static_cast<std::uint8_t>(function),
                             ExceptionCode::server_device_failure);
@@ -37,14 +38,15 @@ asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, const Re
     co_return read_registers(handler, unit, function, r->table, r->address, r->count);
   }
   if (const auto* r = std::get_if<WriteSingleCoilRequest>(&request)) {
-    const WriteResult result = co_await handler.write_coils(unit, r->address, std::vector<bool>(1, r->value));
+    const WriteResult result =
+        co_await handler.write_coils(unit, r->address, std::vector<bool>(1, r->value));
     if (!result.ok()) co_return encode_exception(fc, result.exception());
     co_return encode_write_single_coil_response(r->address, r->value);
   }
   if (const auto* r = std::get_if<WriteSingleRegisterRequest>(&request)) {
     const std::uint16_t value = r->value;
-    const WriteResult result =
-        co_await handler.write_registers(unit, r->address, std::span<const std::uint16_t>(&value, 1));
+    const WriteResult result = co_await handler.write_registers(
+        unit, r->address, std::span<const std::uint16_t>(&value, 1));
     if (!result.ok()) co_return encode_exception(fc, result.exception());
     co_return encode_write_single_register_response(r->address, r->value);
   }

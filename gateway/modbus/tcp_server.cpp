@@ -145,6 +145,7 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
   // `self` keeps the server state alive while the client is served.
   asio::awaitable<void> run_session([[maybe_unused]] std::shared_ptr<Impl> self, tcp::socket socket,
                                     asio::ip::address peer) {
+    if (stopped_) co_return;  // stop() came between the accept and this coroutine's start
     boost::system::error_code ignored;
     socket.set_option(tcp::no_delay(true), ignored);
     socket.set_option(tcp::socket::keep_alive(true), ignored);
@@ -174,20 +175,22 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
       MbapFramer::Frame frame;
       MbapFramer::Status status;
       while ((status = framer.next(frame)) == MbapFramer::Status::frame) {
-        if (!co_await answer(s, frame)) co_return;
+        const bool keep_open = co_await answer(s, frame);
+        if (!keep_open) co_return;
         pending_since = last_read;
       }
       if (status != MbapFramer::Status::need_more) {
         ++stats_.framing_errors;
         co_return;
       }
-      if (framer.empty()) {
-        s.set_deadline(after(options_.idle_timeout));
-      } else if (options_.request_timeout != Clock::duration::zero()) {
+      if (!framer.empty() && options_.request_timeout != Clock::duration::zero()) {
         s.set_deadline(pending_since + options_.request_timeout);
+      } else {
+        s.set_deadline(after(options_.idle_timeout));
       }
       const std::span<std::uint8_t> space = framer.free_space();
-      auto [ec, n] = co_await s.socket.async_read_some(asio::buffer(space.data(), space.size()), use_tuple);
+      auto [ec, n] =
+          co_await s.socket.async_read_some(asio::buffer(space.data(), space.size()), use_tuple);
       if (ec) co_return;  // closed by the peer, by stop(), or by the watchdog
       last_read = Clock::now();
       if (framer.empty()) pending_since = last_read;
@@ -202,7 +205,10 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
     const std::shared_ptr<RequestHandler> handler = handler_;
     std::vector<std::uint8_t> response;
     if (handler) {
-      s.set_deadline(Clock::time_point::max());  // a confirmed write may take a while
+      // Reads (0x01-0x04) answer without suspending. Anything else may be a confirmed write,
+      // which takes as long as the bus needs; moving the deadline back later wakes the
+      // watchdog, so only do it then.
+      if (function > 0x04) s.set_deadline(Clock::time_point::max());
       response = co_await dispatch(*handler, frame.header.unit_id, frame.pdu);
     } else {
       response = encode_exception(function, ExceptionCode::gateway_path_unavailable);
@@ -231,7 +237,8 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
     while (Clock::now() < s.deadline) {
       s.timer.expires_at(s.deadline);
       co_await s.timer.async_wait(use_tuple);
-      // Cancelled by the || because serve() ended, or woken by set_deadline().
+      // Cancelled by the || because serve() ended, or woken by set_deadline(). The co_await
+      // is bound to a local because GCC 12 miscompiled it inside the if condition (SIGILL).
       const asio::cancellation_state state = co_await asio::this_coro::cancellation_state;
       if (state.cancelled() != asio::cancellation_type::none) co_return;
     }
@@ -253,17 +260,27 @@ ModbusTcpServer::ModbusTcpServer(asio::any_io_executor executor, ModbusTcpServer
                                  std::shared_ptr<RequestHandler> handler)
     : impl_(std::make_shared<Impl>(std::move(executor), std::move(options), std::move(handler))) {}
 
-ModbusTcpServer::~ModbusTcpServer() { impl_->stop(); }
+ModbusTcpServer::~ModbusTcpServer() {
+  impl_->stop();
+}
 
-void ModbusTcpServer::start() { impl_->start(); }
-void ModbusTcpServer::stop() { impl_->stop(); }
+void ModbusTcpServer::start() {
+  impl_->start();
+}
+void ModbusTcpServer::stop() {
+  impl_->stop();
+}
 void ModbusTcpServer::set_handler(std::shared_ptr<RequestHandler> handler) {
   impl_->set_handler(std::move(handler));
 }
 bool ModbusTcpServer::reconfigure(ModbusTcpServerOptions options) {
   return impl_->reconfigure(std::move(options));
 }
-tcp::endpoint ModbusTcpServer::local_endpoint() const { return impl_->local_endpoint(); }
-const ModbusTcpServerStats& ModbusTcpServer::stats() const { return impl_->stats(); }
+tcp::endpoint ModbusTcpServer::local_endpoint() const {
+  return impl_->local_endpoint();
+}
+const ModbusTcpServerStats& ModbusTcpServer::stats() const {
+  return impl_->stats();
+}
 
 }  // namespace fieldgate::modbus
