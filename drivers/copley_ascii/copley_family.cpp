@@ -135,3 +135,9 @@ std::size_t CopleyFamily::estimate_wire_chars(const NodeAddress& node,
 }
 
 }  // namespace fieldgate
+
+namespace fieldgate {
+FamilyPtr make_copley_ascii_family() {
+  return std::make_shared<CopleyFamily>();
+}
+}  // namespace fieldgate

@@ -194,29 +194,29 @@ ModbusResult ModbusClient::write_i32(int unit, int address, int32_t value) {
   return write(unit, address, {static_cast<uint16_t>(bits >> 16), static_cast<uint16_t>(bits)});
 }
 
-CopleyPlant::CopleyPlant(const std::string& sim_nodes, const std::string& config_nodes,
-                         const std::string& timing) {
-  const auto link = dir_ / "copley0";
-  sim_ = std::make_unique<ChildProcess>(
-      std::vector<std::string>{FIELDGATE_SIM_COPLEY, "--link", link.string(), "--nodes", sim_nodes},
-      dir_ / "sim.log");
-  if (!wait_until([&] { return fs::exists(link); }, std::chrono::seconds(5)))
-    throw std::runtime_error("simulator did not create its link: " + sim_->log());
-  {
-    std::ofstream config(dir_ / "gateway.yaml");
-    config << "modbus:\n  listen: 127.0.0.1:0\n"
-           << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
-           << "buses:\n  - name: copley\n    protocol: copley-ascii\n"
-           << "    serial: {device: " << link.string() << ", baud: 115200}\n"
-           << "    timing:\n"
-           << (timing.empty() ? "      {reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, "
-                                "offline_after: 3, probe_interval: 300ms}\n"
-                              : timing)
+Plant::Plant(std::vector<SimulatedBus> buses, std::string modbus_extra) {
+  std::ostringstream config;
+  config << "modbus:\n  listen: 127.0.0.1:0\n"
+         << modbus_extra << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
+         << "buses:\n";
+  for (std::size_t i = 0; i < buses.size(); ++i) {
+    auto& bus = buses[i];
+    const auto link = dir_ / ("link" + std::to_string(i));
+    for (auto& arg : bus.sim_argv)
+      if (arg == "{link}") arg = link.string();
+    sims_.push_back(
+        std::make_unique<ChildProcess>(bus.sim_argv, dir_ / ("sim" + std::to_string(i) + ".log")));
+    if (!wait_until([&] { return fs::exists(link); }, std::chrono::seconds(5)))
+      throw std::runtime_error("simulator did not create its link: " + sims_.back()->log());
+    config << "  - name: " << bus.name << "\n    protocol: " << bus.protocol << "\n"
+           << "    serial: {device: " << link.string() << ", " << bus.serial << "}\n"
+           << "    timing: {" << bus.timing << "}\n"
            << "    nodes:\n"
-           << config_nodes;
+           << bus.nodes;
   }
+  std::ofstream(config_path()) << config.str();
   daemon_ = std::make_unique<ChildProcess>(
-      std::vector<std::string>{FIELDGATE_BINARY, "--config", (dir_ / "gateway.yaml").string()},
+      std::vector<std::string>{FIELDGATE_BINARY, "--config", config_path().string()},
       dir_ / "daemon.log");
   const std::regex listening("modbus: listening on [0-9.]+:([0-9]+)");
   std::smatch m;
@@ -230,9 +230,18 @@ CopleyPlant::CopleyPlant(const std::string& sim_nodes, const std::string& config
   port_ = std::stoi(m[1]);
 }
 
-CopleyPlant::~CopleyPlant() {
+Plant::~Plant() {
   daemon_->terminate();
-  sim_->terminate();
+  for (auto& sim : sims_) sim->terminate();
 }
+
+CopleyPlant::CopleyPlant(const std::string& sim_nodes, const std::string& config_nodes)
+    : Plant({SimulatedBus{"copley",
+                          "copley-ascii",
+                          {FIELDGATE_SIM_COPLEY, "--link", "{link}", "--nodes", sim_nodes},
+                          "baud: 115200",
+                          "reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, "
+                          "offline_after: 3, probe_interval: 300ms",
+                          config_nodes}}) {}
 
 }  // namespace fieldgate::test

@@ -76,23 +76,41 @@ class ModbusClient {
   modbus_t* ctx_ = nullptr;
 };
 
-// The Copley simulator plus the daemon configured for it.
-class CopleyPlant {
+// One simulated serial bus: a simulator behind a PTY and the bus section of the daemon's config.
+struct SimulatedBus {
+  std::string name;
+  std::string protocol;
+  // Simulator command line; the argument "{link}" is replaced by the PTY link path.
+  std::vector<std::string> sim_argv;
+  std::string serial = "baud: 115200";  // YAML flow-map content besides the device
+  std::string timing =
+      "reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, offline_after: 3, "
+      "probe_interval: 300ms";
+  std::string nodes;  // YAML list items of the bus's nodes, indented by six spaces
+};
+
+// Simulators plus the real daemon configured for them, listening on a free loopback port.
+class Plant {
  public:
-  // nodes: simulated node IDs; config_nodes: the YAML of the bus's `nodes:` list.
-  CopleyPlant(const std::string& sim_nodes, const std::string& config_nodes,
-              const std::string& timing = "");
-  ~CopleyPlant();
+  explicit Plant(std::vector<SimulatedBus> buses, std::string modbus_extra = "");
+  ~Plant();
   int port() const { return port_; }
-  ChildProcess& sim() { return *sim_; }
+  ChildProcess& sim(std::size_t i = 0) { return *sims_.at(i); }
   ChildProcess& daemon() { return *daemon_; }
   const ScratchDir& dir() const { return dir_; }
+  std::filesystem::path config_path() const { return dir_ / "gateway.yaml"; }
 
  private:
   ScratchDir dir_;
-  std::unique_ptr<ChildProcess> sim_;
+  std::vector<std::unique_ptr<ChildProcess>> sims_;
   std::unique_ptr<ChildProcess> daemon_;
   int port_ = 0;
+};
+
+// The Copley simulator with the given node IDs, and the daemon's nodes for it.
+class CopleyPlant : public Plant {
+ public:
+  CopleyPlant(const std::string& sim_nodes, const std::string& config_nodes);
 };
 
 }  // namespace fieldgate::test
