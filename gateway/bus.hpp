@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <vector>
 
 #include "drivers/protocol_family.hpp"
 #include "gateway/gateway_config.hpp"
@@ -28,6 +29,7 @@ struct BusCounters {
   uint64_t reconnects = 0;
   uint64_t commands = 0;
   bool link_up = false;
+  bool open_attempted = false;  // the first open finished, successfully or not
 };
 
 // One field link with its own scheduler. Serial links carry one transaction at a time
@@ -47,10 +49,15 @@ class Bus {
   virtual const BusConfig& config() const = 0;
   virtual const BusCounters& counters() const = 0;
   virtual const NodeConfig& node_config(int node_index) const = 0;
+  // The bus's nodes' images, in config order; the process image points at them, so they
+  // survive a reload that keeps the bus.
+  virtual std::vector<std::shared_ptr<NodeImage>> node_images() const = 0;
+  // After a reload that kept this bus: its first node's new gateway-wide number.
+  virtual void rebind(int first_node_index, NodeUpdated on_update) = 0;
 };
 
-std::unique_ptr<Bus> make_bus(asio::any_io_executor executor, const BusConfig& config,
-                              int first_node_index, ProcessImage& image,
-                              Bus::NodeUpdated on_update);
+std::shared_ptr<Bus> make_bus(asio::any_io_executor executor,
+                              std::shared_ptr<const void> config_owner, const BusConfig& config,
+                              int first_node_index, Bus::NodeUpdated on_update);
 
 }  // namespace fieldgate

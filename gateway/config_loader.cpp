@@ -4,7 +4,9 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <set>
+#include <sstream>
 
 #include "gateway/poll_budget.hpp"
 #include "mapping/model_loader.hpp"
@@ -276,7 +278,19 @@ class ConfigParser {
             to_string(bus.mark), bus.name, budget.wire_seconds_per_second * 100,
             bus.transport.serial.baud));
     }
+    bus.signature = YAML::Dump(node) + "\n--- link " + bus.transport.serial.device + " " +
+                    bus.transport.host + "\n";
+    for (const auto& n : bus.nodes)
+      if (n.model)
+        bus.signature += "\n--- model " + n.model->name + "\n" + file_text(n.model->mark.file);
     config.buses.push_back(std::move(bus));
+  }
+
+  static std::string file_text(const std::string& path) {
+    std::ifstream in(path);
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
   }
 
   void parse_node(const YAML::Node& node, BusConfig& bus, GatewayConfig& config,

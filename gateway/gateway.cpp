@@ -8,66 +8,134 @@
 
 namespace fieldgate {
 
-namespace {
-std::size_t count_nodes(const GatewayConfig& g) {
-  std::size_t n = 0;
-  for (const auto& b : g.buses) n += b.nodes.size();
-  return n;
-}
-}  // namespace
-
-Gateway::Gateway(asio::io_context& io, std::shared_ptr<const LoadedConfig> config)
-    : io_(io),
-      config_(std::move(config)),
-      image_(count_nodes(config_->gateway)),
-      actions_(io.get_executor(), image_, [this](int n) -> Bus& { return bus_of(n); }) {
-  int first = 0;
-  for (const auto& bus : config_->gateway.buses) {
-    buses_.push_back(make_bus(io.get_executor(), bus, first, image_,
-                              [this](int n) { actions_.node_updated(n); }));
-    for (std::size_t i = 0; i < bus.nodes.size(); ++i)
-      bus_of_node_.push_back(static_cast<int>(buses_.size() - 1));
-    first += static_cast<int>(bus.nodes.size());
-  }
-  handler_ = std::make_shared<RegisterMapHandler>(config_, image_, actions_,
-                                                  [this](int n) -> Bus& { return bus_of(n); });
+Gateway::Gateway(asio::io_context& io, std::shared_ptr<const LoadedConfig> config) : io_(io) {
+  current_ = build(std::move(config), nullptr, pending_start_);
 }
 
 Gateway::~Gateway() {
   stop();
 }
 
-Bus& Gateway::bus_of(int node_index) {
-  return *buses_.at(
-      static_cast<std::size_t>(bus_of_node_.at(static_cast<std::size_t>(node_index))));
+std::shared_ptr<Gateway::Generation> Gateway::build(std::shared_ptr<const LoadedConfig> config,
+                                                    Generation* previous,
+                                                    std::vector<std::shared_ptr<Bus>>& fresh) {
+  auto g = std::make_shared<Generation>();
+  g->config = config;
+  Generation* raw = g.get();
+  const auto on_update = [raw](int node_index) { raw->actions->node_updated(node_index); };
+  std::vector<std::shared_ptr<NodeImage>> images;
+  int first = 0;
+  for (const auto& bus_config : config->gateway.buses) {
+    std::shared_ptr<Bus> bus;
+    if (previous) {
+      for (const auto& old : previous->buses)
+        if (old->config().name == bus_config.name &&
+            old->config().signature == bus_config.signature)
+          bus = old;
+    }
+    if (bus) {
+      bus->rebind(first, on_update);
+    } else {
+      bus = make_bus(io_.get_executor(), config, bus_config, first, on_update);
+      fresh.push_back(bus);
+    }
+    for (auto& image : bus->node_images()) images.push_back(std::move(image));
+    for (std::size_t i = 0; i < bus_config.nodes.size(); ++i)
+      g->bus_of_node.push_back(static_cast<int>(g->buses.size()));
+    g->buses.push_back(bus);
+    first += static_cast<int>(bus_config.nodes.size());
+  }
+  g->image = ProcessImage(std::move(images));
+  const auto bus_of = [raw](int n) -> Bus& {
+    return *raw->buses.at(
+        static_cast<std::size_t>(raw->bus_of_node.at(static_cast<std::size_t>(n))));
+  };
+  g->actions = std::make_unique<ActionRunner>(io_.get_executor(), g->image, bus_of);
+  g->handler = std::make_shared<RegisterMapHandler>(config, g->image, *g->actions, bus_of);
+  return g;
 }
 
-void Gateway::start() {
-  const auto& m = config_->gateway.modbus;
+modbus::ModbusTcpServerOptions Gateway::server_options(const GatewayConfig& config) const {
+  const auto& m = config.modbus;
   modbus::ModbusTcpServerOptions options;
   options.endpoint = asio::ip::tcp::endpoint(asio::ip::make_address(m.address), m.port);
   options.max_clients = m.max_clients;
   options.idle_timeout = m.idle_timeout;
-  server_ = std::make_unique<modbus::ModbusTcpServer>(io_.get_executor(), options, handler_);
+  return options;
+}
+
+void Gateway::spawn(const std::shared_ptr<Bus>& bus) {
+  // The coroutine holds the bus, so a bus dropped by a reload lives until its loop has ended.
+  asio::co_spawn(
+      io_, [bus]() -> asio::awaitable<void> { co_await bus->run(); }, asio::detached);
+}
+
+void Gateway::start() {
+  server_ = std::make_unique<modbus::ModbusTcpServer>(
+      io_.get_executor(), server_options(current_->config->gateway), current_->handler);
   server_->start();
-  log::notice("modbus: listening on {}", server_->local_endpoint().address().to_string() + ":" +
-                                             std::to_string(server_->local_endpoint().port()));
-  for (auto& bus : buses_) asio::co_spawn(io_, bus->run(), asio::detached);
+  const auto ep = server_->local_endpoint();
+  log::notice("modbus: listening on {}:{}", ep.address().to_string(), ep.port());
+  for (auto& bus : pending_start_) spawn(bus);
+  pending_start_.clear();
+}
+
+std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
+  std::vector<std::shared_ptr<Bus>> fresh;
+  auto next = build(std::move(config), current_.get(), fresh);
+  std::size_t kept = 0, stopped = 0;
+  for (const auto& old : current_->buses) {
+    bool still_used = false;
+    for (const auto& b : next->buses) still_used = still_used || b == old;
+    if (still_used) {
+      ++kept;
+    } else {
+      old->stop();
+      ++stopped;
+    }
+  }
+  auto options = server_options(next->config->gateway);
+  if (server_) {
+    server_->set_handler(next->handler);
+    if (!server_->reconfigure(options)) {
+      log::warning(
+          "modbus: the listen address changed; reopening the listener (clients reconnect)");
+      server_->stop();
+      server_ =
+          std::make_unique<modbus::ModbusTcpServer>(io_.get_executor(), options, next->handler);
+      server_->start();
+    }
+  }
+  retired_.push_back(current_);
+  current_ = next;
+  for (auto& bus : fresh) spawn(bus);
+  return fmt::format("{} bus(es) kept running, {} started, {} stopped", kept, fresh.size(),
+                     stopped);
 }
 
 void Gateway::stop() {
   if (server_) server_->stop();
-  for (auto& bus : buses_) bus->stop();
-  actions_.stop();
+  if (current_) {
+    for (auto& bus : current_->buses) bus->stop();
+    current_->actions->stop();
+  }
+  for (auto& g : retired_) g->actions->stop();
 }
 
 std::string Gateway::status_line() const {
   std::size_t up = 0, online = 0;
-  for (const auto& b : buses_) up += b->counters().link_up ? 1 : 0;
-  for (std::size_t i = 0; i < image_.size(); ++i)
-    online += image_.node(static_cast<int>(i)).state == NodeState::online ? 1 : 0;
-  return fmt::format("buses up {}/{}, nodes online {}/{}, clients {}", up, buses_.size(), online,
-                     image_.size(), server_ ? server_->stats().clients_connected : 0);
+  for (const auto& b : current_->buses) up += b->counters().link_up ? 1 : 0;
+  const auto& image = current_->image;
+  for (std::size_t i = 0; i < image.size(); ++i)
+    online += image.node(static_cast<int>(i)).state == NodeState::online ? 1 : 0;
+  return fmt::format("buses up {}/{}, nodes online {}/{}, clients {}", up, current_->buses.size(),
+                     online, image.size(), server_ ? server_->stats().clients_connected : 0);
+}
+
+bool Gateway::all_buses_attempted() const {
+  for (const auto& b : current_->buses)
+    if (!b->counters().open_attempted) return false;
+  return true;
 }
 
 }  // namespace fieldgate

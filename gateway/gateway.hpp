@@ -3,6 +3,7 @@
 #include <boost/asio/io_context.hpp>
 
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "gateway/action_runner.hpp"
@@ -14,7 +15,9 @@
 
 namespace fieldgate {
 
-// The running daemon: buses, process image, actions and the Modbus server on one io_context.
+// The running gateway: buses, process image, actions and the Modbus server on one io_context.
+// A configuration in force is a generation; a reload builds the next one, keeping every bus
+// whose configuration did not change (and its nodes' state) and the Modbus clients.
 class Gateway {
  public:
   Gateway(asio::io_context& io, std::shared_ptr<const LoadedConfig> config);
@@ -24,23 +27,39 @@ class Gateway {
   // every bus.
   void start();
   void stop();
+  // Puts a validated configuration in force; returns a one-line summary of what changed.
+  std::string apply(std::shared_ptr<const LoadedConfig> config);
 
-  const ProcessImage& image() const { return image_; }
+  const LoadedConfig& config() const { return *current_->config; }
+  const ProcessImage& image() const { return current_->image; }
   const modbus::ModbusTcpServer& server() const { return *server_; }
-  const std::vector<std::unique_ptr<Bus>>& buses() const { return buses_; }
+  const std::vector<std::shared_ptr<Bus>>& buses() const { return current_->buses; }
   std::string status_line() const;
+  // Every bus has finished its first attempt to open its link (READY=1 waits for this).
+  bool all_buses_attempted() const;
 
  private:
-  Bus& bus_of(int node_index);
+  struct Generation {
+    std::shared_ptr<const LoadedConfig> config;
+    std::vector<std::shared_ptr<Bus>> buses;
+    std::vector<int> bus_of_node;
+    ProcessImage image;
+    std::unique_ptr<ActionRunner> actions;
+    std::shared_ptr<RegisterMapHandler> handler;
+  };
+
+  // Builds a generation, taking buses from `previous` whose signature is unchanged.
+  std::shared_ptr<Generation> build(std::shared_ptr<const LoadedConfig> config,
+                                    Generation* previous, std::vector<std::shared_ptr<Bus>>& fresh);
+  modbus::ModbusTcpServerOptions server_options(const GatewayConfig& config) const;
+  void spawn(const std::shared_ptr<Bus>& bus);
 
   asio::io_context& io_;
-  std::shared_ptr<const LoadedConfig> config_;
-  ProcessImage image_;
-  std::vector<std::unique_ptr<Bus>> buses_;
-  std::vector<int> bus_of_node_;
-  ActionRunner actions_;
-  std::shared_ptr<RegisterMapHandler> handler_;
+  std::shared_ptr<Generation> current_;
+  // Older generations whose action watches may still run; kept until the daemon stops.
+  std::vector<std::shared_ptr<Generation>> retired_;
   std::unique_ptr<modbus::ModbusTcpServer> server_;
+  std::vector<std::shared_ptr<Bus>> pending_start_;
 };
 
 }  // namespace fieldgate

@@ -69,6 +69,9 @@ struct BusConfig {
   BusTiming timing;
   std::vector<NodeConfig> nodes;
   SourceMark mark;
+  // The bus's YAML and the text of the models it uses: equal signatures across a reload mean
+  // the bus can keep running untouched.
+  std::string signature;
 };
 
 struct GatewayConfig {

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -53,20 +54,22 @@ struct NodeImage {
   ActionState action;
 };
 
-// The latest value of every point with its time and quality, plus per-node diagnostics. Only
-// the io_context thread touches it, so it needs no locking.
+// The latest value of every point with its time and quality, plus per-node diagnostics,
+// indexed by the gateway's node number. The node images belong to the buses (a reload keeps an
+// unchanged bus and its images). Only the io_context thread touches it: no locking.
 class ProcessImage {
  public:
-  explicit ProcessImage(std::size_t node_count) : nodes_(node_count) {}
-  NodeImage& node(int index) { return nodes_.at(static_cast<std::size_t>(index)); }
-  const NodeImage& node(int index) const { return nodes_.at(static_cast<std::size_t>(index)); }
+  ProcessImage() = default;
+  explicit ProcessImage(std::vector<std::shared_ptr<NodeImage>> nodes) : nodes_(std::move(nodes)) {}
+  NodeImage& node(int index) { return *nodes_.at(static_cast<std::size_t>(index)); }
+  const NodeImage& node(int index) const { return *nodes_.at(static_cast<std::size_t>(index)); }
   std::size_t size() const { return nodes_.size(); }
 
   // The value of a diagnostic field as the Modbus map presents it.
   int64_t diagnostic(int index, DiagnosticField field, SteadyTime now) const;
 
  private:
-  std::vector<NodeImage> nodes_;
+  std::vector<std::shared_ptr<NodeImage>> nodes_;
 };
 
 }  // namespace fieldgate

@@ -30,23 +30,24 @@ struct SerialBus::PendingCommand {
   asio::experimental::channel<void(boost::system::error_code, Reply)> done;
 };
 
-SerialBus::SerialBus(asio::any_io_executor executor, const BusConfig& config, int first_node_index,
-                     ProcessImage& image, NodeUpdated on_update)
+SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
+                     const BusConfig& config, int first_node_index, NodeUpdated on_update)
     : executor_(executor),
+      config_owner_(std::move(config_owner)),
       config_(config),
       first_node_index_(first_node_index),
-      image_(image),
       on_update_(std::move(on_update)),
       transport_(make_transport(executor, config.transport)),
       link_(*transport_),
       wake_(executor) {
-  int index = first_node_index;
+  int index = 0;  // local: position on this bus; the gateway's number is first_node_index_ + index
   for (const auto& n : config.nodes) {
     NodeRuntime rt;
     rt.index = index;
     rt.config = &n;
+    rt.image = std::make_shared<NodeImage>();
     nodes_.push_back(rt);
-    auto& img = image_.node(index);
+    auto& img = *rt.image;
     img.points.assign(n.model->points.size(), {});
     img.setpoints.clear();
     for (const auto& s : n.model->setpoints) {
@@ -93,16 +94,27 @@ SerialBus::NodeRuntime& SerialBus::node(int node_index) {
   return nodes_.at(static_cast<std::size_t>(node_index - first_node_index_));
 }
 
+std::vector<std::shared_ptr<NodeImage>> SerialBus::node_images() const {
+  std::vector<std::shared_ptr<NodeImage>> images;
+  for (const auto& n : nodes_) images.push_back(n.image);
+  return images;
+}
+
+void SerialBus::rebind(int first_node_index, NodeUpdated on_update) {
+  first_node_index_ = first_node_index;
+  on_update_ = std::move(on_update);
+}
+
 void SerialBus::stop() {
   stopping_ = true;
   wake_.cancel();
   transport_->close();
 }
 
-std::unique_ptr<Bus> make_bus(asio::any_io_executor executor, const BusConfig& config,
-                              int first_node_index, ProcessImage& image,
-                              Bus::NodeUpdated on_update) {
-  return std::make_unique<SerialBus>(executor, config, first_node_index, image,
+std::shared_ptr<Bus> make_bus(asio::any_io_executor executor,
+                              std::shared_ptr<const void> config_owner, const BusConfig& config,
+                              int first_node_index, Bus::NodeUpdated on_update) {
+  return std::make_shared<SerialBus>(executor, std::move(config_owner), config, first_node_index,
                                      std::move(on_update));
 }
 
@@ -113,14 +125,14 @@ asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, Comman
     ++counters_.commands;
     co_return co_await config_.family->send_urgent(link_, n.config->address, request);
   }
-  if (image_.node(n.index).state == NodeState::offline || !transport_->is_open()) {
+  if ((*n.image).state == NodeState::offline || !transport_->is_open()) {
     Reply r;
     r.status = Reply::Status::unreachable;
     r.text = transport_->is_open() ? "node is offline" : "bus link is down";
     co_return r;
   }
   auto cmd = std::make_shared<PendingCommand>(executor_);
-  cmd->node = node_index;
+  cmd->node = n.index;  // local, so a reload that renumbers the gateway's nodes cannot misroute it
   cmd->request = std::move(request);
   cmd->options = options;
   commands_.push_back(cmd);
@@ -136,7 +148,7 @@ asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, Comman
 }
 
 void SerialBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
-  auto& img = image_.node(n.index);
+  auto& img = (*n.image);
   if (img.state == state) return;
   const auto old = img.state;
   img.state = state;
@@ -156,7 +168,7 @@ void SerialBus::all_nodes_offline(std::string_view why) {
 }
 
 void SerialBus::record(NodeRuntime& n, const Reply& reply) {
-  auto& c = image_.node(n.index).counters;
+  auto& c = (*n.image).counters;
   switch (reply.status) {
     case Reply::Status::ok:
       c.consecutive_timeouts = 0;
@@ -186,7 +198,7 @@ void SerialBus::record(NodeRuntime& n, const Reply& reply) {
       ++c.consecutive_timeouts;
       c.last_error_text = reply.text;
       if (c.consecutive_timeouts >= static_cast<uint32_t>(config_.timing.offline_after) ||
-          image_.node(n.index).state == NodeState::offline)
+          (*n.image).state == NodeState::offline)
         set_state(n, NodeState::offline,
                   reply.status == Reply::Status::unreachable ? reply.text : "no reply");
       break;
@@ -199,12 +211,12 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
   for (int attempt = 0; attempt <= retries; ++attempt) {
     if (attempt > 0) {
       ++counters_.retries;
-      ++image_.node(n.index).counters.retries;
+      ++(*n.image).counters.retries;
     }
     reply =
         co_await config_.family->transact(link_, n.config->address, request, config_.timing.link);
     ++counters_.transactions;
-    ++image_.node(n.index).counters.transactions;
+    ++(*n.image).counters.transactions;
     if (accept_no_reply && reply.status == Reply::Status::timeout) {
       reply.status = Reply::Status::ok;
       break;
@@ -224,8 +236,8 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
 
 asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
   auto& item = plan_.item(item_index);
-  auto& n = node(item.node);
-  const bool probing = image_.node(n.index).state == NodeState::offline;
+  auto& n = nodes_[static_cast<std::size_t>(item.node)];
+  const bool probing = (*n.image).state == NodeState::offline;
   const Request request = item.request;
   const auto targets = item.targets;
   Reply reply = co_await transact(n, request, probing ? 0 : config_.timing.retries, false);
@@ -236,7 +248,7 @@ asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
     plan_.completed(item_index, now);
   }
   if (reply.status != Reply::Status::ok) co_return;
-  auto& img = image_.node(n.index);
+  auto& img = (*n.image);
   for (const auto& t : targets) {
     if (t.field >= static_cast<int>(reply.values.size())) {
       ++img.counters.errors;
@@ -246,13 +258,14 @@ asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
     img.points[static_cast<std::size_t>(t.point)] = {
         reply.values[static_cast<std::size_t>(t.field)], now, true};
   }
-  if (on_update_) on_update_(n.index);
+  if (on_update_) on_update_(first_node_index_ + n.index);
 }
 
 asio::awaitable<void> SerialBus::open_link() {
   auto delay = config_.timing.reconnect_min;
   while (!stopping_) {
     const auto ec = co_await transport_->open();
+    counters_.open_attempted = true;
     if (!ec) {
       counters_.link_up = true;
       ++counters_.reconnects;
@@ -260,7 +273,7 @@ asio::awaitable<void> SerialBus::open_link() {
       link_error_logged_ = false;
       co_await config_.family->on_link_open(link_, config_.timing.link);
       for (auto& n : nodes_)
-        if (image_.node(n.index).state == NodeState::offline) n.next_probe = Clock::now();
+        if ((*n.image).state == NodeState::offline) n.next_probe = Clock::now();
       co_return;
     }
     counters_.link_up = false;
@@ -297,9 +310,9 @@ asio::awaitable<void> SerialBus::run() {
       auto cmd = commands_.front();
       commands_.pop_front();
       ++counters_.commands;
-      auto& n = node(cmd->node);
+      auto& n = nodes_[static_cast<std::size_t>(cmd->node)];
       Reply reply;
-      if (image_.node(n.index).state == NodeState::offline) {
+      if ((*n.image).state == NodeState::offline) {
         reply.status = Reply::Status::unreachable;
         reply.text = "node is offline";
       } else {
@@ -310,12 +323,13 @@ asio::awaitable<void> SerialBus::run() {
       continue;
     }
     const auto now = Clock::now();
-    auto due = plan_.next(
-        [&](int node_index) { return image_.node(node_index).state != NodeState::offline; });
+    auto due = plan_.next([&](int local) {
+      return nodes_[static_cast<std::size_t>(local)].image->state != NodeState::offline;
+    });
     std::optional<std::size_t> probe;
     SteadyTime probe_when = SteadyTime::max();
     for (auto& n : nodes_) {
-      if (image_.node(n.index).state != NodeState::offline) continue;
+      if ((*n.image).state != NodeState::offline) continue;
       if (n.next_probe < probe_when) {
         if (auto item = plan_.probe_item(n.index)) {
           probe = item;

@@ -24,8 +24,10 @@ namespace fieldgate {
 // Modbus writes (first) with polls (spread over time), one transaction in flight.
 class SerialBus final : public Bus {
  public:
-  SerialBus(asio::any_io_executor executor, const BusConfig& config, int first_node_index,
-            ProcessImage& image, NodeUpdated on_update);
+  // config_owner keeps the configuration that config belongs to alive as long as the bus runs,
+  // which a reload may make longer than that configuration is in force.
+  SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
+            const BusConfig& config, int first_node_index, NodeUpdated on_update);
   ~SerialBus() override;
 
   // Runs until stop(); spawn it on the io_context.
@@ -42,12 +44,15 @@ class SerialBus final : public Bus {
   const LinkStats& link_stats() const { return link_.stats(); }
   bool owns_node(int node_index) const;
   const NodeConfig& node_config(int node_index) const override;
+  std::vector<std::shared_ptr<NodeImage>> node_images() const override;
+  void rebind(int first_node_index, NodeUpdated on_update) override;
 
  private:
   struct PendingCommand;
   struct NodeRuntime {
-    int index = 0;
+    int index = 0;  // position on this bus
     const NodeConfig* config = nullptr;
+    std::shared_ptr<NodeImage> image;
     SteadyTime next_probe{};
   };
 
@@ -61,9 +66,9 @@ class SerialBus final : public Bus {
   NodeRuntime& node(int node_index);
 
   asio::any_io_executor executor_;
+  std::shared_ptr<const void> config_owner_;
   const BusConfig& config_;
   int first_node_index_;
-  ProcessImage& image_;
   NodeUpdated on_update_;
   std::unique_ptr<ByteTransport> transport_;
   Link link_;
