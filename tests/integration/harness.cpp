@@ -103,6 +103,10 @@ int ChildProcess::wait_exit() {
   return *status_;
 }
 
+void ChildProcess::signal(int signal_number) {
+  if (pid_ > 0 && running()) ::kill(pid_, signal_number);
+}
+
 void ChildProcess::terminate() {
   if (pid_ <= 0 || !running()) return;
   ::kill(pid_, SIGTERM);
@@ -194,7 +198,8 @@ ModbusResult ModbusClient::write_i32(int unit, int address, int32_t value) {
   return write(unit, address, {static_cast<uint16_t>(bits >> 16), static_cast<uint16_t>(bits)});
 }
 
-Plant::Plant(std::vector<SimulatedBus> buses, std::string modbus_extra) {
+Plant::Plant(std::vector<SimulatedBus> buses, std::string modbus_extra,
+             std::vector<std::string> daemon_env) {
   std::ostringstream config;
   config << "modbus:\n  listen: 127.0.0.1:0\n"
          << modbus_extra << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
@@ -217,7 +222,7 @@ Plant::Plant(std::vector<SimulatedBus> buses, std::string modbus_extra) {
   std::ofstream(config_path()) << config.str();
   daemon_ = std::make_unique<ChildProcess>(
       std::vector<std::string>{FIELDGATE_BINARY, "--config", config_path().string()},
-      dir_ / "daemon.log");
+      dir_ / "daemon.log", std::move(daemon_env));
   const std::regex listening("modbus: listening on [0-9.]+:([0-9]+)");
   std::smatch m;
   const bool up = wait_until([&] {

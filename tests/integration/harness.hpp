@@ -38,7 +38,8 @@ class ChildProcess {
   std::string log() const;
   bool running();
   void terminate();  // SIGTERM and wait
-  int wait_exit();   // exit code, or 128+signal
+  void signal(int signal_number);
+  int wait_exit();  // exit code, or 128+signal
 
  private:
   pid_t pid_ = -1;
@@ -92,7 +93,8 @@ struct SimulatedBus {
 // Simulators plus the real daemon configured for them, listening on a free loopback port.
 class Plant {
  public:
-  explicit Plant(std::vector<SimulatedBus> buses, std::string modbus_extra = "");
+  explicit Plant(std::vector<SimulatedBus> buses, std::string modbus_extra = "",
+                 std::vector<std::string> daemon_env = {});
   ~Plant();
   int port() const { return port_; }
   ChildProcess& sim(std::size_t i = 0) { return *sims_.at(i); }
