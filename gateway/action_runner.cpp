@@ -3,6 +3,8 @@
 #include <boost/asio/as_tuple.hpp>
 #include <boost/asio/co_spawn.hpp>
 #include <boost/asio/detached.hpp>
+#include <boost/asio/experimental/awaitable_operators.hpp>
+#include <boost/asio/experimental/channel.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
 #include <algorithm>
@@ -12,9 +14,29 @@
 
 namespace fieldgate {
 
+using namespace boost::asio::experimental::awaitable_operators;
+
 namespace {
 constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
 using Clock = std::chrono::steady_clock;
+using ReplyChannel = asio::experimental::channel<void(boost::system::error_code, Reply)>;
+
+// A detached submit whose reply a step picks up later. Parameters by value: the frame owns them.
+asio::awaitable<void> submit_into(Bus& bus, int node_index, Request request, CommandOptions options,
+                                  std::shared_ptr<ReplyChannel> out) {
+  Reply reply = co_await bus.submit(node_index, std::move(request), options);
+  out->try_send(boost::system::error_code{}, std::move(reply));
+}
+
+Reply reply_of(std::tuple<boost::system::error_code, Reply> received) {
+  auto [ec, reply] = std::move(received);
+  if (ec) {
+    reply = Reply{};
+    reply.status = Reply::Status::link_down;
+    reply.text = "gateway stopping";
+  }
+  return reply;
+}
 
 uint16_t action_error_of(const Reply& r) {
   switch (r.status) {
@@ -28,6 +50,19 @@ uint16_t action_error_of(const Reply& r) {
   }
 }
 }  // namespace
+
+// The answer to the Modbus write that started an action, given once: early by a confirm_after
+// step, otherwise when the steps are through.
+struct ActionRunner::Confirmation {
+  explicit Confirmation(asio::any_io_executor executor) : channel(executor, 1) {}
+  void give(const Reply& reply) {
+    if (given) return;
+    given = true;
+    channel.try_send(boost::system::error_code{}, reply);
+  }
+  ReplyChannel channel;
+  bool given = false;
+};
 
 ActionRunner::ActionRunner(asio::any_io_executor executor, ProcessImage& image, BusOf bus_of)
     : executor_(executor), image_(image), bus_of_(std::move(bus_of)), waiters_(image.size()) {}
@@ -48,13 +83,62 @@ void ActionRunner::node_updated(int node_index) {
 
 asio::awaitable<Reply> ActionRunner::start(int node_index, ModelPtr model_ptr,
                                            const ActionDef& action) {
-  const Model& model = *model_ptr;
   auto& state = image_.node(node_index).action;
   const uint64_t generation = ++state.generation;
   state.status = ActionStatus::busy;
   state.code = action.code;
   state.error = 0;
   ++state.sequence;
+  const bool confirms_early =
+      std::any_of(action.steps.begin(), action.steps.end(),
+                  [](const ActionStep& s) { return s.confirm_after.has_value(); });
+  if (!confirms_early) co_return co_await run_steps(node_index, model_ptr, action, generation, {});
+  auto confirmation = std::make_shared<Confirmation>(executor_);
+  asio::co_spawn(
+      executor_,
+      run_in_background(node_index, std::move(model_ptr), action, generation, confirmation),
+      asio::detached);
+  auto [ec, reply] = co_await confirmation->channel.async_receive(use_tuple);
+  if (ec) {
+    Reply r;
+    r.status = Reply::Status::link_down;
+    r.text = "gateway stopping";
+    co_return r;
+  }
+  co_return reply;
+}
+
+asio::awaitable<void> ActionRunner::run_in_background(int node_index, ModelPtr model_ptr,
+                                                      const ActionDef& action, uint64_t generation,
+                                                      std::shared_ptr<Confirmation> confirmation) {
+  co_await run_steps(node_index, std::move(model_ptr), action, generation, confirmation);
+}
+
+asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index,
+                                                       const Request& request,
+                                                       CommandOptions options,
+                                                       std::chrono::microseconds patience,
+                                                       Confirmation& confirmation) {
+  auto pending = std::make_shared<ReplyChannel>(executor_, 1);
+  asio::co_spawn(executor_, submit_into(bus, node_index, request, options, pending),
+                 asio::detached);
+  asio::steady_timer timer(executor_, patience);
+  auto first = co_await (pending->async_receive(use_tuple) || timer.async_wait(use_tuple));
+  if (first.index() == 0) co_return reply_of(std::get<0>(std::move(first)));
+  // Still no reply: the command is on its way and running. The write is confirmed; the action
+  // stays busy until the reply arrives.
+  Reply accepted;
+  accepted.status = Reply::Status::ok;
+  confirmation.give(accepted);
+  auto late = co_await pending->async_receive(use_tuple);
+  co_return reply_of(std::move(late));
+}
+
+asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_ptr,
+                                               const ActionDef& action, uint64_t generation,
+                                               std::shared_ptr<Confirmation> confirmation) {
+  const Model& model = *model_ptr;
+  auto& state = image_.node(node_index).action;
   auto& bus = bus_of_(node_index);
   const auto& setpoints = image_.node(node_index).setpoints;
   const auto lookup = [&](std::string_view name) -> int64_t {
@@ -72,8 +156,13 @@ asio::awaitable<Reply> ActionRunner::start(int node_index, ModelPtr model_ptr,
     }
     Request request{step.command.render(lookup), Request::Expect::ack, NumberFormat::decimal,
                     action.bus_wide};
-    reply =
-        co_await bus.submit(node_index, request, CommandOptions{step.accept_no_reply, step.urgent});
+    const CommandOptions options{step.accept_no_reply, step.urgent};
+    if (step.confirm_after && confirmation && !confirmation->given) {
+      reply = co_await submit_confirming(bus, node_index, request, options, *step.confirm_after,
+                                         *confirmation);
+    } else {
+      reply = co_await bus.submit(node_index, request, options);
+    }
     // A device code the step accepts (e.g. Copley's e 32 after a remote reset) is success,
     // whether the family classed it as a device error or as the node being unreachable.
     const bool coded = reply.status == Reply::Status::device_error ||
@@ -89,9 +178,11 @@ asio::awaitable<Reply> ActionRunner::start(int node_index, ModelPtr model_ptr,
       log::warning("node {}: action {} failed at '{}': {}", bus.node_config(node_index).name,
                    action.name, request.command,
                    reply.text.empty() ? std::string(to_string(reply.status)) : reply.text);
+      if (confirmation) confirmation->give(reply);
       co_return reply;
     }
   }
+  if (confirmation) confirmation->give(reply);
   if (!action.done && !action.failed) {
     if (state.generation == generation) state.status = ActionStatus::done;
     co_return reply;

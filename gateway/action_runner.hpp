@@ -5,6 +5,7 @@
 #include <boost/asio/steady_timer.hpp>
 
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include "drivers/protocol_family.hpp"
@@ -14,10 +15,15 @@
 namespace fieldgate {
 
 class Bus;
+struct CommandOptions;
 
 // Runs a model's action for a node: sends its steps through the node's bus, each confirmed
 // before the next, then watches the done/failed condition on freshly polled values and keeps
 // the node's action status (busy, done, error) up to date for the PLC's handshake.
+//
+// A step with confirm_after answers the Modbus write early: once it has been submitted that long
+// without a reply (a move acknowledged only at its end). The rest of the action then runs in the
+// background and ends in done or error like any other.
 class ActionRunner {
  public:
   using BusOf = std::function<Bus&(int node_index)>;
@@ -25,14 +31,25 @@ class ActionRunner {
   ActionRunner(asio::any_io_executor executor, ProcessImage& image, BusOf bus_of);
   ~ActionRunner();
 
-  // Returns once every step was acknowledged (the reply of the failing step otherwise). The
-  // completion watch goes on in the background.
+  // Returns once every step was acknowledged (the reply of the failing step otherwise), or once
+  // a confirm_after step has waited that long for its reply. The completion watch goes on in the
+  // background.
   asio::awaitable<Reply> start(int node_index, ModelPtr model, const ActionDef& action);
   // Called when a poll brought new values for a node.
   void node_updated(int node_index);
   void stop();
 
  private:
+  struct Confirmation;
+  asio::awaitable<Reply> run_steps(int node_index, ModelPtr model, const ActionDef& action,
+                                   uint64_t generation, std::shared_ptr<Confirmation> confirmation);
+  asio::awaitable<Reply> submit_confirming(Bus& bus, int node_index, const Request& request,
+                                           CommandOptions options,
+                                           std::chrono::microseconds patience,
+                                           Confirmation& confirmation);
+  asio::awaitable<void> run_in_background(int node_index, ModelPtr model, const ActionDef& action,
+                                          uint64_t generation,
+                                          std::shared_ptr<Confirmation> confirmation);
   asio::awaitable<void> watch(int node_index, ModelPtr model, const ActionDef& action,
                               uint64_t generation, SteadyTime acknowledged);
   bool refreshed_since(const NodeImage& node, const Model& model,

@@ -14,6 +14,12 @@
 
 namespace fieldgate {
 
+bool ModbusConfig::unit_read_only(uint8_t unit) const {
+  for (const auto u : read_only_units)
+    if (u == unit) return true;
+  return false;
+}
+
 microseconds NodeConfig::period_of(const std::string& poll_class) const {
   if (const auto it = poll_periods.find(poll_class); it != poll_periods.end()) return it->second;
   if (const auto* c = model->find_poll_class(poll_class)) return c->period;
@@ -85,7 +91,8 @@ class ConfigParser {
     if (!r_.expect_map(node, "modbus")) return;
     r_.reject_unknown_keys(
         node,
-        {"listen", "max_clients", "idle_timeout", "word_order", "offline_reads", "writes_enabled"},
+        {"listen", "max_clients", "idle_timeout", "request_timeout", "word_order", "offline_reads",
+         "writes_enabled", "allow", "read_only_units", "read_only_tables"},
         "modbus");
     if (const auto listen = node["listen"]) {
       if (auto text = r_.string(listen, "modbus listen")) {
@@ -136,6 +143,40 @@ class ConfigParser {
     }
     if (node["writes_enabled"])
       m.writes_enabled = r_.boolean(node["writes_enabled"], "modbus writes_enabled").value_or(true);
+    if (node["request_timeout"])
+      m.request_timeout = r_.duration(node["request_timeout"], "modbus request_timeout")
+                              .value_or(m.request_timeout);
+    if (const auto allow = node["allow"]; allow && r_.expect_sequence(allow, "modbus allow")) {
+      std::vector<Cidr> entries;
+      for (const auto& item : allow) {
+        auto text = r_.string(item, "modbus allow");
+        if (!text) continue;
+        std::string error;
+        if (auto c = Cidr::parse(*text, error))
+          entries.push_back(*c);
+        else
+          r_.error(item, "modbus allow: " + error);
+      }
+      m.allow = ClientAllowList(std::move(entries));
+    }
+    if (const auto units = node["read_only_units"];
+        units && r_.expect_sequence(units, "modbus read_only_units"))
+      for (const auto& item : units)
+        if (auto u = r_.integer(item, "modbus read_only_units", 1, 247))
+          m.read_only_units.push_back(static_cast<uint8_t>(*u));
+    if (const auto tables = node["read_only_tables"];
+        tables && r_.expect_sequence(tables, "modbus read_only_tables"))
+      for (const auto& item : tables) {
+        const auto t = r_.string(item, "modbus read_only_tables");
+        if (t && *t == "coils")
+          m.read_only_coils = true;
+        else if (t && *t == "holding_registers")
+          m.read_only_holding = true;
+        else if (t)
+          r_.error(item, fmt::format("modbus read_only_tables: expected coils or "
+                                     "holding_registers (the only writable tables), found '{}'",
+                                     *t));
+      }
   }
 
   void parse_model_dirs(const YAML::Node& node, GatewayConfig& config) {
@@ -306,8 +347,8 @@ class ConfigParser {
         if (!node_names_.insert(*s).second)
           r_.error(*name, fmt::format("{}: node name is already used", where));
       }
-    r_.reject_unknown_keys(node, {"name", "address", "model", "unit_id", "poll", "setpoints"},
-                           where);
+    r_.reject_unknown_keys(
+        node, {"name", "address", "model", "unit_id", "poll", "setpoints", "limits"}, where);
     if (auto a = r_.require(node, "address", where)) {
       if (auto text = r_.string(*a, where + " address"); text && bus.family) {
         std::string error;
@@ -373,6 +414,34 @@ class ConfigParser {
         const int64_t hi = def->max.value_or(max_value(def->type));
         if (auto v = r_.integer(e.second, where + " setpoint " + name, lo, hi))
           n.setpoints[name] = *v;
+      }
+    }
+    if (const auto limits = node["limits"]; limits && r_.expect_map(limits, where + " limits")) {
+      for (const auto& e : limits) {
+        const std::string name = e.first.Scalar();
+        const std::string what = where + " limits " + name;
+        if (!n.model) continue;
+        std::optional<ValueType> type;
+        if (const auto* p = n.model->find_point(name); p && p->writable())
+          type = p->type;
+        else if (const auto* s = n.model->find_setpoint(name))
+          type = s->type;
+        if (!type) {
+          r_.error(e.first, fmt::format("{}: model {} has no writable point or setpoint '{}'",
+                                        where, n.model->name, name));
+          continue;
+        }
+        if (!r_.expect_map(e.second, what)) continue;
+        r_.reject_unknown_keys(e.second, {"min", "max"}, what);
+        WriteLimits l;
+        if (e.second["min"])
+          l.min = r_.integer(e.second["min"], what + " min", min_value(*type), max_value(*type));
+        if (e.second["max"])
+          l.max = r_.integer(e.second["max"], what + " max", min_value(*type), max_value(*type));
+        if (l.min && l.max && *l.min > *l.max)
+          r_.error(e.second,
+                   fmt::format("{}: min {} is greater than max {}", what, *l.min, *l.max));
+        n.limits[name] = l;
       }
     }
     (void)config;

@@ -61,6 +61,15 @@ modbus::ModbusTcpServerOptions Gateway::server_options(const GatewayConfig& conf
   options.endpoint = asio::ip::tcp::endpoint(asio::ip::make_address(m.address), m.port);
   options.max_clients = m.max_clients;
   options.idle_timeout = m.idle_timeout;
+  options.request_timeout = m.request_timeout;
+  if (!m.allow.empty()) {
+    options.allow_client = [allow = m.allow](const asio::ip::address& peer) {
+      const bool allowed = allow.allows(peer);
+      if (!allowed)
+        log::warning("modbus: refused client {} (not in the allow list)", peer.to_string());
+      return allowed;
+    };
+  }
   return options;
 }
 

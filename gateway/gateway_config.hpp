@@ -3,12 +3,14 @@
 #include <chrono>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "drivers/link.hpp"
 #include "drivers/protocol_family.hpp"
 #include "drivers/transport/serial_transport.hpp"
+#include "gateway/access_control.hpp"
 #include "mapping/diagnostics.hpp"
 #include "mapping/model.hpp"
 #include "mapping/register_map.hpp"
@@ -28,6 +30,13 @@ struct ModbusConfig {
   WordOrder word_order = WordOrder::high_first;
   OfflineReads offline_reads = OfflineReads::exception;
   bool writes_enabled = true;
+  microseconds request_timeout{std::chrono::seconds(5)};  // to receive a started request
+  ClientAllowList allow;
+  std::vector<uint8_t> read_only_units;
+  bool read_only_coils = false;
+  bool read_only_holding = false;
+
+  bool unit_read_only(uint8_t unit) const;
 };
 
 struct BusTiming {
@@ -49,6 +58,12 @@ struct TransportConfig {
   uint16_t port = 0;
 };
 
+// Installation limits of a writable point, narrower than the model's (travel, speed).
+struct WriteLimits {
+  std::optional<int64_t> min;
+  std::optional<int64_t> max;
+};
+
 struct NodeConfig {
   std::string name;
   NodeAddress address;
@@ -56,6 +71,7 @@ struct NodeConfig {
   uint8_t unit_id = 0;
   std::map<std::string, microseconds> poll_periods;  // overrides of the model's classes
   std::map<std::string, int64_t> setpoints;          // initial values, overriding defaults
+  std::map<std::string, WriteLimits> limits;         // by point or setpoint name
   SourceMark mark;
 
   microseconds period_of(const std::string& poll_class) const;

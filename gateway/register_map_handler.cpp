@@ -36,7 +36,10 @@ std::optional<ExceptionCode> exception_for(const Reply& reply) {
 
 RegisterMapHandler::RegisterMapHandler(std::shared_ptr<const LoadedConfig> config,
                                        ProcessImage& image, ActionRunner& actions, BusOf bus_of)
-    : config_(std::move(config)), image_(image), actions_(actions), bus_of_(std::move(bus_of)) {}
+    : config_(std::move(config)), image_(image), actions_(actions), bus_of_(std::move(bus_of)) {
+  for (const auto& bus : config_->gateway.buses)
+    for (const auto& node : bus.nodes) nodes_.push_back(&node);
+}
 
 std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit,
                                                              const RegisterEntry& e,
@@ -121,6 +124,9 @@ asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
   if (!unit) co_return ExceptionCode::gateway_path_unavailable;
   const WordOrder order = config_->register_map.word_order();
   const auto& modbus_config = config_->gateway.modbus;
+  if (modbus_config.read_only_holding || modbus_config.unit_read_only(unit_id))
+    co_return ExceptionCode::illegal_function;
+  const NodeConfig& node_config = *nodes_.at(static_cast<std::size_t>(unit->node_index));
 
   // Check the whole request before anything reaches a controller.
   struct Planned {
@@ -148,6 +154,10 @@ asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
     } else if (e->kind == RegisterEntry::Kind::action_command) {
       if (!unit->model->find_action(static_cast<uint16_t>(value)))
         co_return ExceptionCode::illegal_data_value;
+    }
+    if (const auto l = node_config.limits.find(e->name); l != node_config.limits.end()) {
+      if (l->second.min && (!min || *l->second.min > *min)) min = l->second.min;
+      if (l->second.max && (!max || *l->second.max < *max)) max = l->second.max;
     }
     if ((min && value < *min) || (max && value > *max)) co_return ExceptionCode::illegal_data_value;
     if (!modbus_config.writes_enabled && e->kind != RegisterEntry::Kind::setpoint)
@@ -195,6 +205,8 @@ asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
 asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_coils(uint8_t unit_id, uint16_t,
                                                                      std::vector<bool>) {
   if (!config_->register_map.unit(unit_id)) co_return ExceptionCode::gateway_path_unavailable;
+  const auto& m = config_->gateway.modbus;
+  if (m.read_only_coils || m.unit_read_only(unit_id)) co_return ExceptionCode::illegal_function;
   co_return ExceptionCode::illegal_data_address;
 }
 

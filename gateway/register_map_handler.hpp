@@ -38,6 +38,7 @@ class RegisterMapHandler final : public modbus::RequestHandler {
   ProcessImage& image_;
   ActionRunner& actions_;
   BusOf bus_of_;
+  std::vector<const NodeConfig*> nodes_;  // by the gateway's node number
 };
 
 // How a bus reply answers a confirmed write: nullopt for success, else the exception.
