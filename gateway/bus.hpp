@@ -3,8 +3,10 @@
 #include <boost/asio/any_io_executor.hpp>
 #include <boost/asio/awaitable.hpp>
 
+#include <array>
 #include <cstdint>
 #include <functional>
+#include <iterator>
 #include <memory>
 #include <vector>
 
@@ -21,7 +23,15 @@ struct CommandOptions {
   bool urgent = false;
 };
 
+// Upper bounds (seconds) of the transaction latency histogram buckets; the last is +Inf.
+inline constexpr double kLatencyBuckets[] = {0.001, 0.002, 0.005, 0.01, 0.02,
+                                             0.05,  0.1,   0.2,   0.5,  1.0};
+
 struct BusCounters {
+  uint64_t bytes_sent = 0;
+  uint64_t bytes_received = 0;
+  std::array<uint64_t, std::size(kLatencyBuckets) + 1> latency_counts{};  // not cumulative
+  double latency_sum = 0;                                                 // seconds
   uint64_t transactions = 0;
   uint64_t timeouts = 0;
   uint64_t errors = 0;

@@ -8,6 +8,8 @@
 #include <set>
 #include <sstream>
 
+#include <boost/asio/ip/address.hpp>
+
 #include "gateway/poll_budget.hpp"
 #include "mapping/model_loader.hpp"
 #include "mapping/yaml_reader.hpp"
@@ -46,10 +48,11 @@ class ConfigParser {
   std::optional<GatewayConfig> parse(const YAML::Node& root) {
     if (!root.IsDefined()) return std::nullopt;
     if (!r_.expect_map(root, "gateway configuration")) return std::nullopt;
-    r_.reject_unknown_keys(root, {"modbus", "models", "buses"}, "gateway configuration");
+    r_.reject_unknown_keys(root, {"modbus", "metrics", "models", "buses"}, "gateway configuration");
     GatewayConfig config;
     config.file = r_.file();
     if (root["modbus"]) parse_modbus(root["modbus"], config.modbus);
+    if (root["metrics"]) parse_metrics(root["metrics"], config.metrics);
     parse_model_dirs(root["models"], config);
     for (const auto& dir : config.model_dirs) library_.load_directory(dir, r_.diagnostics());
     if (auto buses = r_.require(root, "buses", "gateway configuration");
@@ -87,6 +90,37 @@ class ConfigParser {
     return out;
   }
 
+  // ADDRESS:PORT or [IPv6]:PORT; port 0 means any free port (the daemon logs the one it got).
+  void parse_listen(const YAML::Node& listen, const std::string& what, std::string& address,
+                    uint16_t& port_out) {
+    auto text = r_.string(listen, what);
+    if (!text) return;
+    const auto colon = text->rfind(':');
+    std::optional<int64_t> port;
+    if (colon != std::string::npos) port = parse_integer_text(text->substr(colon + 1));
+    std::string host = colon == std::string::npos ? *text : text->substr(0, colon);
+    if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+      host = host.substr(1, host.size() - 2);
+    boost::system::error_code ec;
+    if (!host.empty()) asio::ip::make_address(host, ec);
+    if (!port || *port < 0 || *port > 65535 || ec) {
+      r_.error(listen, fmt::format("{}: expected ADDRESS:PORT such as 127.0.0.1:1502 or "
+                                   "[::]:502, found '{}'",
+                                   what, *text));
+      return;
+    }
+    address = host.empty() ? "0.0.0.0" : host;
+    port_out = static_cast<uint16_t>(*port);
+  }
+
+  void parse_metrics(const YAML::Node& node, MetricsConfig& m) {
+    if (!r_.expect_map(node, "metrics")) return;
+    r_.reject_unknown_keys(node, {"listen", "enabled"}, "metrics");
+    m.enabled = true;
+    if (node["enabled"]) m.enabled = r_.boolean(node["enabled"], "metrics enabled").value_or(true);
+    if (node["listen"]) parse_listen(node["listen"], "metrics listen", m.address, m.port);
+  }
+
   void parse_modbus(const YAML::Node& node, ModbusConfig& m) {
     if (!r_.expect_map(node, "modbus")) return;
     r_.reject_unknown_keys(
@@ -94,25 +128,8 @@ class ConfigParser {
         {"listen", "max_clients", "idle_timeout", "request_timeout", "word_order", "offline_reads",
          "writes_enabled", "allow", "read_only_units", "read_only_tables"},
         "modbus");
-    if (const auto listen = node["listen"]) {
-      if (auto text = r_.string(listen, "modbus listen")) {
-        // host:port, [v6]:port
-        const auto colon = text->rfind(':');
-        std::optional<int64_t> port;
-        if (colon != std::string::npos) port = parse_integer_text(text->substr(colon + 1));
-        if (!port || *port < 0 || *port > 65535) {  // 0: any free port (logged)
-          r_.error(listen, fmt::format("modbus listen: expected ADDRESS:PORT such as "
-                                       "127.0.0.1:1502 or [::]:502, found '{}'",
-                                       *text));
-        } else {
-          std::string host = text->substr(0, colon);
-          if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
-            host = host.substr(1, host.size() - 2);
-          m.address = host.empty() ? "0.0.0.0" : host;
-          m.port = static_cast<uint16_t>(*port);
-        }
-      }
-    }
+    if (const auto listen = node["listen"])
+      parse_listen(listen, "modbus listen", m.address, m.port);
     if (node["max_clients"])
       m.max_clients = static_cast<std::size_t>(
           r_.integer(node["max_clients"], "modbus max_clients", 1, 1024).value_or(32));

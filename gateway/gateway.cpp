@@ -5,6 +5,7 @@
 #include <boost/asio/ip/address.hpp>
 
 #include "gateway/log.hpp"
+#include "gateway/metrics.hpp"
 
 namespace fieldgate {
 
@@ -85,8 +86,27 @@ void Gateway::start() {
   server_->start();
   const auto ep = server_->local_endpoint();
   log::notice("modbus: listening on {}:{}", ep.address().to_string(), ep.port());
+  start_metrics();
   for (auto& bus : pending_start_) spawn(bus);
   pending_start_.clear();
+}
+
+void Gateway::start_metrics() {
+  const auto& m = current_->config->gateway.metrics;
+  if (metrics_) metrics_->stop();
+  metrics_.reset();
+  if (!m.enabled) return;
+  try {
+    metrics_ = std::make_unique<MetricsServer>(
+        io_.get_executor(), asio::ip::tcp::endpoint(asio::ip::make_address(m.address), m.port),
+        [this] { return render_metrics(*this); });
+    metrics_->start();
+    const auto ep = metrics_->local_endpoint();
+    log::notice("metrics: http://{}:{}/metrics", ep.address().to_string(), ep.port());
+  } catch (const boost::system::system_error& e) {
+    // Metrics are secondary: the gateway keeps serving Modbus without them.
+    log::error("metrics: cannot listen on {}:{}: {}", m.address, m.port, e.code().message());
+  }
 }
 
 std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
@@ -115,8 +135,14 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
       server_->start();
     }
   }
+  const auto& old_metrics = current_->config->gateway.metrics;
+  const auto& new_metrics = next->config->gateway.metrics;
+  const bool metrics_changed = old_metrics.enabled != new_metrics.enabled ||
+                               old_metrics.address != new_metrics.address ||
+                               old_metrics.port != new_metrics.port;
   retired_.push_back(current_);
   current_ = next;
+  if (metrics_changed) start_metrics();
   for (auto& bus : fresh) spawn(bus);
   return fmt::format("{} bus(es) kept running, {} started, {} stopped", kept, fresh.size(),
                      stopped);
@@ -124,6 +150,7 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
 
 void Gateway::stop() {
   if (server_) server_->stop();
+  if (metrics_) metrics_->stop();
   if (current_) {
     for (auto& bus : current_->buses) bus->stop();
     current_->actions->stop();

@@ -9,6 +9,7 @@
 #include "gateway/action_runner.hpp"
 #include "gateway/bus.hpp"
 #include "gateway/config_loader.hpp"
+#include "gateway/metrics_server.hpp"
 #include "gateway/modbus/tcp_server.hpp"
 #include "gateway/process_image.hpp"
 #include "gateway/register_map_handler.hpp"
@@ -53,12 +54,14 @@ class Gateway {
                                     Generation* previous, std::vector<std::shared_ptr<Bus>>& fresh);
   modbus::ModbusTcpServerOptions server_options(const GatewayConfig& config) const;
   void spawn(const std::shared_ptr<Bus>& bus);
+  void start_metrics();
 
   asio::io_context& io_;
   std::shared_ptr<Generation> current_;
   // Older generations whose action watches may still run; kept until the daemon stops.
   std::vector<std::shared_ptr<Generation>> retired_;
   std::unique_ptr<modbus::ModbusTcpServer> server_;
+  std::unique_ptr<MetricsServer> metrics_;
   std::vector<std::shared_ptr<Bus>> pending_start_;
 };
 

@@ -90,9 +90,16 @@ struct BusConfig {
   std::string signature;
 };
 
+struct MetricsConfig {
+  bool enabled = false;
+  std::string address = "127.0.0.1";
+  uint16_t port = 9502;
+};
+
 struct GatewayConfig {
   std::string file;
   ModbusConfig modbus;
+  MetricsConfig metrics;
   std::vector<std::string> model_dirs;
   std::vector<BusConfig> buses;
   std::vector<std::string> warnings;  // e.g. poll budgets that cannot be met

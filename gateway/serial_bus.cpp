@@ -213,8 +213,10 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
       ++counters_.retries;
       ++(*n.image).counters.retries;
     }
+    const auto started = Clock::now();
     reply =
         co_await config_.family->transact(link_, n.config->address, request, config_.timing.link);
+    record_latency(std::chrono::duration<double>(Clock::now() - started).count());
     ++counters_.transactions;
     ++(*n.image).counters.transactions;
     if (accept_no_reply && reply.status == Reply::Status::timeout) {
@@ -232,6 +234,15 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
   }
   co_await link_.pause(config_.timing.inter_frame_gap);
   co_return reply;
+}
+
+void SerialBus::record_latency(double seconds) {
+  std::size_t bucket = 0;
+  while (bucket < std::size(kLatencyBuckets) && seconds > kLatencyBuckets[bucket]) ++bucket;
+  ++counters_.latency_counts[bucket];
+  counters_.latency_sum += seconds;
+  counters_.bytes_sent = link_.stats().bytes_sent;
+  counters_.bytes_received = link_.stats().bytes_received;
 }
 
 asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {

@@ -61,6 +61,7 @@ class SerialBus final : public Bus {
                                   bool accept_no_reply);
   asio::awaitable<void> run_poll(std::size_t item_index);
   void record(NodeRuntime& node, const Reply& reply);
+  void record_latency(double seconds);
   void set_state(NodeRuntime& node, NodeState state, std::string_view why);
   void all_nodes_offline(std::string_view why);
   NodeRuntime& node(int node_index);

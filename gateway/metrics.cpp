@@ -1,0 +1,159 @@
+#include "gateway/metrics.hpp"
+
+#include <fmt/format.h>
+
+#include "gateway/gateway.hpp"
+
+#ifndef FIELDGATE_VERSION
+#define FIELDGATE_VERSION "unknown"
+#endif
+
+namespace fieldgate {
+
+namespace {
+
+// Label values: backslash, double quote and newline escaped as the format requires.
+std::string label(std::string_view value) {
+  std::string out;
+  for (const char c : value) {
+    if (c == '\\' || c == '"') out += '\\';
+    if (c == '\n') {
+      out += "\\n";
+      continue;
+    }
+    out += c;
+  }
+  return out;
+}
+
+class Writer {
+ public:
+  void family(std::string_view name, std::string_view type, std::string_view help) {
+    text_ += fmt::format("# HELP {} {}\n# TYPE {} {}\n", name, help, name, type);
+  }
+  void sample(std::string_view name, std::string_view labels, double value) {
+    text_ += fmt::format("{}{}{}{} {}\n", name, labels.empty() ? "" : "{", labels,
+                         labels.empty() ? "" : "}", value);
+  }
+  std::string text() && { return std::move(text_); }
+
+ private:
+  std::string text_;
+};
+
+}  // namespace
+
+std::string render_metrics(const Gateway& gateway) {
+  Writer w;
+  const auto now = std::chrono::steady_clock::now();
+  w.family("fieldgate_build_info", "gauge", "Build information.");
+  w.sample("fieldgate_build_info", fmt::format("version=\"{}\"", FIELDGATE_VERSION), 1);
+
+  const auto& buses = gateway.buses();
+  struct BusCounter {
+    const char* name;
+    const char* help;
+    uint64_t BusCounters::*field;
+  };
+  const BusCounter counters[] = {
+      {"fieldgate_bus_transactions_total", "Transactions on the bus.", &BusCounters::transactions},
+      {"fieldgate_bus_timeouts_total", "Transactions that timed out.", &BusCounters::timeouts},
+      {"fieldgate_bus_errors_total", "Device error and garbled replies.", &BusCounters::errors},
+      {"fieldgate_bus_retries_total", "Poll retries.", &BusCounters::retries},
+      {"fieldgate_bus_commands_total", "Commands from Modbus writes.", &BusCounters::commands},
+      {"fieldgate_bus_reconnects_total", "Times the link was opened.", &BusCounters::reconnects},
+      {"fieldgate_bus_sent_bytes_total", "Bytes written to the link.", &BusCounters::bytes_sent},
+      {"fieldgate_bus_received_bytes_total", "Bytes read from the link.",
+       &BusCounters::bytes_received},
+  };
+  for (const auto& c : counters) {
+    w.family(c.name, "counter", c.help);
+    for (const auto& bus : buses)
+      w.sample(c.name, fmt::format("bus=\"{}\"", label(bus->config().name)),
+               static_cast<double>(bus->counters().*c.field));
+  }
+  w.family("fieldgate_bus_up", "gauge", "1 while the bus's link is open.");
+  for (const auto& bus : buses)
+    w.sample("fieldgate_bus_up", fmt::format("bus=\"{}\"", label(bus->config().name)),
+             bus->counters().link_up ? 1 : 0);
+  w.family("fieldgate_bus_transaction_seconds", "histogram", "Transaction latency.");
+  for (const auto& bus : buses) {
+    const auto& c = bus->counters();
+    const std::string b = label(bus->config().name);
+    uint64_t cumulative = 0;
+    for (std::size_t i = 0; i < std::size(kLatencyBuckets); ++i) {
+      cumulative += c.latency_counts[i];
+      w.sample("fieldgate_bus_transaction_seconds_bucket",
+               fmt::format("bus=\"{}\",le=\"{}\"", b, kLatencyBuckets[i]),
+               static_cast<double>(cumulative));
+    }
+    cumulative += c.latency_counts.back();
+    w.sample("fieldgate_bus_transaction_seconds_bucket", fmt::format("bus=\"{}\",le=\"+Inf\"", b),
+             static_cast<double>(cumulative));
+    w.sample("fieldgate_bus_transaction_seconds_sum", fmt::format("bus=\"{}\"", b), c.latency_sum);
+    w.sample("fieldgate_bus_transaction_seconds_count", fmt::format("bus=\"{}\"", b),
+             static_cast<double>(cumulative));
+  }
+
+  // Nodes in the gateway's order, labelled with bus, node name and unit ID.
+  const auto& config = gateway.config();
+  std::vector<std::string> node_labels;
+  for (const auto& bus : config.gateway.buses)
+    for (const auto& node : bus.nodes)
+      node_labels.push_back(fmt::format("bus=\"{}\",node=\"{}\",unit=\"{}\"", label(bus.name),
+                                        label(node.name), node.unit_id));
+  const auto& image = gateway.image();
+  w.family("fieldgate_node_online", "gauge", "1 while the node answers.");
+  for (std::size_t i = 0; i < node_labels.size(); ++i)
+    w.sample("fieldgate_node_online", node_labels[i],
+             image.node(static_cast<int>(i)).state == NodeState::online ? 1 : 0);
+  w.family("fieldgate_node_last_good_poll_age_seconds", "gauge",
+           "Seconds since the last good reply (absent before the first).");
+  for (std::size_t i = 0; i < node_labels.size(); ++i) {
+    const auto& c = image.node(static_cast<int>(i)).counters;
+    if (c.ever_good)
+      w.sample("fieldgate_node_last_good_poll_age_seconds", node_labels[i],
+               std::chrono::duration<double>(now - c.last_good).count());
+  }
+  struct NodeCounter {
+    const char* name;
+    const char* help;
+    uint64_t NodeCounters::*field;
+  };
+  const NodeCounter node_counters[] = {
+      {"fieldgate_node_transactions_total", "Transactions with the node.",
+       &NodeCounters::transactions},
+      {"fieldgate_node_timeouts_total", "Transactions that timed out.", &NodeCounters::timeouts},
+      {"fieldgate_node_errors_total", "Device errors and garbled replies.", &NodeCounters::errors},
+  };
+  for (const auto& c : node_counters) {
+    w.family(c.name, "counter", c.help);
+    for (std::size_t i = 0; i < node_labels.size(); ++i)
+      w.sample(c.name, node_labels[i],
+               static_cast<double>(image.node(static_cast<int>(i)).counters.*c.field));
+  }
+
+  const auto& stats = gateway.server().stats();
+  w.family("fieldgate_modbus_requests_total", "counter", "Modbus requests by function code.");
+  for (std::size_t f = 0; f < stats.functions.size(); ++f)
+    if (stats.functions[f].requests > 0)
+      w.sample("fieldgate_modbus_requests_total", fmt::format("function=\"{}\"", f),
+               static_cast<double>(stats.functions[f].requests));
+  w.family("fieldgate_modbus_exceptions_total", "counter",
+           "Modbus exception responses by function code.");
+  for (std::size_t f = 0; f < stats.functions.size(); ++f)
+    if (stats.functions[f].requests > 0)
+      w.sample("fieldgate_modbus_exceptions_total", fmt::format("function=\"{}\"", f),
+               static_cast<double>(stats.functions[f].exceptions));
+  w.family("fieldgate_modbus_clients", "gauge", "Modbus clients connected now.");
+  w.sample("fieldgate_modbus_clients", "", static_cast<double>(stats.clients_connected));
+  w.family("fieldgate_modbus_clients_refused_total", "counter",
+           "Connections closed at once: client limit or allow list.");
+  w.sample("fieldgate_modbus_clients_refused_total", "reason=\"max_clients\"",
+           static_cast<double>(stats.clients_refused));
+  w.sample("fieldgate_modbus_clients_refused_total", "reason=\"allow_list\"",
+           static_cast<double>(stats.clients_denied));
+  return std::move(w).text();
+}
+
+}  // namespace fieldgate

@@ -1,0 +1,98 @@
+#include "gateway/metrics_server.hpp"
+
+#include <boost/asio/as_tuple.hpp>
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/detached.hpp>
+#include <boost/asio/use_awaitable.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+
+namespace fieldgate {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+
+namespace {
+constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
+}
+
+struct MetricsServer::State {
+  State(asio::any_io_executor ex, asio::ip::tcp::endpoint ep, Render r)
+      : acceptor(ex, ep), render(std::move(r)) {}
+  asio::ip::tcp::acceptor acceptor;
+  Render render;
+  bool stopped = false;
+};
+
+namespace {
+
+asio::awaitable<void> serve(beast::tcp_stream stream, std::shared_ptr<MetricsServer::State> state) {
+  beast::flat_buffer buffer(8192);
+  http::request_parser<http::empty_body> parser;
+  parser.header_limit(8192);
+  stream.expires_after(std::chrono::seconds(5));
+  auto [ec, n] = co_await http::async_read(stream, buffer, parser, use_tuple);
+  (void)n;
+  if (ec) co_return;
+  const auto& req = parser.get();
+  http::response<http::string_body> res;
+  res.version(req.version());
+  res.keep_alive(false);
+  res.set(http::field::server, "fieldgate");
+  if (req.method() != http::verb::get && req.method() != http::verb::head) {
+    res.result(http::status::method_not_allowed);
+    res.set(http::field::allow, "GET, HEAD");
+  } else if (req.target() != "/metrics") {
+    res.result(http::status::not_found);
+    res.body() = "try /metrics\n";
+  } else if (!state->stopped) {
+    res.result(http::status::ok);
+    res.set(http::field::content_type, "text/plain; version=0.0.4; charset=utf-8");
+    res.body() = state->render();
+  }
+  res.prepare_payload();
+  if (req.method() == http::verb::head) res.body().clear();
+  auto [wec, wn] = co_await http::async_write(stream, res, use_tuple);
+  (void)wec;
+  (void)wn;
+  beast::error_code ignored;
+  stream.socket().shutdown(asio::ip::tcp::socket::shutdown_send, ignored);
+}
+
+asio::awaitable<void> accept_loop(std::shared_ptr<MetricsServer::State> state) {
+  while (!state->stopped) {
+    auto [ec, socket] = co_await state->acceptor.async_accept(use_tuple);
+    if (ec) {
+      if (state->stopped || ec == asio::error::operation_aborted) co_return;
+      continue;
+    }
+    asio::co_spawn(state->acceptor.get_executor(),
+                   serve(beast::tcp_stream(std::move(socket)), state), asio::detached);
+  }
+}
+
+}  // namespace
+
+MetricsServer::MetricsServer(asio::any_io_executor executor, asio::ip::tcp::endpoint endpoint,
+                             Render render)
+    : state_(std::make_shared<State>(executor, endpoint, std::move(render))) {}
+
+MetricsServer::~MetricsServer() {
+  stop();
+}
+
+void MetricsServer::start() {
+  asio::co_spawn(state_->acceptor.get_executor(), accept_loop(state_), asio::detached);
+}
+
+void MetricsServer::stop() {
+  state_->stopped = true;
+  boost::system::error_code ignored;
+  state_->acceptor.close(ignored);
+}
+
+asio::ip::tcp::endpoint MetricsServer::local_endpoint() const {
+  return state_->acceptor.local_endpoint();
+}
+
+}  // namespace fieldgate
