@@ -5,6 +5,7 @@
 #include "gateway/config_loader.hpp"
 #include "gateway/daemon.hpp"
 #include "gateway/log.hpp"
+#include "mapping/register_map_document.hpp"
 
 using namespace fieldgate;
 
@@ -32,7 +33,19 @@ int main(int argc, char** argv) {
   auto* check = app.add_subcommand("check", "validate a configuration without opening any port");
   std::string check_path;
   check->add_option("config", check_path, "gateway configuration (YAML)")->required();
+  auto* map = app.add_subcommand("map", "write the register map document for the PLC programmer");
+  std::string map_path;
+  std::string map_format = "md";
+  map->add_option("config", map_path, "gateway configuration (YAML)")->required();
+  map->add_option("--format", map_format, "md or csv")->check(CLI::IsMember({"md", "csv"}));
   CLI11_PARSE(app, argc, argv);
+  if (*map) {
+    auto config = load_config_or_report(map_path);
+    if (!config) return 1;
+    std::cout << write_register_map_document(
+        config->register_map, map_format == "csv" ? DocumentFormat::csv : DocumentFormat::markdown);
+    return 0;
+  }
   if (verbose) log::set_verbosity(log::Level::debug);
   if (*check) return run_check(check_path);
   if (config_path.empty()) {

@@ -359,8 +359,9 @@ class ModelParser {
     if (step.IsScalar()) {
       send = step;
     } else if (r_.expect_map(step, where + " step")) {
-      r_.reject_unknown_keys(step, {"send", "delay", "accept_errors", "accept_no_reply", "urgent"},
-                             where + " step");
+      r_.reject_unknown_keys(
+          step, {"send", "delay", "accept_errors", "accept_no_reply", "urgent", "confirm_after"},
+          where + " step");
       if (step["delay"]) {
         s.kind = ActionStep::Kind::delay;
         s.duration = r_.duration(step["delay"], where + " delay").value_or(s.duration);
@@ -378,6 +379,22 @@ class ModelParser {
       if (step["accept_no_reply"])
         s.accept_no_reply =
             r_.boolean(step["accept_no_reply"], where + " accept_no_reply").value_or(false);
+      if (const auto confirm = step["confirm_after"]) {
+        s.confirm_after = r_.duration(confirm, where + " confirm_after");
+        if (s.confirm_after && s.confirm_after->count() < 0)
+          r_.error(confirm, fmt::format("{}: confirm_after must not be negative", where));
+        if (s.kind == ActionStep::Kind::delay)
+          r_.error(confirm, fmt::format("{}: confirm_after belongs to a 'send' step", where));
+        if (s.urgent)
+          r_.error(confirm, fmt::format("{}: an urgent step does not wait for the line, so "
+                                        "confirm_after has no meaning there",
+                                        where));
+        for (const auto& earlier : action.steps)
+          if (earlier.confirm_after)
+            r_.error(confirm, fmt::format("{}: only one step may carry confirm_after (the Modbus "
+                                          "write is confirmed at the first)",
+                                          where));
+      }
     } else {
       return;
     }
