@@ -1,0 +1,630 @@
+#include "drivers/ims_party_line/ims_family.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <charconv>
+#include <functional>
+#include <variant>
+
+#include "drivers/ims_party_line/ims_codec.hpp"
+
+namespace fieldgate {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+char name_of(const NodeAddress& node) {
+  return static_cast<char>(node.number);
+}
+
+Reply make_reply(Reply::Status status, std::string text) {
+  Reply r;
+  r.status = status;
+  r.text = std::move(text);
+  return r;
+}
+
+Reply refused(const ims::RefusalReply& refusal) {
+  Reply r;
+  r.status = Reply::Status::device_error;
+  r.device_code = static_cast<int64_t>(refusal.code);
+  r.text = refusal.text;
+  return r;
+}
+
+bool expects_result(const Request& request) {
+  return request.expect == Request::Expect::values ||
+         ims::classify(request.command) == ims::CommandClass::query;
+}
+
+std::size_t one_byte(std::string_view buf) {
+  return buf.empty() ? 0 : 1;
+}
+
+std::size_t everything(std::string_view buf) {
+  return buf.size();
+}
+
+// After a bad reply the unit may still be sending (the rest of an echo, a result line): reads
+// until the line has been quiet for a byte timeout, so the next exchange starts clean. Bounded,
+// in case a unit streams without end (Z1, a tracing program).
+asio::awaitable<void> drain(Link& link, const LinkTiming& timing) {
+  const LinkTiming quiet{timing.byte_timeout, timing.byte_timeout};
+  const auto deadline = Clock::now() + 4 * timing.reply_timeout + 4 * timing.byte_timeout;
+  while (Clock::now() < deadline) {
+    const LinkRead read = co_await link.read_frame(everything, quiet);
+    if (read.status != LinkRead::Status::frame) break;
+  }
+  link.discard_input();
+}
+
+std::optional<Reply> failed_read(const LinkRead& read, std::string_view what, char name) {
+  switch (read.status) {
+    case LinkRead::Status::frame:
+      return std::nullopt;
+    case LinkRead::Status::timeout:
+      if (read.partial.empty())
+        return make_reply(Reply::Status::timeout,
+                          fmt::format("no {} from unit {}", what, ims::printable({&name, 1})));
+      return make_reply(Reply::Status::garbled,
+                        fmt::format("incomplete {} '{}'", what, ims::printable(read.partial)));
+    case LinkRead::Status::overflow:
+      return make_reply(Reply::Status::garbled,
+                        fmt::format("{} longer than any IMS line: '{}'", what,
+                                    ims::printable(read.partial.substr(0, 40))));
+    case LinkRead::Status::error:
+      return make_reply(Reply::Status::link_down, read.error.message());
+  }
+  return std::nullopt;
+}
+
+// Stray blank lines (a late completion of an earlier command) are skipped, a few at most.
+constexpr int kMaxBlankLines = 3;
+
+asio::awaitable<std::variant<LinkRead, Reply>> read_line(Link& link, const LinkTiming& timing,
+                                                         std::string_view what, char name) {
+  for (int blank = 0;; ++blank) {
+    LinkRead read = co_await link.read_frame(ims::line_length, timing);
+    if (auto failure = failed_read(read, what, name)) co_return *failure;
+    if (!ims::is_blank_line(read.frame) || blank == kMaxBlankLines) co_return read;
+  }
+}
+
+// Sends the line a character at a time, each once the previous one has come back (manual p.14:
+// "monitor echoed data to avoid UART over-run"). The name may or may not be echoed. The line is
+// always sent whole: a unit left with half a line would take the next line as its rest, and only
+// ESC, which stops every axis, clears it.
+asio::awaitable<std::optional<Reply>> send_paced(Link& link, const NodeAddress& node,
+                                                 const Request& request, const LinkTiming& timing) {
+  const char name = name_of(node);
+  const std::string line = ims::encode_line(name, request.command);
+  const std::string_view with_name(line);
+  const std::string_view without_name = with_name.substr(1);
+  const auto gap = std::chrono::microseconds(static_cast<int64_t>(2 * link.char_time_us()) + 1);
+  std::optional<Reply> failure;
+  std::string echoed;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    if (auto ec = co_await link.send(with_name.substr(i, 1)))
+      co_return make_reply(Reply::Status::link_down, ec.message());
+    if (i == 0) continue;  // whether the name comes back is not known; the next char will
+    if (failure) {
+      co_await link.pause(gap);
+      continue;
+    }
+    // Complete through character i, with or without the name in front.
+    const auto complete = [&] {
+      return echoed == without_name.substr(0, i) || echoed == with_name.substr(0, i + 1);
+    };
+    const auto consistent = [&] {
+      return without_name.starts_with(echoed) || with_name.starts_with(echoed);
+    };
+    while (!failure && !complete()) {
+      const LinkRead read = co_await link.read_frame(one_byte, timing);
+      if (read.status == LinkRead::Status::timeout && echoed.empty()) {
+        failure = make_reply(Reply::Status::timeout,
+                             fmt::format("no echo from unit {}", ims::printable({&name, 1})));
+      } else if (read.status == LinkRead::Status::timeout) {
+        failure = make_reply(Reply::Status::garbled,
+                             fmt::format("paced echo stopped after '{}' of '{}'",
+                                         ims::printable(echoed), ims::printable(line)));
+      } else if (auto bad = failed_read(read, "echo", name)) {
+        failure = bad;
+      } else if (echoed.empty() && (read.frame == "\r" || read.frame == "\n")) {
+        continue;  // the late CR LF of an earlier command, not part of this echo
+      } else {
+        echoed += read.frame;
+        if (!consistent())
+          failure = make_reply(Reply::Status::garbled,
+                               fmt::format("echo '{}' does not match '{}'", ims::printable(echoed),
+                                           ims::printable(line)));
+      }
+      if (failure && failure->status == Reply::Status::link_down) co_return failure;
+    }
+  }
+  co_return failure;
+}
+
+}  // namespace
+
+std::optional<NodeAddress> ImsPartyLineFamily::parse_address(std::string_view text,
+                                                             std::string& error) const {
+  const auto name = ims::parse_name(text, error);
+  if (!name) return std::nullopt;
+  NodeAddress n;
+  n.text = std::string(1, *name);
+  n.number = static_cast<unsigned char>(*name);
+  return n;
+}
+
+std::optional<Reply> check_ims_echo(const NodeAddress& node, const Request& request,
+                                    std::string_view echo) {
+  if (ims::match_echo(name_of(node), request.command, echo) != ims::EchoMatch::mismatch)
+    return std::nullopt;
+  return make_reply(Reply::Status::garbled,
+                    fmt::format("echo '{}' does not match '{}'", ims::printable(echo),
+                                ims::printable(ims::encode_line(name_of(node), request.command))));
+}
+
+Reply interpret_ims_result(const NodeAddress& node, const Request& request, std::string_view line) {
+  const auto result = ims::parse_result(line);
+  if (!result)
+    return make_reply(Reply::Status::garbled,
+                      fmt::format("unit {}: '{}' is no result line for '{}'", node.text,
+                                  ims::printable(line), ims::printable(request.command)));
+  Reply r;
+  r.status = Reply::Status::ok;
+  r.values = result->values;
+  return r;
+}
+
+Reply interpret_ims_reply(const NodeAddress& node, const Request& request,
+                          std::string_view received) {
+  const auto next_line = [&](std::string_view& rest) -> std::optional<std::string_view> {
+    for (int blank = 0;; ++blank) {
+      const std::size_t n = ims::line_length(rest);
+      if (n == 0) return std::nullopt;
+      const std::string_view line = rest.substr(0, n);
+      rest.remove_prefix(n);
+      if (!ims::is_blank_line(line) || blank == kMaxBlankLines) return line;
+    }
+  };
+  std::string_view rest = received;
+  const auto echo = next_line(rest);
+  if (!echo) {
+    if (ims::is_blank_line(rest))
+      return make_reply(Reply::Status::timeout, "no echo from unit " + node.text);
+    return make_reply(Reply::Status::garbled,
+                      fmt::format("incomplete echo '{}'", ims::printable(rest)));
+  }
+  if (auto failure = check_ims_echo(node, request, *echo)) return *failure;
+  if (!expects_result(request)) return make_reply(Reply::Status::ok, {});
+  const auto result = next_line(rest);
+  if (!result) {
+    if (rest.empty())
+      return make_reply(Reply::Status::garbled,
+                        fmt::format("unit {} echoed '{}' but sent no result line", node.text,
+                                    ims::printable(request.command)));
+    return make_reply(Reply::Status::garbled,
+                      fmt::format("incomplete result line '{}'", ims::printable(rest)));
+  }
+  return interpret_ims_result(node, request, *result);
+}
+
+asio::awaitable<void> ImsPartyLineFamily::on_link_open(Link& link, const LinkTiming&) {
+  // No LF to "finish" a line a previous run may have left half-sent: it would execute the half.
+  // Such a line garbles one exchange at most, which then resynchronises.
+  link.discard_input();
+  co_return;
+}
+
+asio::awaitable<Reply> ImsPartyLineFamily::transact_global(Link& link, const Request& request,
+                                                           const LinkTiming& timing) {
+  if (request.expect == Request::Expect::values)
+    co_return make_reply(Reply::Status::device_error,
+                         "a bus-wide request cannot read: every unit's reply would collide");
+  if (request.command.empty() || request.command.find_first_of("\r\n") != std::string::npos)
+    co_return refused({ims::Refusal::invalid_line, "empty or multi-line global command"});
+  link.discard_input();
+  if (auto ec = co_await link.send(ims::encode_global(request.command)))
+    co_return make_reply(Reply::Status::link_down, ec.message());
+  // ESC and ^C get no answer in party mode; after `*` every unit echoes at once. Nothing of it
+  // can be attributed, so it is thrown away.
+  co_await drain(link, timing);
+  shadow_.global(request.command, Clock::now());
+  co_return make_reply(Reply::Status::ok, "sent to every unit on the chain");
+}
+
+asio::awaitable<Reply> ImsPartyLineFamily::send_urgent(Link& link, const NodeAddress&,
+                                                       const Request& request) {
+  if (!request.bus_wide || !ims::is_global_character_command(request.command))
+    co_return refused({ims::Refusal::not_global,
+                       fmt::format("only ESC, ^C and @ of a bus-wide action can be sent urgently, "
+                                   "not '{}'",
+                                   ims::printable(request.command))});
+  if (auto ec = co_await link.send(ims::encode_global(request.command)))
+    co_return make_reply(Reply::Status::link_down, ec.message());
+  shadow_.global(request.command, Clock::now());
+  co_return make_reply(Reply::Status::ok, "sent to every unit on the chain");
+}
+
+// GCC 12 at -O2 inlines Asio's aligned coroutine-frame allocation into large coroutines and then
+// flags the frame's own sized delete as a mismatch (a false positive; gateway/action_runner.cpp
+// trips it too).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+asio::awaitable<Reply> ImsPartyLineFamily::transact(Link& link, const NodeAddress& node,
+                                                    const Request& request,
+                                                    const LinkTiming& timing) {
+  if (request.bus_wide) co_return co_await transact_global(link, request, timing);
+  const char name = name_of(node);
+  if (auto refusal = shadow_.check(name, request.command, Clock::now()))
+    co_return refused(*refusal);
+
+  LinkTiming t = timing;
+  const bool paced = shadow_.fast();
+  // Serial handling slows while a unit steps fast (manual p.14); digest §9 doubles the timeout.
+  if (paced) t.reply_timeout *= 2;
+  link.discard_input();
+
+  if (ims::classify(request.command) == ims::CommandClass::no_echo) {
+    // P, Q, q and X do not echo in party mode (§2); X answers a garbled '"32.'. Nothing to
+    // verify: whatever comes back is thrown away.
+    if (auto ec = co_await link.send(ims::encode_line(name, request.command)))
+      co_return make_reply(Reply::Status::link_down, ec.message());
+    co_await drain(link, t);
+    if (request.expect == Request::Expect::values)
+      co_return make_reply(Reply::Status::garbled,
+                           fmt::format("'{}' gives no readable reply in party mode",
+                                       ims::printable(request.command)));
+    co_return make_reply(Reply::Status::ok, "sent; no echo in party mode");
+  }
+
+  if (paced) {
+    auto failure = co_await send_paced(link, node, request, t);
+    if (failure) {
+      if (failure->status != Reply::Status::link_down) co_await drain(link, t);
+      co_return *failure;
+    }
+  } else {
+    if (auto ec = co_await link.send(ims::encode_line(name, request.command)))
+      co_return make_reply(Reply::Status::link_down, ec.message());
+    auto echo = co_await read_line(link, t, "echo", name);
+    if (auto* failure = std::get_if<Reply>(&echo)) {
+      if (failure->status == Reply::Status::garbled) co_await drain(link, t);
+      co_return *failure;
+    }
+    if (auto failure = check_ims_echo(node, request, std::get<LinkRead>(echo).frame)) {
+      co_await drain(link, t);
+      co_return *failure;
+    }
+  }
+
+  Reply reply = make_reply(Reply::Status::ok, {});
+  if (expects_result(request)) {
+    auto line = co_await read_line(link, t, "result line", name);
+    if (auto* failure = std::get_if<Reply>(&line)) {
+      if (failure->status == Reply::Status::timeout) {
+        failure->status = Reply::Status::garbled;
+        failure->text = fmt::format("unit {} echoed '{}' but sent no result line", node.text,
+                                    ims::printable(request.command));
+      }
+      if (failure->status == Reply::Status::garbled) co_await drain(link, t);
+      co_return *failure;
+    }
+    reply = interpret_ims_result(node, request, std::get<LinkRead>(line).frame);
+    if (reply.status != Reply::Status::ok) {
+      co_await drain(link, t);
+      co_return reply;
+    }
+  } else {
+    // The echo proved the unit took the line. The CR LF of "execution complete" (p.12) usually
+    // follows at once; wait one byte timeout for it so it does not spill into the next exchange.
+    const LinkTiming completion{t.byte_timeout, t.byte_timeout};
+    const LinkRead done = co_await link.read_frame(ims::line_length, completion);
+    if (done.status == LinkRead::Status::error)
+      co_return make_reply(Reply::Status::link_down, done.error.message());
+  }
+  shadow_.acknowledged(
+      name, request.command, Clock::now(),
+      reply.values.empty() ? std::nullopt : std::optional<int64_t>(reply.values.front()));
+  co_return reply;
+}
+#pragma GCC diagnostic pop
+
+std::size_t ImsPartyLineFamily::estimate_wire_chars(const NodeAddress& node,
+                                                    const Request& request) const {
+  if (request.bus_wide) return ims::encode_global(request.command).size();
+  const std::size_t line = ims::encode_line(name_of(node), request.command).size();
+  // The echo (name included, the longer case), then "   1000\r\n" or a bare CR LF.
+  return 2 * line + (expects_result(request) ? 10 : 2);
+}
+
+// --- model validation -----------------------------------------------------------------------
+
+namespace {
+
+struct ModelOptions {
+  double firmware = 1.09;  // the older manual's firmware: no `*` global address
+  std::size_t line_limit = ims::kLineLimit;
+  bool line_limit_counts_name = false;
+  bool addressed_soft_stop = false;
+};
+
+constexpr std::string_view kKnownOptions =
+    "firmware, line_limit, line_limit_counts_name, addressed_soft_stop";
+
+std::optional<bool> parse_bool(std::string_view s) {
+  if (s == "true" || s == "yes" || s == "on") return true;
+  if (s == "false" || s == "no" || s == "off") return false;
+  return std::nullopt;
+}
+
+ModelOptions read_options(const Model& model, Diagnostics& diagnostics) {
+  ModelOptions o;
+  for (const auto& [key, value] : model.options) {
+    const auto bad = [&](std::string_view expected) {
+      diagnostics.error(model.mark, fmt::format("model {}: option {}: expected {}, found '{}'",
+                                                model.name, key, expected, value));
+    };
+    if (key == "firmware") {
+      double v = 0;
+      const auto [p, ec] = std::from_chars(value.data(), value.data() + value.size(), v);
+      if (ec != std::errc{} || p != value.data() + value.size() || v <= 0)
+        bad("the indexer firmware version, e.g. 1.09 or 1.15");
+      else
+        o.firmware = v;
+    } else if (key == "line_limit") {
+      unsigned v = 0;
+      const auto [p, ec] = std::from_chars(value.data(), value.data() + value.size(), v);
+      if (ec != std::errc{} || p != value.data() + value.size() || v < 2 || v > 64)
+        bad("the longest command line a unit accepts, 2..64 (the manual says 12)");
+      else
+        o.line_limit = v;
+    } else if (key == "line_limit_counts_name" || key == "addressed_soft_stop") {
+      const auto v = parse_bool(value);
+      if (!v)
+        bad("true or false");
+      else
+        (key == "addressed_soft_stop" ? o.addressed_soft_stop : o.line_limit_counts_name) = *v;
+    } else {
+      diagnostics.error(model.mark, fmt::format("model {}: unknown ims-party-line option '{}' "
+                                                "(known: {})",
+                                                model.name, key, kKnownOptions));
+    }
+  }
+  return o;
+}
+
+enum class Use { read, write, action, bus_wide_action };
+
+using RangeOf = std::function<std::pair<int64_t, int64_t>(std::string_view)>;
+
+std::string render_extreme(const CommandTemplate& t, const RangeOf& range_of, int which) {
+  return t.render([&](std::string_view name) -> int64_t {
+    const auto [lo, hi] = range_of(name);
+    if (which < 0) return lo;
+    if (which > 0) return hi;
+    return std::to_string(lo).size() >= std::to_string(hi).size() ? lo : hi;
+  });
+}
+
+void check_command(const CommandTemplate& t, const RangeOf& range_of, Use use,
+                   const ModelOptions& options, const SourceMark& mark, const std::string& what,
+                   Diagnostics& diagnostics) {
+  const std::string& s = t.source();
+  const auto error = [&](const std::string& message) {
+    diagnostics.error(mark, fmt::format("{}: {}", what, message));
+  };
+  if (s.empty()) return error("empty command");
+  if (s.find_first_of("\r\n") != std::string::npos)
+    return error(
+        fmt::format("'{}': the family ends every line with LF itself; a CR on a party "
+                    "line breaks the framing (digest §8.1)",
+                    ims::printable(s)));
+  if (s.find(":x}") != std::string::npos || s.find(":X}") != std::string::npos)
+    return error(fmt::format("'{}': IMS data fields are decimal", s));
+  if (s.front() == ims::kGlobalAddress)
+    return error(
+        fmt::format("'{}': the family adds the global address '*' to bus_wide actions "
+                    "itself; write the plain command",
+                    s));
+  if (s.find(ims::kEscape) != std::string::npos || s.find(ims::kControlC) != std::string::npos) {
+    const bool escape = s.find(ims::kEscape) != std::string::npos;
+    if (s.size() != 1)
+      return error(fmt::format("'{}': {} is sent on its own, not inside a line", ims::printable(s),
+                               escape ? "ESC" : "^C"));
+    if (use != Use::bus_wide_action)
+      return error(
+          fmt::format("{} every axis on the chain (digest §2): only an action with "
+                      "bus_wide: true may send it",
+                      escape ? "ESC hard-stops" : "^C resets"));
+    return;
+  }
+  if (s.front() == ims::kSoftStop) {
+    if (use == Use::bus_wide_action) {
+      if (!ims::is_global_character_command(s))
+        error(fmt::format("'{}': the global soft stop is '@', '@0' or '@1'", s));
+      return;
+    }
+    if (use == Use::action && options.addressed_soft_stop) return;
+    return error(
+        fmt::format("'{}': '@' is typed Global (digest §2, §10.2) and may stop every "
+                    "axis on the chain: send it from an action with bus_wide: true, or "
+                    "set options: {{addressed_soft_stop: true}} for units known to stop "
+                    "only the named axis",
+                    s));
+  }
+
+  const ims::CommandClass kind = ims::classify(s);
+  const char c = s.front();
+  switch (kind) {
+    case ims::CommandClass::unknown:
+      return error(fmt::format("'{}' does not start with an IMS command character", s));
+    case ims::CommandClass::wait:
+      return error(
+          fmt::format("'{}': W holds the echo until the motion ends and stalls the "
+                      "chain (digest §8.14); use a done condition on the status point",
+                      s));
+    case ims::CommandClass::no_echo:
+      if (c == 'P')
+        return error(
+            "P enters program mode, with no echo in party mode, and stores every "
+            "following line as program: enter programs in Single mode on the bench");
+      if (c == 'Q') return error("Q does not function in party mode");
+      if (c == 'q') return error("q lists the program with no echo in party mode");
+      return error(
+          "X returns only '\"32.' in party mode: read the saved parameters with '[' "
+          "or keep them as setpoints");
+    case ims::CommandClass::program:
+      return error(fmt::format("'{}' is a program instruction, not a host command", s));
+    default:
+      break;
+  }
+  if (c == '\\')
+    return error(
+        "'\\' writes raw EEPROM bytes and may start an over-write (digest §3): change "
+        "parameters with their commands, then save with S");
+  if (c == 'C' && kind == ims::CommandClass::eeprom)
+    return error(
+        fmt::format("'{}' erases EEPROM pages or restores factory defaults; that is "
+                    "commissioning work, not a gateway action (digest §5)",
+                    s));
+
+  const std::string low = render_extreme(t, range_of, -1);
+  const std::string high = render_extreme(t, range_of, 1);
+  for (const auto& rendered : {low, high}) {
+    const std::string line = ims::normalize_command(rendered);
+    if (!ims::parse_data(std::string_view(line).substr(1)))
+      return error(
+          fmt::format("'{}' renders to '{}', which is not a command character with "
+                      "up to two numbers (digest §1)",
+                      s, line));
+  }
+  const auto data = ims::parse_data(std::string_view(ims::normalize_command(high)).substr(1));
+  const auto field = [&](std::size_t i) -> std::optional<double> {
+    if (!data || data->fields.size() <= i) return std::nullopt;
+    return data->fields[i];
+  };
+  if ((c == 'Z' || c == 'z') && field(0).value_or(0) != 0)
+    return error(
+        fmt::format("'{}': continuous position output sends lines nobody asked for and "
+                    "corrupts the chain (digest §8.8)",
+                    s));
+  if (c == 'G' && field(1).value_or(0) != 0)
+    return error(fmt::format("'{}': trace output corrupts the chain (digest §8.8)", s));
+
+  const std::size_t limit =
+      options.line_limit - (options.line_limit_counts_name && options.line_limit > 1 ? 1 : 0);
+  const std::string longest = ims::normalize_command(render_extreme(t, range_of, 0));
+  if (longest.size() > limit)
+    return error(
+        fmt::format("'{}' can render to {} characters ('{}'); a unit takes at most {} "
+                    "(digest §1, options line_limit{}): narrow the placeholder's "
+                    "min/max or drop optional spaces",
+                    s, longest.size(), longest, limit,
+                    options.line_limit_counts_name ? ", the name counts" : ""));
+
+  switch (use) {
+    case Use::read:
+      if (kind != ims::CommandClass::query)
+        return error(
+            fmt::format("'{}' returns no value in party mode (only Z, z, ^, ], A129 and "
+                        "[ do; parameters have no readback, digest §4): keep written "
+                        "values as setpoints",
+                        s));
+      if (c == '[' && field(1).value_or(1) > 10)
+        return error(
+            fmt::format("'{}': more than 10 bytes come back on several lines; read at "
+                        "most 10 per point",
+                        s));
+      return;
+    case Use::write:
+      if (kind == ims::CommandClass::query)
+        return error(fmt::format("'{}' is a query, not a write", s));
+      if (kind == ims::CommandClass::eeprom)
+        return error(
+            fmt::format("'{}' writes the EEPROM (about 400,000 cycles): saving is an "
+                        "action a user triggers, never a point write (digest §5)",
+                        s));
+      if (kind != ims::CommandClass::parameter)
+        return error(
+            fmt::format("'{}' starts motion: put it in an action with a done condition", s));
+      return;
+    case Use::action:
+      return;
+    case Use::bus_wide_action:
+      if (kind == ims::CommandClass::query)
+        return error(
+            fmt::format("'{}': every axis would answer at once; a bus-wide action "
+                        "cannot read",
+                        s));
+      if (kind == ims::CommandClass::eeprom)
+        return error(fmt::format("'{}': save each axis on its own, deliberately", s));
+      if (options.firmware < 1.15)
+        return error(
+            fmt::format("'{}' goes out as '*{}'; the global address '*' needs indexer "
+                        "firmware 1.15 or later (set options: {{firmware: \"1.15\"}} "
+                        "if the units have it)",
+                        s, s));
+      return;
+  }
+}
+
+}  // namespace
+
+void ImsPartyLineFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
+  const ModelOptions options = read_options(model, diagnostics);
+  for (const auto& p : model.points) {
+    const auto value_range = [&](std::string_view) {
+      return std::pair{p.min.value_or(min_value(p.type)), p.max.value_or(max_value(p.type))};
+    };
+    if (p.read) {
+      const std::string what = "point " + p.name + " read";
+      if (p.read->object)
+        diagnostics.error(p.mark, what + ": objects are for the canopen family");
+      else if (p.read->format != NumberFormat::decimal)
+        diagnostics.error(p.mark, what + ": IMS units answer in decimal");
+      else
+        check_command(p.read->request, value_range, Use::read, options, p.mark, what, diagnostics);
+      if (p.read->field != 0 &&
+          (p.read->request.source().empty() || p.read->request.source().front() != '['))
+        diagnostics.error(p.mark, what + ": only '[' returns more than one value");
+    }
+    if (p.write) {
+      const std::string what = "point " + p.name + " write";
+      if (p.write->object)
+        diagnostics.error(p.mark, what + ": objects are for the canopen family");
+      else
+        check_command(p.write->request, value_range, Use::write, options, p.mark, what,
+                      diagnostics);
+    }
+  }
+  const RangeOf setpoint_range = [&](std::string_view name) -> std::pair<int64_t, int64_t> {
+    const SetpointDef* s = model.find_setpoint(std::string(name));
+    if (!s) return {0, 0};
+    return {s->min.value_or(min_value(s->type)), s->max.value_or(max_value(s->type))};
+  };
+  for (const auto& a : model.actions) {
+    for (const auto& step : a.steps) {
+      if (step.kind != ActionStep::Kind::send) continue;
+      const std::string what = "action " + a.name;
+      check_command(step.command, setpoint_range, a.bus_wide ? Use::bus_wide_action : Use::action,
+                    options, step.mark, what, diagnostics);
+      if (step.urgent && !(a.bus_wide && ims::is_global_character_command(step.command.source())))
+        diagnostics.error(step.mark,
+                          fmt::format("{}: only ESC, ^C or @ of a bus_wide action can be sent "
+                                      "urgently",
+                                      what));
+    }
+  }
+}
+
+}  // namespace fieldgate
+
+namespace fieldgate {
+FamilyPtr make_ims_party_line_family() {
+  return std::make_shared<ImsPartyLineFamily>();
+}
+}  // namespace fieldgate

@@ -1,0 +1,99 @@
+// fieldgate-sim-ims: IMS indexers in party-line mode on one RS-422 pair, served on a
+// pseudo-terminal. See README.md.
+
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <exception>
+#include <string>
+
+#include "sim/common/control_channel.hpp"
+#include "sim/common/line_device_loop.hpp"
+#include "sim/common/pty_port.hpp"
+#include "sim/ims/party_line.hpp"
+
+namespace sim = fieldgate::sim;
+namespace ims = fieldgate::sim::ims;
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "IMS indexer party-line simulator: serves named axes on a pseudo-terminal; control "
+      "commands on stdin (type help)."};
+  std::string link;
+  std::string axes = "A";
+  std::uint32_t baud = 9600;
+  bool emulate_wire = false;
+  long turnaround_us = -1;
+  bool echo_name = false;
+  bool no_completion = false;
+  double overrun_above = 10'000;
+  double home_at = -1000;
+  std::string home_side = "minus";
+  bool verbose = false;
+  std::uint32_t seed = 1;
+  app.add_option("--link", link, "symlink to create for the PTY slave, e.g. /tmp/ims0");
+  app.add_option("--axes", axes, "unit names on the chain, e.g. A,B,C (A-Z, a-z, [\\]^_`)");
+  app.add_option("--baud", baud, "line rate for --emulate-wire (the manual documents 9600 only)")
+      ->check(CLI::Range(300u, 115200u));
+  app.add_flag("--emulate-wire", emulate_wire,
+               "take as long as the bytes would take on a real line at the baud rate");
+  app.add_option("--turnaround-us", turnaround_us,
+                 "processing time before a result line (default 0, or 1000 with --emulate-wire)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_flag("--echo-name", echo_name, "units echo their own name before the command");
+  app.add_flag("--no-completion", no_completion,
+               "no CR LF after commands without a numeric result");
+  app.add_option("--overrun-above", overrun_above,
+                 "steps/s above which a unit drops characters sent back to back (0 = never)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--home-at", home_at, "position of the home switch edge (power-up frame)");
+  app.add_option("--home-side", home_side, "where the home switch reads high: minus or plus")
+      ->check(CLI::IsMember({"minus", "plus"}));
+  app.add_option("--seed", seed, "seed for garbage replies");
+  app.add_flag("--verbose", verbose, "log every request and reply to stderr");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    ims::PartyLineOptions options;
+    options.names = ims::parse_names(axes);
+    options.home = {home_at, home_side == "minus"};
+    options.echo_name = echo_name;
+    options.completion = !no_completion;
+    options.overrun_above = overrun_above;
+    options.seed = seed;
+
+    sim::FaultInjection faults;
+    ims::PartyLine chain(
+        options, faults, [] { return sim::SimClock::now(); }, sim::SimClock::now());
+
+    sim::LineDeviceOptions line_options;
+    line_options.wire.enabled = emulate_wire;
+    line_options.wire.timing = sim::WireTiming(baud);
+    line_options.wire.turnaround =
+        std::chrono::microseconds(turnaround_us >= 0 ? turnaround_us : (emulate_wire ? 1000 : 0));
+    line_options.terminators = "\r\n";
+    line_options.seed = seed;
+    line_options.verbose = verbose;
+    line_options.name = "ims";
+
+    sim::LineExchange exchange(chain.hooks(), line_options, faults);
+    sim::ControlChannel control(
+        STDIN_FILENO, STDOUT_FILENO, faults,
+        [&](std::string_view verb, std::span<const std::string> arguments) {
+          return chain.control(verb, arguments, sim::SimClock::now());
+        },
+        ims::PartyLine::control_help());
+
+    sim::PtyPort port(link);
+    // Tests and scripts wait for this line before opening the port.
+    std::printf("ready %s %s\n", link.empty() ? port.slave_name().c_str() : link.c_str(),
+                port.slave_name().c_str());
+    std::fflush(stdout);
+    sim::run_line_device(port, control, exchange);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fieldgate-sim-ims: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,104 @@
+#pragma once
+
+#include <deque>
+#include <functional>
+#include <map>
+#include <optional>
+#include <random>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "sim/common/line_device_loop.hpp"
+#include "sim/ims/indexer.hpp"
+
+namespace fieldgate::sim::ims {
+
+struct PartyLineOptions {
+  std::vector<char> names{'A'};
+  HomeSwitch home;
+  // Whether a unit echoes its own name (the manual does not say, §2).
+  bool echo_name = false;
+  // CR LF "execution complete" after commands without a numeric result (p.12).
+  bool completion = true;
+  // A unit stepping faster than this (steps/s) drops characters that arrive back to back
+  // (manual p.14); 0 turns the overrun off.
+  double overrun_above = 10'000;
+  std::uint32_t seed = 1;
+};
+
+// Several IMS indexers in party-line mode on one RS-422 pair (shared/protocols/ims-indexer.md
+// §2): every unit hears every character; the unit whose name starts a line wakes, echoes the
+// line character by character and executes it at the LF. ESC, ^C, `@` lines and `*` lines reach
+// every unit.
+//
+// Plugs into LineExchange through frame(), echo() and respond(). Faults from the control channel
+// (garbage, truncate) are applied to the echo here, because on a party line the echo is the
+// reply; LineExchange applies the rest (silence, delay) as for any family.
+class PartyLine {
+ public:
+  // `clock` tells echo() the time (it is called as bytes arrive, without a time of its own);
+  // tests pass their injected time.
+  PartyLine(PartyLineOptions options, FaultInjection& faults, std::function<SimTime()> clock,
+            SimTime now);
+
+  // A request ends at LF; ESC and ^C are requests on their own and cut a line short.
+  static std::size_t frame(std::string_view pending);
+  // What the units send back while `received` arrives (LineDeviceHooks::echo).
+  std::string echo(std::string_view received);
+  // Executes a framed request at `now` and returns result lines or completions.
+  DeviceReply respond(std::string_view request, SimTime now);
+
+  LineDeviceHooks hooks();
+
+  // Family commands of the control channel; nullopt for other verbs.
+  std::optional<std::string> control(std::string_view verb, std::span<const std::string> arguments,
+                                     SimTime now);
+  static std::string control_help();
+
+  // nullptr if no unit has that name.
+  Indexer* unit(char name);
+  bool online(char name) const;
+
+ private:
+  enum class Target { none, unit, all, soft_stop };
+  enum class Fault { none, garbage, truncate, overrun, collision };
+
+  struct Unit {
+    Indexer indexer;
+    bool online = true;
+    bool duplicate = false;  // a second unit with the same name answers too
+  };
+
+  // The line being received, as the listening units see it.
+  struct Line {
+    bool started = false;
+    std::string text;  // name (or * or @) included
+    Target target = Target::none;
+    Fault fault = Fault::none;
+    bool echoing = false;
+    bool hold_linefeed = false;  // W keeps its LF until the wait ends
+    std::size_t body = 0;        // characters after the name
+  };
+
+  void start_line(char first, std::string& out);
+  char disturbed(char c);
+  std::vector<Unit*> units_named(char name);
+  std::vector<Unit*> online_units();
+  std::string collide(std::string_view bytes);
+  std::optional<char> name_argument(std::span<const std::string> arguments, std::string& error);
+
+  PartyLineOptions options_;
+  FaultInjection& faults_;
+  std::function<SimTime()> clock_;
+  std::map<char, Unit> units_;
+  Line line_;
+  std::deque<Line> heard_;  // complete lines, in order, waiting for respond()
+  std::mt19937 random_;
+};
+
+// "A,B,C" -> {'A','B','C'}; throws std::invalid_argument for an invalid or repeated name.
+std::vector<char> parse_names(std::string_view text);
+
+}  // namespace fieldgate::sim::ims

@@ -1,0 +1,366 @@
+// The family's decisions on complete transcripts (pure), then whole transactions through a Link
+// against the simulated party line in process.
+#include <gtest/gtest.h>
+
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/use_future.hpp>
+
+#include <chrono>
+#include <thread>
+
+#include "drivers/ims_party_line/ims_chain.hpp"
+#include "drivers/ims_party_line/ims_family.hpp"
+#include "tests/families/ims_party_line/chain_transport.hpp"
+
+namespace fieldgate {
+namespace {
+
+using namespace std::chrono_literals;
+
+NodeAddress unit(char name) {
+  return {std::string(1, name), static_cast<unsigned char>(name), 0};
+}
+Request read(const char* c) {
+  return {c, Request::Expect::values, NumberFormat::decimal};
+}
+Request write(const char* c) {
+  return {c, Request::Expect::ack, NumberFormat::decimal};
+}
+Request global(const char* c) {
+  return {c, Request::Expect::ack, NumberFormat::decimal, true};
+}
+
+// --- pure interpretation of transcripts (§2 byte-level examples) -----------------------------
+
+TEST(ImsInterpret, PositionWithAndWithoutTheNameInTheEcho) {
+  for (const char* received : {"AZ\n   1000\r\n", "Z\n   1000\r\n"}) {
+    const Reply r = interpret_ims_reply(unit('A'), read("Z"), received);
+    EXPECT_EQ(r.status, Reply::Status::ok) << received << ": " << r.text;
+    EXPECT_EQ(r.values, std::vector<int64_t>{1000});
+  }
+}
+
+TEST(ImsInterpret, StatusAndIo) {
+  Reply r = interpret_ims_reply(unit('A'), read("^"), "A^\n  9\r\n");
+  ASSERT_EQ(r.status, Reply::Status::ok);
+  EXPECT_EQ(r.values, std::vector<int64_t>{9});
+  // The name equals the command character: both echo forms still match.
+  for (const char* received : {"AA129\n  40\r\n", "A129\n  40\r\n"}) {
+    r = interpret_ims_reply(unit('A'), read("A129"), received);
+    EXPECT_EQ(r.status, Reply::Status::ok) << received;
+    EXPECT_EQ(r.values, std::vector<int64_t>{40});
+  }
+}
+
+TEST(ImsInterpret, CommandsAreAcknowledgedByTheirEcho) {
+  for (const char* received : {"X+1000\n", "+1000\n", "X+1000\n\r\n", "+1000\n\r\n"})
+    EXPECT_EQ(interpret_ims_reply(unit('X'), write("+1000"), received).status, Reply::Status::ok)
+        << received;
+  EXPECT_EQ(interpret_ims_reply(unit('B'), write("R-200.25"), "BR-200.25\n").status,
+            Reply::Status::ok);
+}
+
+TEST(ImsInterpret, LateCompletionsAreSkipped) {
+  // The CR LF of an earlier (queued) command may come before the echo or the result.
+  EXPECT_EQ(interpret_ims_reply(unit('A'), read("Z"), "\r\nAZ\n   5\r\n").values,
+            std::vector<int64_t>{5});
+  EXPECT_EQ(interpret_ims_reply(unit('A'), read("Z"), "AZ\n\r\n   5\r\n").values,
+            std::vector<int64_t>{5});
+}
+
+TEST(ImsInterpret, SilenceIsATimeout) {
+  const Reply r = interpret_ims_reply(unit('D'), read("Z"), "");
+  EXPECT_EQ(r.status, Reply::Status::timeout);
+  EXPECT_EQ(r.text, "no echo from unit D");
+}
+
+TEST(ImsInterpret, BadEchoesAreGarbled) {
+  struct Case {
+    const char* received;
+    const char* text;
+  };
+  const Case cases[] = {
+      {"AZ", "incomplete echo 'AZ'"},
+      {"BZ\n   1000\r\n", "echo 'BZ\\n' does not match 'AZ\\n'"},
+      {"A\xda\n", "does not match"},
+      {"AZ\n", "echoed 'Z' but sent no result line"},
+      {"AZ\n   10", "incomplete result line '   10'"},
+      {"AZ\n\"32.\r\n", "is no result line"},
+  };
+  for (const auto& c : cases) {
+    const Reply r = interpret_ims_reply(unit('A'), read("Z"), c.received);
+    EXPECT_EQ(r.status, Reply::Status::garbled) << c.received;
+    EXPECT_NE(r.text.find(c.text), std::string::npos) << r.text;
+  }
+}
+
+TEST(ImsFamily, AddressesAreNames) {
+  ImsPartyLineFamily f;
+  std::string error;
+  auto a = f.parse_address("B", error);
+  ASSERT_TRUE(a);
+  EXPECT_EQ(a->text, "B");
+  EXPECT_EQ(a->number, 'B');
+  EXPECT_TRUE(f.parse_address("_", error));
+  for (const char* bad : {"", "AB", "1", "@", "*", " "}) {
+    EXPECT_FALSE(f.parse_address(bad, error)) << bad;
+    EXPECT_FALSE(error.empty());
+  }
+}
+
+TEST(ImsFamily, WireEstimate) {
+  ImsPartyLineFamily f;
+  // "AZ\n" out, "AZ\n" back at most, "   1000\r\n".
+  EXPECT_EQ(f.estimate_wire_chars(unit('A'), read("Z")), 16u);
+  EXPECT_EQ(f.estimate_wire_chars(unit('A'), write("V2000")), 16u);
+  EXPECT_EQ(f.estimate_wire_chars(unit('A'), global("\x1b")), 1u);
+}
+
+// --- transactions against the simulated chain -------------------------------------------------
+
+class ImsTransact : public ::testing::Test {
+ protected:
+  void SetUp() override { make_chain({}); }
+
+  void make_chain(sim::ims::PartyLineOptions options) {
+    if (options.names.size() == 1 && options.names.front() == 'A') options.names = {'A', 'B', 'C'};
+    link_.reset();
+    transport_ = std::make_unique<test::ChainTransport>(io_, std::move(options));
+    link_ = std::make_unique<Link>(*transport_);
+  }
+
+  template <typename T>
+  T run(asio::awaitable<T> work) {
+    auto future = asio::co_spawn(io_, std::move(work), asio::use_future);
+    io_.restart();
+    while (future.wait_for(0s) != std::future_status::ready) io_.run_one_for(10ms);
+    return future.get();
+  }
+
+  Reply transact(char name, const Request& r) {
+    return run(family_.transact(*link_, unit(name), r, timing_));
+  }
+  // The `^` value, -1 if the read failed.
+  int64_t status_of(char name) {
+    const Reply r = transact(name, read("^"));
+    return r.status == Reply::Status::ok && !r.values.empty() ? r.values.front() : -1;
+  }
+
+  sim::ims::PartyLine& chain() { return transport_->chain(); }
+  std::string control(const std::string& verb, std::vector<std::string> args) {
+    return chain().control(verb, args, sim::SimClock::now()).value_or("?");
+  }
+
+  asio::io_context io_;
+  std::unique_ptr<test::ChainTransport> transport_;
+  std::unique_ptr<Link> link_;
+  ImsPartyLineFamily family_;
+  LinkTiming timing_{20ms, 5ms};
+};
+
+TEST_F(ImsTransact, ReadsEveryAxisOnTheChain) {
+  control("position", {"B", "-2500"});
+  control("position", {"C", "777"});
+  EXPECT_EQ(transact('A', read("Z")).values, std::vector<int64_t>{0});
+  EXPECT_EQ(transact('B', read("Z")).values, std::vector<int64_t>{-2500});
+  EXPECT_EQ(transact('C', read("Z")).values, std::vector<int64_t>{777});
+  EXPECT_EQ(transact('A', read("^")).values, std::vector<int64_t>{0});
+  EXPECT_EQ(transport_->writes().back(), "A^\n");
+}
+
+TEST_F(ImsTransact, NameEchoAndMissingCompletionAreBothFine) {
+  sim::ims::PartyLineOptions options;
+  options.echo_name = true;
+  options.completion = false;
+  make_chain(options);
+  EXPECT_EQ(transact('A', write("V2000")).status, Reply::Status::ok);
+  const Reply r = transact('A', read("Z"));
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+}
+
+TEST_F(ImsTransact, MissingNameTimesOutAfterTheReplyTimeout) {
+  const auto start = std::chrono::steady_clock::now();
+  const Reply r = transact('D', read("Z"));
+  const auto took = std::chrono::steady_clock::now() - start;
+  EXPECT_EQ(r.status, Reply::Status::timeout);
+  EXPECT_GE(took, timing_.reply_timeout);
+  EXPECT_LT(took, timing_.reply_timeout + 250ms);
+  EXPECT_EQ(transact('A', read("Z")).status, Reply::Status::ok);
+}
+
+TEST_F(ImsTransact, GarbledAndTruncatedEchoesThenResynchronise) {
+  transport_->faults().garbage_replies = 1;
+  Reply r = transact('B', read("Z"));
+  EXPECT_EQ(r.status, Reply::Status::garbled) << r.text;
+  EXPECT_EQ(transact('B', read("Z")).status, Reply::Status::ok);
+  transport_->faults().truncated_replies = 1;
+  r = transact('C', read("^"));
+  EXPECT_EQ(r.status, Reply::Status::garbled);
+  EXPECT_NE(r.text.find("incomplete echo"), std::string::npos) << r.text;
+  for (char name : {'A', 'B', 'C'}) EXPECT_EQ(transact(name, read("Z")).status, Reply::Status::ok);
+}
+
+TEST_F(ImsTransact, DuplicateNameGarblesOnlyThatName) {
+  control("duplicate", {"B", "on"});
+  EXPECT_EQ(transact('B', read("Z")).status, Reply::Status::garbled);
+  EXPECT_EQ(transact('A', read("Z")).status, Reply::Status::ok);
+  control("duplicate", {"B", "off"});
+  EXPECT_EQ(transact('B', read("Z")).status, Reply::Status::ok);
+}
+
+TEST_F(ImsTransact, MovesAndTheMotionGuard) {
+  ASSERT_EQ(transact('A', write("V5000")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', write("K0 0")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', read("^")).values, std::vector<int64_t>{0});
+  ASSERT_EQ(transact('A', write("R2000")).status, Reply::Status::ok);
+  EXPECT_EQ(status_of('A') & 1, 1);
+  // A second index would queue and stall the unit: refused before it reaches the wire.
+  transport_->clear_writes();
+  const Reply again = transact('A', write("R0"));
+  EXPECT_EQ(again.status, Reply::Status::device_error);
+  EXPECT_EQ(again.device_code, static_cast<int64_t>(ims::Refusal::axis_moving));
+  EXPECT_TRUE(transport_->writes().empty());
+  std::this_thread::sleep_for(450ms);
+  EXPECT_EQ(transact('A', read("^")).values, std::vector<int64_t>{0});
+  EXPECT_EQ(transact('A', read("Z")).values, std::vector<int64_t>{2000});
+  EXPECT_EQ(transact('A', write("R0")).status, Reply::Status::ok);
+}
+
+TEST_F(ImsTransact, LateCompletionOfAQueuedIndexDoesNotDisturbPolls) {
+  // Without status polls the guard is off, so the second index queues in the unit (§6): its
+  // CR LF comes when the first move ends, in the middle of later exchanges.
+  ASSERT_EQ(transact('A', write("V4000")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', write("K0 0")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', write("R400")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', write("R0")).status, Reply::Status::ok);
+  const auto until = std::chrono::steady_clock::now() + 400ms;
+  int polls = 0;
+  while (std::chrono::steady_clock::now() < until) {
+    const Reply r = transact(polls % 2 ? 'B' : 'A', read("Z"));
+    ASSERT_EQ(r.status, Reply::Status::ok) << r.text;
+    ++polls;
+  }
+  EXPECT_GT(polls, 10);
+  EXPECT_EQ(transact('A', read("Z")).values, std::vector<int64_t>{0});
+}
+
+TEST_F(ImsTransact, FastAxisPacesEveryLineCharacterByCharacter) {
+  ASSERT_EQ(transact('A', write("K0 0")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', write("M15000")).status, Reply::Status::ok);
+  ASSERT_TRUE(family_.shadow().fast());
+  // The simulated unit overruns on characters that arrive back to back while it steps faster
+  // than 10,000 steps/s: paced lines get through.
+  transport_->clear_writes();
+  for (int i = 0; i < 5; ++i) {
+    const Reply r = transact('A', read("Z"));
+    EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  }
+  const Reply b = transact('B', read("Z"));
+  EXPECT_EQ(b.status, Reply::Status::ok) << b.text;
+  for (const auto& w : transport_->writes()) EXPECT_EQ(w.size(), 1u) << w;
+  ASSERT_EQ(transact('A', write("M0")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', read("^")).values, std::vector<int64_t>{0});
+  EXPECT_FALSE(family_.shadow().fast());
+  transport_->clear_writes();
+  EXPECT_EQ(transact('A', read("Z")).status, Reply::Status::ok);
+  EXPECT_EQ(transport_->writes(), std::vector<std::string>{"AZ\n"});
+}
+
+TEST_F(ImsTransact, PacedLinesToAnEchoingNameWork) {
+  sim::ims::PartyLineOptions options;
+  options.echo_name = true;
+  make_chain(options);
+  ASSERT_EQ(transact('A', write("K0 0")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', write("M-15000")).status, Reply::Status::ok);
+  const Reply r = transact('A', read("A129"));  // name and command character are the same
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  EXPECT_EQ(transact('D', read("Z")).status, Reply::Status::timeout);
+  EXPECT_EQ(transact('C', read("Z")).status, Reply::Status::ok);
+}
+
+TEST_F(ImsTransact, WithoutPacingAFastUnitOverruns) {
+  // What pacing prevents: the whole line at once to a unit stepping at 15,000 steps/s.
+  ASSERT_EQ(transact('A', write("K0 0")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', write("M15000")).status, Reply::Status::ok);
+  std::string out = chain().echo("AZ\n");
+  EXPECT_EQ(out, "Z") << "the unit lost the rest of the line";
+  EXPECT_TRUE(chain().respond("AZ\n", sim::SimClock::now()).bytes.empty());
+}
+
+TEST_F(ImsTransact, BusWideCommandsGoOutWithoutAName) {
+  for (char name : {'A', 'B', 'C'}) {
+    ASSERT_EQ(transact(name, write("K0 0")).status, Reply::Status::ok);
+    ASSERT_EQ(transact(name, write("M1000")).status, Reply::Status::ok);
+  }
+  transport_->clear_writes();
+  Reply r = transact('C', global("M0"));  // firmware 1.15 `*`: every unit echoes at once
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  EXPECT_EQ(transport_->writes(), std::vector<std::string>{"*M0\n"});
+  std::this_thread::sleep_for(50ms);
+  for (char name : {'A', 'B', 'C'}) EXPECT_EQ(status_of(name), 0) << name;
+
+  for (char name : {'A', 'B'}) ASSERT_EQ(transact(name, write("M1000")).status, Reply::Status::ok);
+  transport_->clear_writes();
+  EXPECT_EQ(transact('A', global("@")).status, Reply::Status::ok);
+  EXPECT_EQ(transport_->writes(), std::vector<std::string>{"@\n"});
+  std::this_thread::sleep_for(20ms);
+  for (char name : {'A', 'B'}) EXPECT_EQ(status_of(name), 0) << name;
+
+  for (char name : {'A', 'B'}) ASSERT_EQ(transact(name, write("M1000")).status, Reply::Status::ok);
+  transport_->clear_writes();
+  EXPECT_EQ(transact('B', global("\x1b")).status, Reply::Status::ok);
+  EXPECT_EQ(transport_->writes(), std::vector<std::string>{"\x1b"});
+  for (char name : {'A', 'B'}) EXPECT_EQ(status_of(name), 0) << name;
+
+  control("position", {"B", "1234"});
+  EXPECT_EQ(transact('B', global("\x03")).status, Reply::Status::ok);
+  EXPECT_EQ(transact('B', read("Z")).values, std::vector<int64_t>{0}) << "reset zeroes the origin";
+  const Request bus_wide_read{"Z", Request::Expect::values, NumberFormat::decimal, true};
+  EXPECT_EQ(transact('B', bus_wide_read).status, Reply::Status::device_error)
+      << "a read cannot be bus-wide";
+}
+
+TEST_F(ImsTransact, UrgentStopGoesOutAtOnce) {
+  ASSERT_EQ(transact('A', write("M1000")).status, Reply::Status::ok);
+  transport_->clear_writes();
+  Reply r = run(family_.send_urgent(*link_, unit('A'), global("\x1b")));
+  EXPECT_EQ(r.status, Reply::Status::ok);
+  EXPECT_EQ(transport_->writes(), std::vector<std::string>{"\x1b"});
+  EXPECT_EQ(transact('A', read("^")).values, std::vector<int64_t>{0});
+  r = run(family_.send_urgent(*link_, unit('A'), write("M0")));
+  EXPECT_EQ(r.status, Reply::Status::device_error);
+  EXPECT_EQ(r.device_code, static_cast<int64_t>(ims::Refusal::not_global));
+  r = run(family_.send_urgent(*link_, unit('A'), global("M0")));
+  EXPECT_EQ(r.status, Reply::Status::device_error) << "only ESC, ^C and @ are urgent";
+}
+
+TEST_F(ImsTransact, CommandsWithoutEchoDoNotHang) {
+  Reply r = transact('A', write("X"));  // answers '"32.' in party mode
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  r = transact('A', read("X"));
+  EXPECT_EQ(r.status, Reply::Status::garbled);
+  EXPECT_EQ(transact('A', read("Z")).status, Reply::Status::ok);
+}
+
+TEST_F(ImsTransact, OutputsRuleAndSaveGuardAreEnforcedBeforeTheWire) {
+  Reply r = transact('A', write("A12"));
+  EXPECT_EQ(r.status, Reply::Status::device_error);
+  EXPECT_EQ(r.device_code, static_cast<int64_t>(ims::Refusal::output_value));
+  EXPECT_EQ(transact('A', write("A24")).status, Reply::Status::ok);
+  EXPECT_EQ(transact('A', read("A129")).values, std::vector<int64_t>{24});
+  EXPECT_EQ(transact('A', write("S")).status, Reply::Status::ok);
+  r = transact('A', write("S"));
+  EXPECT_EQ(r.device_code, static_cast<int64_t>(ims::Refusal::eeprom_rate));
+  EXPECT_EQ(chain().unit('A')->eeprom_writes(), 1);
+}
+
+TEST_F(ImsTransact, UnitThatWasSwitchedOffComesBack) {
+  control("axis-off", {"C"});
+  EXPECT_EQ(transact('C', read("Z")).status, Reply::Status::timeout);
+  control("axis-on", {"C"});
+  EXPECT_EQ(transact('C', read("Z")).status, Reply::Status::ok);
+}
+
+}  // namespace
+}  // namespace fieldgate
