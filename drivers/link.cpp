@@ -53,6 +53,14 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
     auto outcome = co_await (transport_.read_some(asio::buffer(chunk)) ||
                              timer.async_wait(asio::as_tuple(asio::use_awaitable)));
     if (outcome.index() == 1) {
+      // The timer and the data can become ready together (a stalled process): bytes already
+      // buffered by the OS are not a timeout.
+      if (const auto late = transport_.read_available(asio::buffer(chunk)); late > 0) {
+        stats_.bytes_received += late;
+        buffer_.append(chunk, late);
+        first = false;
+        continue;
+      }
       result.status = LinkRead::Status::timeout;
       result.partial = std::move(buffer_);
       buffer_.clear();

@@ -183,10 +183,8 @@ asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
                        reply.text.empty() ? std::string(to_string(reply.status)) : reply.text);
           co_return *ex;
         }
-        if (p.readable()) {
-          auto& pv = node.points[static_cast<std::size_t>(e->index)];
-          pv = {value, Clock::now(), true};
-        }
+        // The confirmed value until the next poll; for a write-only point, its only readback.
+        node.points[static_cast<std::size_t>(e->index)] = {value, Clock::now(), true};
         break;
       }
       case RegisterEntry::Kind::action_command: {

@@ -114,6 +114,9 @@ void SerialBus::stop() {
 std::shared_ptr<Bus> make_bus(asio::any_io_executor executor,
                               std::shared_ptr<const void> config_owner, const BusConfig& config,
                               int first_node_index, Bus::NodeUpdated on_update) {
+  if (config.transport.kind == TransportConfig::Kind::can)
+    return make_can_bus(executor, std::move(config_owner), config, first_node_index,
+                        std::move(on_update));
   return std::make_shared<SerialBus>(executor, std::move(config_owner), config, first_node_index,
                                      std::move(on_update));
 }
@@ -125,7 +128,9 @@ asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, Comman
     ++counters_.commands;
     co_return co_await config_.family->send_urgent(link_, n.config->address, request);
   }
-  if ((*n.image).state == NodeState::offline || !transport_->is_open()) {
+  // A bus-wide command (a global stop) concerns every node: only the link must be up.
+  const bool node_gone = (*n.image).state == NodeState::offline && !request.bus_wide;
+  if (node_gone || !transport_->is_open()) {
     Reply r;
     r.status = Reply::Status::unreachable;
     r.text = transport_->is_open() ? "node is offline" : "bus link is down";
@@ -323,7 +328,7 @@ asio::awaitable<void> SerialBus::run() {
       ++counters_.commands;
       auto& n = nodes_[static_cast<std::size_t>(cmd->node)];
       Reply reply;
-      if ((*n.image).state == NodeState::offline) {
+      if ((*n.image).state == NodeState::offline && !cmd->request.bus_wide) {
         reply.status = Reply::Status::unreachable;
         reply.text = "node is offline";
       } else {

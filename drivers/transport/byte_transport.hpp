@@ -26,6 +26,12 @@ class ByteTransport {
   // cancellation slot, so `read_some(...) || timer` works.
   virtual asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) = 0;
+  // Reads what the OS has already buffered without waiting (0 if nothing; the default for
+  // transports that cannot tell).
+  virtual std::size_t read_available(asio::mutable_buffer buffer) {
+    (void)buffer;
+    return 0;
+  }
   // Drops whatever the OS has buffered but nobody read yet.
   virtual void discard_input() = 0;
   virtual std::string describe() const = 0;

@@ -1,7 +1,11 @@
 #include "drivers/transport/serial_transport.hpp"
 
 #include <fmt/format.h>
+#include <sys/ioctl.h>
 #include <termios.h>
+#include <unistd.h>
+
+#include <algorithm>
 
 #include <boost/asio/as_tuple.hpp>
 #include <boost/asio/use_awaitable.hpp>
@@ -61,6 +65,15 @@ asio::awaitable<std::pair<std::error_code, std::size_t>> SerialTransport::read_s
   auto [ec, n] = co_await port_.async_read_some(buffer, use_tuple);
   co_return std::pair{ec ? std::error_code(ec.value(), std::generic_category()) : std::error_code{},
                       n};
+}
+
+std::size_t SerialTransport::read_available(asio::mutable_buffer buffer) {
+  if (!port_.is_open()) return 0;
+  int pending = 0;
+  if (::ioctl(port_.native_handle(), FIONREAD, &pending) != 0 || pending <= 0) return 0;
+  const auto n = ::read(port_.native_handle(), buffer.data(),
+                        std::min<std::size_t>(buffer.size(), static_cast<std::size_t>(pending)));
+  return n > 0 ? static_cast<std::size_t>(n) : 0;
 }
 
 void SerialTransport::discard_input() {

@@ -27,6 +27,7 @@ class SerialTransport final : public ByteTransport {
   asio::awaitable<std::error_code> write(std::string_view bytes) override;
   asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) override;
+  std::size_t read_available(asio::mutable_buffer buffer) override;
   void discard_input() override;
   std::string describe() const override;
   double char_time_us() const override { return serial_char_time_us(settings_); }

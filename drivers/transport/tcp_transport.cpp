@@ -52,6 +52,13 @@ asio::awaitable<std::pair<std::error_code, std::size_t>> TcpTransport::read_some
   co_return std::pair{to_std(ec), n};
 }
 
+std::size_t TcpTransport::read_available(asio::mutable_buffer buffer) {
+  boost::system::error_code ec;
+  if (!socket_.is_open() || socket_.available(ec) == 0 || ec) return 0;
+  const auto n = socket_.read_some(buffer, ec);
+  return ec ? 0 : n;
+}
+
 void TcpTransport::discard_input() {
   if (!socket_.is_open()) return;
   char scratch[512];

@@ -19,6 +19,7 @@ class TcpTransport final : public ByteTransport {
   asio::awaitable<std::error_code> write(std::string_view bytes) override;
   asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) override;
+  std::size_t read_available(asio::mutable_buffer buffer) override;
   void discard_input() override;
   std::string describe() const override;
   double char_time_us() const override { return char_time_us_; }

@@ -50,7 +50,7 @@ class CopleyEndToEnd : public ::testing::Test {
           << plant_->daemon().log();
   }
   void TearDown() override {
-    if (HasFailure()) std::cerr << "--- daemon log ---\n" << plant_->daemon().log();
+    if (HasFailure() && plant_) std::cerr << "--- daemon log ---\n" << plant_->daemon().log();
   }
 
   int action_status(int unit) {

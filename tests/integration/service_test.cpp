@@ -87,7 +87,7 @@ class ServiceTest : public ::testing::Test {
     ASSERT_TRUE(wait_until([&] { return client_->read_input(2, 0, 2).ok(); }));
   }
   void TearDown() override {
-    if (HasFailure()) std::cerr << "--- daemon log ---\n" << plant_->daemon().log();
+    if (HasFailure() && plant_) std::cerr << "--- daemon log ---\n" << plant_->daemon().log();
     client_.reset();
     plant_.reset();
     notify_.reset();
