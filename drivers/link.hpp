@@ -9,6 +9,8 @@
 #include <string>
 #include <string_view>
 #include <system_error>
+#include <utility>
+#include <vector>
 
 #include "drivers/transport/byte_transport.hpp"
 
@@ -50,6 +52,11 @@ class Link {
   // Waits without touching the line (inter-frame gap, pacing).
   asio::awaitable<void> pause(std::chrono::microseconds duration);
 
+  // Messages a family wants in the gateway's log (e.g. what a link-open procedure did); the
+  // bus logs and clears them after each family call that may leave some.
+  void note(std::string message) { notes_.push_back(std::move(message)); }
+  std::vector<std::string> take_notes() { return std::exchange(notes_, {}); }
+
   ByteTransport& transport() { return transport_; }
   const LinkStats& stats() const { return stats_; }
   double char_time_us() const { return transport_.char_time_us(); }
@@ -59,6 +66,7 @@ class Link {
   std::size_t max_frame_;
   std::string buffer_;
   LinkStats stats_;
+  std::vector<std::string> notes_;
 };
 
 }  // namespace fieldgate

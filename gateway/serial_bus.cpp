@@ -114,9 +114,6 @@ void SerialBus::stop() {
 std::shared_ptr<Bus> make_bus(asio::any_io_executor executor,
                               std::shared_ptr<const void> config_owner, const BusConfig& config,
                               int first_node_index, Bus::NodeUpdated on_update) {
-  if (config.transport.kind == TransportConfig::Kind::can)
-    return make_can_bus(executor, std::move(config_owner), config, first_node_index,
-                        std::move(on_update));
   return std::make_shared<SerialBus>(executor, std::move(config_owner), config, first_node_index,
                                      std::move(on_update));
 }
@@ -166,6 +163,12 @@ void SerialBus::set_state(NodeRuntime& n, NodeState state, std::string_view why)
                  n.config->address.text, why);
     n.next_probe = Clock::now() + config_.timing.probe_interval;
   }
+}
+
+bool SerialBus::all_nodes_offline_now() const {
+  for (const auto& n : nodes_)
+    if (n.image->state != NodeState::offline) return false;
+  return true;
 }
 
 void SerialBus::all_nodes_offline(std::string_view why) {
@@ -284,10 +287,12 @@ asio::awaitable<void> SerialBus::open_link() {
     counters_.open_attempted = true;
     if (!ec) {
       counters_.link_up = true;
+      opened_at_ = Clock::now();
       ++counters_.reconnects;
       log::notice("bus {}: opened {}", config_.name, transport_->describe());
       link_error_logged_ = false;
       co_await config_.family->on_link_open(link_, config_.timing.link);
+      for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
       for (auto& n : nodes_)
         if ((*n.image).state == NodeState::offline) n.next_probe = Clock::now();
       co_return;
@@ -364,6 +369,13 @@ asio::awaitable<void> SerialBus::run() {
       when = probe_when;
     }
     if (chosen && when <= now) {
+      // Nothing on the link answers (a power-cycled controller back at its power-up rate, a
+      // re-plugged adapter): reopen it, so the family's link-open procedure runs again.
+      if (chosen == probe && all_nodes_offline_now() &&
+          now - opened_at_ >= config_.timing.probe_interval) {
+        transport_->close();
+        continue;
+      }
       co_await run_poll(*chosen);
       continue;
     }

@@ -64,6 +64,7 @@ class SerialBus final : public Bus {
   void record_latency(double seconds);
   void set_state(NodeRuntime& node, NodeState state, std::string_view why);
   void all_nodes_offline(std::string_view why);
+  bool all_nodes_offline_now() const;
   NodeRuntime& node(int node_index);
 
   asio::any_io_executor executor_;
@@ -80,6 +81,7 @@ class SerialBus final : public Bus {
   BusCounters counters_;
   bool stopping_ = false;
   bool link_error_logged_ = false;
+  SteadyTime opened_at_{};
 };
 
 }  // namespace fieldgate

@@ -52,6 +52,52 @@ void CopleyFamily::validate_model(const Model& model, Diagnostics& diagnostics) 
       if (s.kind == ActionStep::Kind::send) check(s.command, s.mark, "action " + a.name);
 }
 
+namespace {
+
+constexpr unsigned kPowerUpBaud = 9600;
+
+asio::awaitable<bool> answers_at_current_rate(Link& link, const LinkTiming& timing) {
+  link.discard_input();
+  if (co_await link.send(copley::encode_command(0, 0, "g r0x90"))) co_return false;
+  const auto read = co_await link.read_frame(copley::frame_length, timing);
+  co_return read.status == LinkRead::Status::frame&& copley::parse_reply(read.frame).kind ==
+      copley::ParsedReply::Kind::values;
+}
+
+}  // namespace
+
+asio::awaitable<void> CopleyFamily::on_link_open(Link& link, const LinkTiming& timing) {
+  auto& transport = link.transport();
+  const unsigned configured = transport.baud();
+  if (configured == 0 || configured == kPowerUpBaud) co_return;
+  const bool already = co_await answers_at_current_rate(link, timing);
+  if (already) co_return;
+  if (transport.set_baud(kPowerUpBaud)) co_return;  // not a real UART: nothing to switch
+  const bool at_power_up_rate = co_await answers_at_current_rate(link, timing);
+  if (!at_power_up_rate) {
+    transport.set_baud(configured);
+    link.note(fmt::format("Copley gateway amplifier answers neither at {} nor at {} baud",
+                          configured, kPowerUpBaud));
+    co_return;
+  }
+  // §4.1: send the new rate, switch the host as soon as the CR has left, expect ok at the new
+  // rate, then wait 100 ms before anything else.
+  link.discard_input();
+  const auto ec =
+      co_await link.send(copley::encode_command(0, 0, fmt::format("s r0x90 {}", configured)));
+  transport.drain();
+  transport.set_baud(configured);
+  if (ec) co_return;
+  const auto read = co_await link.read_frame(copley::frame_length, timing);
+  co_await link.pause(std::chrono::milliseconds(100));
+  const bool ok = read.status == LinkRead::Status::frame &&
+                  copley::parse_reply(read.frame).kind == copley::ParsedReply::Kind::ok;
+  link.note(ok ? fmt::format("Copley gateway amplifier switched from {} to {} baud", kPowerUpBaud,
+                             configured)
+               : fmt::format("Copley gateway amplifier did not confirm the switch to {} baud",
+                             configured));
+}
+
 Reply interpret_copley_reply(const NodeAddress& node, const Request& request,
                              std::string_view line) {
   Reply reply;

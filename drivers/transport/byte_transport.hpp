@@ -26,6 +26,15 @@ class ByteTransport {
   // cancellation slot, so `read_some(...) || timer` works.
   virtual asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) = 0;
+  // Changes the line rate at once (a controller that switches rate mid-session); transports
+  // without a rate refuse.
+  virtual std::error_code set_baud(unsigned baud) {
+    (void)baud;
+    return std::make_error_code(std::errc::operation_not_supported);
+  }
+  virtual unsigned baud() const { return 0; }
+  // Waits until everything written has left the UART (so a rate change cannot cut it).
+  virtual void drain() {}
   // Reads what the OS has already buffered without waiting (0 if nothing; the default for
   // transports that cannot tell).
   virtual std::size_t read_available(asio::mutable_buffer buffer) {

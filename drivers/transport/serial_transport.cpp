@@ -23,7 +23,19 @@ double serial_char_time_us(const SerialSettings& s) {
 }
 
 SerialTransport::SerialTransport(asio::any_io_executor executor, SerialSettings settings)
-    : settings_(std::move(settings)), port_(executor) {}
+    : settings_(std::move(settings)), current_baud_(settings_.baud), port_(executor) {}
+
+std::error_code SerialTransport::set_baud(unsigned baud) {
+  boost::system::error_code ec;
+  port_.set_option(asio::serial_port_base::baud_rate(baud), ec);
+  if (ec) return std::error_code(ec.value(), std::generic_category());
+  current_baud_ = baud;
+  return {};
+}
+
+void SerialTransport::drain() {
+  if (port_.is_open()) ::tcdrain(port_.native_handle());
+}
 
 asio::awaitable<std::error_code> SerialTransport::open() {
   boost::system::error_code ec;
@@ -33,6 +45,7 @@ asio::awaitable<std::error_code> SerialTransport::open() {
   const sp::parity::type parity = settings_.parity == 'E'   ? sp::parity::even
                                   : settings_.parity == 'O' ? sp::parity::odd
                                                             : sp::parity::none;
+  current_baud_ = settings_.baud;
   port_.set_option(sp::baud_rate(settings_.baud), ec);
   if (!ec) port_.set_option(sp::character_size(settings_.data_bits), ec);
   if (!ec) port_.set_option(sp::parity(parity), ec);

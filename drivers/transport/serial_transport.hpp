@@ -28,12 +28,16 @@ class SerialTransport final : public ByteTransport {
   asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) override;
   std::size_t read_available(asio::mutable_buffer buffer) override;
+  std::error_code set_baud(unsigned baud) override;
+  unsigned baud() const override { return current_baud_; }
+  void drain() override;
   void discard_input() override;
   std::string describe() const override;
   double char_time_us() const override { return serial_char_time_us(settings_); }
 
  private:
   SerialSettings settings_;
+  unsigned current_baud_;
   asio::serial_port port_;
 };
 
