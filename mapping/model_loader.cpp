@@ -355,9 +355,12 @@ class ModelParser {
                   const std::string& where) {
     ActionStep s;
     s.mark = r_.mark(step);
+    // A default YAML::Node is a defined null node, so presence needs its own flag.
     YAML::Node send;
+    bool has_send = false;
     if (step.IsScalar()) {
       send = step;
+      has_send = true;
     } else if (r_.expect_map(step, where + " step")) {
       r_.reject_unknown_keys(
           step, {"send", "delay", "accept_errors", "accept_no_reply", "urgent", "confirm_after"},
@@ -367,6 +370,7 @@ class ModelParser {
         s.duration = r_.duration(step["delay"], where + " delay").value_or(s.duration);
       } else if (step["send"]) {
         send = step["send"];
+        has_send = true;
       } else {
         r_.error(step, fmt::format("{}: a step needs 'send' or 'delay'", where));
         return;
@@ -398,7 +402,7 @@ class ModelParser {
     } else {
       return;
     }
-    if (send) {
+    if (has_send) {
       auto t = compile(send, where + " step");
       if (!t) return;
       for (const auto& name : t->placeholders())

@@ -101,6 +101,18 @@ TEST(ModelLoader, WriteTakesOnlyValue) {
   EXPECT_NE(e.find("only {value}"), std::string::npos) << e;
 }
 
+TEST(ModelLoader, DelayStepsLoad) {
+  Diagnostics d;
+  auto m = load_model_text(std::string(kHeader) +
+                               "actions:\n  reset:\n    code: 1\n    steps:\n      - r\n"
+                               "      - {delay: 500ms}\n      - t 0\n",
+                           "m.yaml", d);
+  ASSERT_TRUE(d.ok()) << d.to_text();
+  ASSERT_EQ(m->actions[0].steps.size(), 3u);
+  EXPECT_EQ(m->actions[0].steps[1].kind, ActionStep::Kind::delay);
+  EXPECT_EQ(m->actions[0].steps[1].duration, std::chrono::milliseconds(500));
+}
+
 TEST(ModelLoader, SyntaxErrorHasPosition) {
   const auto e = first_error("model: m\nfamily: [unclosed\n");
   EXPECT_NE(e.find("YAML syntax"), std::string::npos) << e;
