@@ -1,0 +1,406 @@
+#include "drivers/techno_c/techno_family.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+
+namespace fieldgate {
+
+using techno::Command;
+using techno::CommandKind;
+using techno::Handshake;
+
+namespace {
+
+using std::chrono::duration_cast;
+using std::chrono::microseconds;
+
+// Long waits are read in slices so a stop sent meanwhile ends them promptly.
+constexpr microseconds kWaitSlice{std::chrono::milliseconds(20)};
+
+// Every techno-c model validated in this process. A bus whose family instance validated none
+// (its models were first seen on another bus) times its motions from these.
+std::mutex registry_mutex;
+std::map<std::string, techno::Profile>& registry() {
+  static std::map<std::string, techno::Profile> profiles;
+  return profiles;
+}
+
+microseconds seconds_to_us(double seconds) {
+  return microseconds(static_cast<int64_t>(std::llround(seconds * 1e6)));
+}
+
+Reply link_down(const std::error_code& ec) {
+  Reply r;
+  r.status = Reply::Status::link_down;
+  r.text = ec.message();
+  return r;
+}
+
+Reply device_error(char code) {
+  Reply r;
+  r.status = Reply::Status::device_error;
+  r.device_code = static_cast<unsigned char>(code);
+  r.text = techno::describe_error(code);
+  return r;
+}
+
+Reply from_parsed(const techno::ParsedReply& parsed, std::string_view frame) {
+  Reply r;
+  switch (parsed.kind) {
+    case techno::ParsedReply::Kind::ok:
+      r.status = Reply::Status::ok;
+      r.values = parsed.values;
+      break;
+    case techno::ParsedReply::Kind::error:
+      r = device_error(parsed.code);
+      break;
+    case techno::ParsedReply::Kind::malformed:
+      r.status = Reply::Status::garbled;
+      r.text = parsed.problem.empty() ? std::string(frame) : parsed.problem;
+      break;
+  }
+  return r;
+}
+
+}  // namespace
+
+Reply interpret_techno_reply(const Request& request, std::string_view frame) {
+  const Command c = techno::classify(request.command);
+  if (c.kind == CommandKind::position) return from_parsed(techno::parse_positions(frame), frame);
+  if (c.kind == CommandKind::peek) return from_parsed(techno::parse_peek(frame), frame);
+  Reply r = from_parsed(techno::parse_handshake(frame), frame);
+  if (r.status == Reply::Status::ok && request.expect == Request::Expect::values) {
+    r.status = Reply::Status::garbled;
+    r.text = "'" + request.command + "' answers only a handshake, no data";
+  }
+  return r;
+}
+
+std::optional<NodeAddress> TechnoFamily::parse_address(std::string_view text,
+                                                       std::string& error) const {
+  const auto device = techno::parse_device(text, error);
+  if (!device) return std::nullopt;
+  NodeAddress n;
+  n.number = *device;
+  n.text = std::to_string(*device);
+  return n;
+}
+
+void TechnoFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
+  const auto before = diagnostics.errors().size();
+  techno::Profile p = techno::read_profile(model, diagnostics);
+  techno::check_model(model, p, diagnostics);
+  if (diagnostics.errors().size() != before) return;
+  validated_.push_back(p);
+  profile_.reset();
+  const std::lock_guard lock(registry_mutex);
+  registry()[p.model] = std::move(p);
+}
+
+const techno::Profile& TechnoFamily::profile() {
+  if (!profile_) {
+    if (!validated_.empty()) {
+      profile_ = techno::merge_profiles(validated_);
+    } else {
+      std::vector<techno::Profile> all;
+      const std::lock_guard lock(registry_mutex);
+      for (const auto& [_, p] : registry()) all.push_back(p);
+      profile_ = techno::merge_profiles(all);
+    }
+  }
+  return *profile_;
+}
+
+techno::MotionContext TechnoFamily::motion_context(const NodeState& state) {
+  const auto& p = profile();
+  techno::MotionContext c;
+  c.axes = p.axes;
+  c.plane = state.plane;
+  c.acceleration = p.acceleration;
+  c.position = state.position;
+  c.travel = p.travel;
+  for (std::size_t i = 0; i < 3; ++i) c.home_speed[i] = state.home_speed[i].value_or(p.home_speed);
+  return c;
+}
+
+asio::awaitable<void> TechnoFamily::on_link_open(Link&, const LinkTiming&) {
+  // The controller may have been power-cycled or moved by hand while the port was closed.
+  nodes_.clear();
+  co_return;
+}
+
+microseconds TechnoFamily::reply_budget(const NodeAddress& node, std::string_view command,
+                                        const LinkTiming& timing) {
+  const auto& p = profile();
+  auto& state = nodes_[node.number];
+  const Command c = techno::classify(command);
+  microseconds budget = timing.reply_timeout;
+  const auto now = Clock::now();
+  // A controller busy with a lower-case motion may answer only when it has finished [inf].
+  if (state.motion_pending && now < state.motion_deadline)
+    budget = std::max(
+        budget, duration_cast<microseconds>(state.motion_deadline - now) + timing.reply_timeout);
+  if (c.handshake != Handshake::at_end) return budget;
+  if (c.kind == CommandKind::start_program) return budget + p.program_timeout;
+  const auto values = techno::parse_values(c.values).value_or(std::vector<int64_t>{});
+  const auto estimate = techno::estimate_motion(c, values, motion_context(state));
+  if (!estimate) return budget + p.program_timeout;
+  return budget + seconds_to_us(estimate->seconds * p.timeout_factor) + p.timeout_margin;
+}
+
+asio::awaitable<TechnoFamily::Waited> TechnoFamily::wait_reply(Link& link,
+                                                               const FrameSplitter& splitter,
+                                                               microseconds budget,
+                                                               const LinkTiming& timing) {
+  const uint64_t interrupts_at_start = interrupts_;
+  auto deadline = Clock::now() + budget;
+  Waited waited;
+  for (;;) {
+    if (!waited.interrupted && interrupts_ != interrupts_at_start) {
+      // After a stop a handshake, if any comes, comes once the axes have ramped down.
+      waited.interrupted = true;
+      deadline = std::min(deadline, Clock::now() + profile().stop_settle);
+    }
+    const auto now = Clock::now();
+    if (now >= deadline) {
+      waited.read = LinkRead{};
+      co_return waited;
+    }
+    const LinkTiming slice{std::min(duration_cast<microseconds>(deadline - now), kWaitSlice),
+                           timing.byte_timeout};
+    LinkRead read = co_await link.read_frame(splitter, slice);
+    if (read.status == LinkRead::Status::timeout && read.partial.empty()) continue;
+    // A stop may have gone out while this read was under way (its answer can be the reply).
+    waited.interrupted = waited.interrupted || interrupts_ != interrupts_at_start;
+    waited.read = std::move(read);
+    co_return waited;
+  }
+}
+
+void TechnoFamily::after_interrupt(CommandKind kind) {
+  ++interrupts_;
+  last_interrupt_ = kind == CommandKind::stop ? techno::kStopByte : techno::kResetByte;
+  const auto& p = profile();
+  const auto now = Clock::now();
+  // A stop ramps down from at most the top speed; a reset halts at once. Either way the axes are
+  // no longer where the family expected them.
+  const auto ramp = kind == CommandKind::stop
+                        ? seconds_to_us(static_cast<double>(techno::kMaxSpeed) / p.acceleration)
+                        : microseconds(0);
+  for (auto& [_, state] : nodes_) {
+    state.position = {};
+    state.motion_pending = true;
+    state.motion_estimated_end = now + ramp;
+    state.motion_deadline = now + ramp + p.stop_settle;
+  }
+}
+
+asio::awaitable<Reply> TechnoFamily::send_raw(Link& link, CommandKind kind) {
+  const auto& p = profile();
+  // Never split a command another coroutine is writing; a command line is a few ms at most.
+  for (int i = 0; writing_ && i < 2000; ++i) co_await link.pause(microseconds(100));
+  urgent_writing_ = true;
+  const std::string bytes = techno::encode_command(
+      0, kind == CommandKind::stop ? techno::kStopCommand : techno::kResetCommand, p.stop_bytes);
+  const auto ec = co_await link.send(bytes);
+  urgent_writing_ = false;
+  if (ec) co_return link_down(ec);
+  after_interrupt(kind);
+  Reply r;
+  r.status = Reply::Status::ok;
+  co_return r;
+}
+
+asio::awaitable<Reply> TechnoFamily::send_urgent(Link& link, const NodeAddress&,
+                                                 const Request& request) {
+  const Command c = techno::classify(request.command);
+  if (c.kind != CommandKind::stop && c.kind != CommandKind::reset) {
+    Reply r;
+    r.status = Reply::Status::device_error;
+    r.text = fmt::format("techno-c sends only {} and {} past a held line, not '{}'",
+                         techno::kStopCommand, techno::kResetCommand, request.command);
+    co_return r;
+  }
+  co_return co_await send_raw(link, c.kind);
+}
+
+asio::awaitable<Reply> TechnoFamily::transact(Link& link, const NodeAddress& node,
+                                              const Request& request, const LinkTiming& timing) {
+  const Command c = techno::classify(request.command);
+  if (c.kind == CommandKind::stop || c.kind == CommandKind::reset)
+    co_return co_await send_raw(link, c.kind);
+  if (request.bus_wide) {
+    Reply r;
+    r.status = Reply::Status::device_error;
+    r.text = "techno-c has no broadcast address for '" + request.command + "'";
+    co_return r;
+  }
+  const auto& p = profile();
+  auto& state = nodes_[node.number];
+  if (p.init_on_connect && !state.initialised && c.kind != CommandKind::specify_axes) {
+    const Request init{std::to_string(p.axes), Request::Expect::ack, NumberFormat::decimal};
+    Reply r = co_await exchange(link, node, init, timing);
+    if (r.status != Reply::Status::ok) {
+      r.text = fmt::format("initialising with '{}' (init_on_connect): {}", init.command, r.text);
+      co_return r;
+    }
+  }
+  co_return co_await exchange(link, node, request, timing);
+}
+
+asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& node,
+                                              const Request& request, const LinkTiming& timing) {
+  const Command c = techno::classify(request.command);
+  const auto values = techno::parse_values(c.values).value_or(std::vector<int64_t>{});
+  const microseconds budget = reply_budget(node, request.command, timing);
+  // Replies carry no address: anything left from an earlier exchange would be taken for this one.
+  link.discard_input();
+  for (int i = 0; urgent_writing_ && i < 2000; ++i) co_await link.pause(microseconds(100));
+  writing_ = true;
+  const auto ec = co_await link.send(techno::encode_command(node.number, request.command));
+  writing_ = false;
+  if (ec) co_return link_down(ec);
+
+  const auto mode = profile().position_reply;
+  FrameSplitter splitter = techno::handshake_frame;
+  if (c.kind == CommandKind::position)
+    splitter = [mode](std::string_view buf) { return techno::position_frame(buf, mode); };
+  else if (c.kind == CommandKind::peek)
+    splitter = techno::peek_frame;
+  Waited waited = co_await wait_reply(link, splitter, budget, timing);
+
+  Reply reply;
+  switch (waited.read.status) {
+    case LinkRead::Status::frame:
+      reply = interpret_techno_reply(request, waited.read.frame);
+      break;
+    case LinkRead::Status::timeout:
+      if (!waited.read.partial.empty()) {
+        // Queries may end without a terminator: the idle gap ends them (digest §5).
+        reply = interpret_techno_reply(request, waited.read.partial);
+      } else if (waited.interrupted) {
+        reply = device_error(last_interrupt_);
+      } else {
+        reply.status = Reply::Status::timeout;
+        reply.text = fmt::format("no handshake to '{}' within {:.1f} s", request.command,
+                                 static_cast<double>(budget.count()) / 1e6);
+        if (c.kind == CommandKind::home)
+          reply.text += " (a homing run without mechanics never answers)";
+        if (c.handshake == Handshake::at_end && profile().stop_on_timeout) {
+          // Free the controller from whatever holds it; the manual asks for STOP twice.
+          const Reply stopped = co_await send_raw(link, CommandKind::stop);
+          reply.text += stopped.status == Reply::Status::ok ? "; sent stop" : "; stop failed";
+        }
+      }
+      break;
+    case LinkRead::Status::overflow:
+      reply.status = Reply::Status::garbled;
+      reply.text = "reply longer than any C-series reply";
+      break;
+    case LinkRead::Status::error:
+      reply = link_down(waited.read.error);
+      break;
+  }
+  if (waited.interrupted && reply.status == Reply::Status::ok && techno::is_motion(c.kind) &&
+      c.handshake == Handshake::at_end)
+    reply = device_error(last_interrupt_);  // it answered, but the motion did not run to its end
+  if (reply.status == Reply::Status::device_error &&
+      (reply.device_code == static_cast<unsigned char>(techno::kStopByte) ||
+       reply.device_code == static_cast<unsigned char>(techno::kResetByte)))
+    reply.text = fmt::format("'{}' ended by {} before its handshake", request.command,
+                             reply.device_code == static_cast<unsigned char>(techno::kStopByte)
+                                 ? "stop (0xFF)"
+                                 : "reset (0xFE)");
+  after_reply(nodes_[node.number], c, values, reply);
+  co_return reply;
+}
+
+void TechnoFamily::after_reply(NodeState& state, const Command& c,
+                               const std::vector<int64_t>& values, Reply& reply) {
+  const auto& p = profile();
+  const auto now = Clock::now();
+  if (reply.status == Reply::Status::device_error && reply.device_code == '4') {
+    // "Axis not defined": the controller was power-cycled; its settings are back to defaults.
+    state = NodeState{};
+    return;
+  }
+  if (reply.status != Reply::Status::ok) return;
+  switch (c.kind) {
+    case CommandKind::specify_axes:
+      state = NodeState{};
+      state.initialised = true;
+      return;
+    case CommandKind::position: {
+      const std::array<int64_t, 3> xyz{reply.values[0], reply.values[1], reply.values[2]};
+      int64_t moving = 0;
+      if (state.motion_pending) {
+        const bool changed = state.last_reported && *state.last_reported != xyz;
+        if (now < state.motion_estimated_end || changed)
+          moving = 1;
+        else
+          state.motion_pending = false;
+      }
+      state.last_reported = xyz;
+      for (std::size_t i = 0; i < 3; ++i) state.position[i] = xyz[i];
+      reply.values.resize(3);
+      reply.values.push_back(moving);
+      if (p.steps_per_unit)
+        for (std::size_t i = 0; i < 3; ++i)
+          reply.values.push_back(std::llround(static_cast<double>(xyz[i]) / (*p.steps_per_unit)[i] /
+                                              p.unit_resolution));
+      return;
+    }
+    case CommandKind::zero:
+      if (!values.empty())
+        for (std::size_t i = 0; i < 3; ++i)
+          if (values[0] & (int64_t{1} << i)) state.position[i] = 0;
+      return;
+    case CommandKind::home_speed: {
+      std::size_t next = 0;
+      for (std::size_t i = 0; i < 3 && next < values.size(); ++i)
+        if (p.axes & (1 << i)) state.home_speed[i] = static_cast<double>(values[next++]);
+      return;
+    }
+    case CommandKind::plane:
+      if (!values.empty()) state.plane = static_cast<int>(values[0]);
+      return;
+    default:
+      break;
+  }
+  if (!techno::is_motion(c.kind)) return;
+  const auto estimate = techno::estimate_motion(c, values, motion_context(state));
+  state.position = estimate ? estimate->end_position : std::array<std::optional<int64_t>, 3>{};
+  if (c.handshake == Handshake::at_end) {
+    // The handshake came at the end: the axes are at rest where the command put them.
+    state.motion_pending = false;
+    state.last_reported.reset();
+    return;
+  }
+  // Acknowledged at the start: the motion runs on with the line free.
+  const double seconds =
+      c.kind == CommandKind::start_program ? 0.5 : (estimate ? estimate->seconds : 0.5);
+  const auto limit = c.kind == CommandKind::start_program
+                         ? p.program_timeout
+                         : seconds_to_us(seconds * p.timeout_factor) + p.timeout_margin;
+  state.motion_pending = true;
+  state.motion_estimated_end = now + seconds_to_us(seconds);
+  state.motion_deadline = now + limit;
+}
+
+std::size_t TechnoFamily::estimate_wire_chars(const NodeAddress& node,
+                                              const Request& request) const {
+  const Command c = techno::classify(request.command);
+  const std::size_t out = techno::encode_command(node.number, request.command).size();
+  if (c.kind == CommandKind::position) return out + techno::kPositionDigits + 2;
+  if (c.kind == CommandKind::peek) return out + 3;
+  return out + 1;
+}
+
+FamilyPtr make_techno_c_family() {
+  return std::make_shared<TechnoFamily>();
+}
+
+}  // namespace fieldgate

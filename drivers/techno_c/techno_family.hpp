@@ -1,0 +1,84 @@
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <vector>
+
+#include "drivers/protocol_family.hpp"
+#include "drivers/techno_c/techno_codec.hpp"
+#include "drivers/techno_c/techno_model.hpp"
+
+namespace fieldgate {
+
+// Techno/isel C-series controllers (drivers/techno_c/README.md). A capital-letter motion holds
+// the line until the motion ends: transact() waits for its handshake as long as the motion
+// takes (from the command's distances and speeds and the model's acceleration), and a stop byte
+// sent by send_urgent() meanwhile ends that wait.
+class TechnoFamily final : public ProtocolFamily {
+ public:
+  std::string_view name() const override { return "techno-c"; }
+  std::optional<NodeAddress> parse_address(std::string_view text,
+                                           std::string& error) const override;
+  void validate_model(const Model& model, Diagnostics& diagnostics) const override;
+  asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
+  asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
+                                  const LinkTiming& timing) override;
+  asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,
+                                     const Request& request) override;
+  std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
+
+  // How long transact() waits for the handshake of `command` at this moment (for tests).
+  std::chrono::microseconds reply_budget(const NodeAddress& node, std::string_view command,
+                                         const LinkTiming& timing);
+
+ private:
+  using Clock = std::chrono::steady_clock;
+
+  // What the family knows of one controller between transactions.
+  struct NodeState {
+    std::array<std::optional<int64_t>, 3> position;   // steps, X Y Z, where known
+    std::array<std::optional<double>, 3> home_speed;  // sent with `d` since the link opened
+    int plane = 0;
+    // A lower-case motion (or a stop's ramp) may still be moving axes: in_motion is inferred
+    // from its estimated end and from positions that still change between polls.
+    bool motion_pending = false;
+    Clock::time_point motion_estimated_end{};
+    Clock::time_point motion_deadline{};  // by when the controller answers again at the latest
+    std::optional<std::array<int64_t, 3>> last_reported;
+    bool initialised = false;  // init_on_connect has run since the link opened
+  };
+
+  struct Waited {
+    LinkRead read;
+    bool interrupted = false;  // a stop or reset went out while waiting
+  };
+
+  const techno::Profile& profile();
+  techno::MotionContext motion_context(const NodeState& state);
+  asio::awaitable<Reply> exchange(Link& link, const NodeAddress& node, const Request& request,
+                                  const LinkTiming& timing);
+  asio::awaitable<Waited> wait_reply(Link& link, const FrameSplitter& splitter,
+                                     std::chrono::microseconds budget, const LinkTiming& timing);
+  asio::awaitable<Reply> send_raw(Link& link, techno::CommandKind kind);
+  void after_interrupt(techno::CommandKind kind);
+  void after_reply(NodeState& state, const techno::Command& command,
+                   const std::vector<int64_t>& values, Reply& reply);
+
+  // validate_model() is the only way a model reaches the family, and it is const.
+  mutable std::vector<techno::Profile> validated_;
+  mutable std::optional<techno::Profile> profile_;
+  std::map<int, NodeState> nodes_;
+  uint64_t interrupts_ = 0;  // stop and reset bytes sent on this line
+  char last_interrupt_ = 0;
+  bool writing_ = false;         // transact() is sending a command
+  bool urgent_writing_ = false;  // send_urgent() is sending a raw byte
+};
+
+// The decision part of transact(): what a complete reply (or the bytes an idle gap ended) means
+// for this request. Position replies carry X Y Z only; the family adds in_motion and units.
+Reply interpret_techno_reply(const Request& request, std::string_view frame);
+
+}  // namespace fieldgate

@@ -1,0 +1,59 @@
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "drivers/techno_c/techno_codec.hpp"
+#include "mapping/diagnostics.hpp"
+#include "mapping/model.hpp"
+
+// What a techno-c model's `options:` say, and the load-time checks that keep every Modbus write
+// from reaching the controller with a value count or range it would refuse.
+namespace fieldgate::techno {
+
+enum class Variant { it116g, c10, c116, c142 };
+
+// Fields of the `P` read (`read: {request: P, field: N, format: hex24}`). 0..2 come from the
+// controller; the family adds the others.
+inline constexpr int kFieldX = 0;
+inline constexpr int kFieldInMotion = 3;  // 1 while a lower-case motion may still be running
+inline constexpr int kFieldUnitsX = 4;    // 4..6: X Y Z in user units (needs steps_per_unit)
+inline constexpr int kPositionFields = 7;
+
+struct Profile {
+  std::string model;
+  Variant variant = Variant::c142;
+  int axes = 7;                  // the axes definition the controller is initialised with
+  double acceleration = 75'000;  // steps/s², from the card's jumper (Hz/ms x 1000)
+  double home_speed = 2000;      // the controller's default until `d` is sent (p.63)
+  std::array<double, 3> travel{50'000, 50'000, 50'000};  // furthest an axis can be from home
+  double timeout_factor = 1.25;
+  std::chrono::microseconds timeout_margin{std::chrono::seconds(1)};
+  std::chrono::microseconds program_timeout{std::chrono::seconds(60)};
+  std::chrono::microseconds stop_settle{std::chrono::milliseconds(500)};
+  std::optional<std::array<double, 3>> steps_per_unit;
+  double unit_resolution = 0.001;  // user units per register count
+  PositionReply position_reply = PositionReply::automatic;
+  int stop_bytes = 2;
+  bool stop_on_timeout = true;
+  bool init_on_connect = false;
+
+  bool operator==(const Profile&) const = default;
+};
+
+// Reads and checks a model's options; errors carry the model's mark.
+Profile read_profile(const Model& model, Diagnostics& diagnostics);
+
+// Checks every read, write and action step of a model against the grammar and the profile:
+// value counts for the defined axes, speed/distance/mask ranges of literals and of the
+// setpoints or point limits behind placeholders, C142-only commands, raw bytes.
+void check_model(const Model& model, const Profile& profile, Diagnostics& diagnostics);
+
+// The family is not told which node runs which model; when one bus carries several techno
+// models it times motions for the slowest of them and converts units only if they agree.
+Profile merge_profiles(const std::vector<Profile>& profiles);
+
+}  // namespace fieldgate::techno

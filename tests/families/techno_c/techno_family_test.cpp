@@ -1,0 +1,378 @@
+// TechnoFamily::transact() against the simulator in process (real time, short motions): the
+// handshake of capital moves at the end of the motion, stop past a held line, the timeout of a
+// homing run that never answers, lower-case motion inferred from polls, reply variants.
+#include <gtest/gtest.h>
+
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/detached.hpp>
+#include <boost/asio/io_context.hpp>
+
+#include <thread>
+
+#include "drivers/techno_c/techno_family.hpp"
+#include "mapping/model_loader.hpp"
+#include "sim_transport.hpp"
+
+namespace fieldgate {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+NodeAddress device(int n) {
+  return {std::to_string(n), n, 0};
+}
+Request ack(std::string c) {
+  return {std::move(c), Request::Expect::ack, NumberFormat::decimal};
+}
+Request query(std::string c, NumberFormat f = NumberFormat::hex24) {
+  return {std::move(c), Request::Expect::values, f};
+}
+
+// A C142-like model whose options make motions short and timeouts tight.
+std::string model_text(const std::string& extra_options = "") {
+  return "model: bench\nfamily: techno-c\noptions: {variant: c142, axes: 7, acceleration: 100, "
+         "travel: 1000, timeout_factor: 1.25, timeout_margin: 150ms, stop_settle: 300ms, "
+         "steps_per_unit: 100, unit_resolution: 0.01" +
+         extra_options +
+         "}\npoll_classes: {fast: 100ms}\npoints:\n"
+         "  x: {type: int32, read: {request: P, field: 0, format: hex24}, poll: fast}\n"
+         "actions:\n  k: {code: 1, steps: [k]}\n";
+}
+
+asio::awaitable<Reply> urgent_after(TechnoFamily& family, Link& link, std::chrono::milliseconds d,
+                                    std::string command) {
+  asio::steady_timer t(co_await asio::this_coro::executor, d);
+  co_await t.async_wait(asio::as_tuple(asio::use_awaitable));
+  co_return co_await family.send_urgent(link, device(0), ack(std::move(command)));
+}
+
+class TechnoBench : public ::testing::Test {
+ protected:
+  void start(sim::techno::ControllerOptions options, const std::string& model = model_text()) {
+    controller_ = std::make_unique<sim::techno::Controller>(options, sim::SimClock::now());
+    exchange_ = std::make_unique<sim::techno::TechnoExchange>(
+        *controller_, sim::techno::ExchangeOptions{}, faults_);
+    transport_ = std::make_unique<test::SimTransport>(io_, *exchange_);
+    link_ = std::make_unique<Link>(*transport_);
+    Diagnostics d;
+    model_ = load_model_text(model, "bench.yaml", d);
+    ASSERT_TRUE(model_ && d.ok()) << d.to_text();
+    family_.validate_model(*model_, d);
+    ASSERT_TRUE(d.ok()) << d.to_text();
+  }
+
+  static sim::techno::ControllerOptions defined() {
+    sim::techno::ControllerOptions o;
+    o.axes = 7;
+    o.acceleration = 100'000;
+    o.home_distance = 500;
+    return o;
+  }
+
+  Reply transact(const Request& r, int node = 0) {
+    return run(family_.transact(*link_, device(node), r, timing_));
+  }
+
+  template <typename T>
+  T run(asio::awaitable<T> a) {
+    std::optional<T> result;
+    asio::co_spawn(io_, std::move(a), [&](std::exception_ptr e, T v) {
+      if (e) std::rethrow_exception(e);
+      result = std::move(v);
+    });
+    io_.restart();
+    io_.run();
+    return *result;
+  }
+
+  void run(asio::awaitable<void> a) {
+    bool finished = false;
+    asio::co_spawn(io_, std::move(a), [&](std::exception_ptr e) {
+      if (e) std::rethrow_exception(e);
+      finished = true;
+    });
+    io_.restart();
+    io_.run();
+    ASSERT_TRUE(finished);
+  }
+
+  asio::io_context io_;
+  sim::FaultInjection faults_;
+  std::unique_ptr<sim::techno::Controller> controller_;
+  std::unique_ptr<sim::techno::TechnoExchange> exchange_;
+  std::unique_ptr<test::SimTransport> transport_;
+  std::unique_ptr<Link> link_;
+  TechnoFamily family_;
+  ModelPtr model_;
+  LinkTiming timing_{50ms, 20ms};
+};
+
+TEST(TechnoInterpret, HandshakesAndQueries) {
+  EXPECT_EQ(interpret_techno_reply(ack("n7"), "0").status, Reply::Status::ok);
+  const auto e = interpret_techno_reply(ack("A1,30"), "7");
+  EXPECT_EQ(e.status, Reply::Status::device_error);
+  EXPECT_EQ(e.device_code, '7');
+  EXPECT_NE(e.text.find("illegal parameters"), std::string::npos);
+  const auto p = interpret_techno_reply(query("P"), "000010002000FFFFFE\r");
+  EXPECT_EQ(p.status, Reply::Status::ok);
+  EXPECT_EQ(p.values, (std::vector<int64_t>{16, 8192, -2}));
+  EXPECT_EQ(interpret_techno_reply(query("P"), "4").device_code, '4');
+  EXPECT_EQ(interpret_techno_reply(query("P"), "0").status, Reply::Status::garbled);
+  EXPECT_EQ(interpret_techno_reply(query("b65531", NumberFormat::hex), "0FF\r").values,
+            std::vector<int64_t>{255});
+  EXPECT_EQ(interpret_techno_reply(ack("n7"), "x").status, Reply::Status::garbled);
+  EXPECT_EQ(interpret_techno_reply(query("n7"), "0").status, Reply::Status::garbled);
+}
+
+TEST_F(TechnoBench, AxesNotDefinedUntilTheInitialisationIsSent) {
+  auto o = defined();
+  o.axes = 0;
+  start(o);
+  const auto before = transact(query("P"));
+  EXPECT_EQ(before.status, Reply::Status::device_error);
+  EXPECT_EQ(before.device_code, '4');
+  EXPECT_EQ(transact(ack("7")).status, Reply::Status::ok);
+  const auto after = transact(query("P"));
+  ASSERT_EQ(after.status, Reply::Status::ok) << after.text;
+  // X Y Z, in_motion, X Y Z in units.
+  EXPECT_EQ(after.values, (std::vector<int64_t>{0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(transport_->writes().front(), "@0P\r");
+}
+
+TEST_F(TechnoBench, CapitalMoveAnswersWhenTheMotionEnds) {
+  start(defined());
+  ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
+  // 1000 steps at 5000 steps/s, ramps at 100000 steps/s²: 0.2 + 0.05 s.
+  const auto budget = family_.reply_budget(device(0), "M1000,5000,0,30,0,30,0,30", timing_);
+  EXPECT_EQ(budget, 50ms + 312500us + 150ms);
+  const auto t0 = Clock::now();
+  const auto r = transact(ack("M1000,5000,0,30,0,30,0,30"));
+  const auto took = Clock::now() - t0;
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  EXPECT_GE(took, 240ms);
+  EXPECT_LT(took, 450ms);
+  const auto p = transact(query("P"));
+  ASSERT_EQ(p.status, Reply::Status::ok);
+  EXPECT_EQ(p.values, (std::vector<int64_t>{1000, 0, 0, 0, 1000, 0, 0}));
+}
+
+TEST_F(TechnoBench, HomingWithoutMechanicsTimesOutAndSendsStopTwice) {
+  auto o = defined();
+  o.mechanics = false;
+  start(o);
+  // Travel 1000 at the default home speed 2000: 0.5 + 0.02 s, x1.25, + 150 ms + 50 ms.
+  const auto t0 = Clock::now();
+  const auto r = transact(ack("R1"));
+  const auto took = Clock::now() - t0;
+  EXPECT_EQ(r.status, Reply::Status::timeout);
+  EXPECT_NE(r.text.find("never answers"), std::string::npos) << r.text;
+  EXPECT_NE(r.text.find("sent stop"), std::string::npos) << r.text;
+  EXPECT_GE(took, 800ms);
+  EXPECT_LT(took, 1200ms);
+  EXPECT_EQ(transport_->writes().back(), std::string("\xff\xff"));
+  // Both STOPs were needed to leave the homing loop; the controller answers again.
+  const auto p = transact(query("P"));
+  EXPECT_EQ(p.status, Reply::Status::ok) << p.text;
+  EXPECT_EQ(controller_->counters().stops, 2u);
+  EXPECT_EQ(controller_->busy(), sim::techno::Controller::Busy::idle);
+}
+
+TEST_F(TechnoBench, HomeSpeedsSentWithDShortenTheHomingBudget) {
+  start(defined());
+  const auto slow = family_.reply_budget(device(0), "R1", timing_);
+  ASSERT_EQ(transact(ack("d4000,4000,4000")).status, Reply::Status::ok);
+  const auto fast = family_.reply_budget(device(0), "R1", timing_);
+  EXPECT_LT(fast, slow);
+  const auto r = transact(ack("R7"));
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  EXPECT_EQ(transact(query("P")).values[0], 0);
+}
+
+TEST_F(TechnoBench, StopGetsThroughWhileAMoveHoldsTheLine) {
+  start(defined());
+  ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
+  // 5000 steps at 1000 steps/s: five seconds, stopped after 300 ms.
+  std::optional<Reply> stop;
+  asio::co_spawn(io_, urgent_after(family_, *link_, 300ms, "<stop>"),
+                 [&](std::exception_ptr, Reply r) { stop = r; });
+  const auto t0 = Clock::now();
+  const auto r = transact(ack("A5000,1000,0,30,0,30,0,30"));
+  const auto took = Clock::now() - t0;
+  ASSERT_TRUE(stop);
+  EXPECT_EQ(stop->status, Reply::Status::ok);
+  EXPECT_EQ(r.status, Reply::Status::device_error);
+  EXPECT_EQ(r.device_code, 0xff);
+  EXPECT_NE(r.text.find("ended by stop (0xFF)"), std::string::npos) << r.text;
+  EXPECT_LT(took, 900ms);  // 300 ms, then the stop_settle of 300 ms
+  const auto p = transact(query("P"));
+  ASSERT_EQ(p.status, Reply::Status::ok);
+  EXPECT_GT(p.values[0], 100);
+  EXPECT_LT(p.values[0], 1000);
+  EXPECT_EQ(p.values[3], 1);  // just stopped: in motion until two polls agree
+  const auto again = transact(query("P"));
+  EXPECT_EQ(again.values[3], 0);
+}
+
+TEST_F(TechnoBench, StopAcknowledgedByTheControllerStillEndsTheMoveAsStopped) {
+  auto o = defined();
+  o.stop_acknowledges = true;
+  start(o);
+  std::optional<Reply> stop;
+  asio::co_spawn(io_, urgent_after(family_, *link_, 200ms, "<stop>"),
+                 [&](std::exception_ptr, Reply r) { stop = r; });
+  const auto r = transact(ack("A5000,1000,0,30,0,30,0,30"));
+  EXPECT_EQ(r.device_code, 0xff);
+}
+
+TEST_F(TechnoBench, LowerCaseMoveFreesTheLineAndPollsInferTheEnd) {
+  start(defined());
+  ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
+  const auto t0 = Clock::now();
+  ASSERT_EQ(transact(ack("a1000,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
+  EXPECT_LT(Clock::now() - t0, 100ms);  // answered at the start
+  const auto moving = transact(query("P"));
+  ASSERT_EQ(moving.status, Reply::Status::ok);
+  EXPECT_EQ(moving.values[3], 1);
+  EXPECT_LT(moving.values[0], 1000);
+  int64_t in_motion = 1;
+  int64_t x = 0;
+  for (int i = 0; i < 40 && in_motion; ++i) {
+    std::this_thread::sleep_for(50ms);
+    const auto p = transact(query("P"));
+    ASSERT_EQ(p.status, Reply::Status::ok);
+    in_motion = p.values[3];
+    x = p.values[0];
+  }
+  EXPECT_EQ(in_motion, 0);
+  EXPECT_EQ(x, 1000);
+  EXPECT_GE(Clock::now() - t0, 400ms);
+}
+
+TEST_F(TechnoBench, QueriesDeferredDuringMotionWaitForItsEnd) {
+  auto o = defined();
+  o.queries_during_motion = false;
+  start(o);
+  ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
+  ASSERT_EQ(transact(ack("a1000,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
+  const auto t0 = Clock::now();
+  const auto p = transact(query("P"));  // the controller answers only at the end of the motion
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+  EXPECT_GE(Clock::now() - t0, 300ms);
+  EXPECT_EQ(p.values[0], 1000);
+  EXPECT_EQ(p.values[3], 1);  // the positions changed since the last poll
+  EXPECT_EQ(transact(query("P")).values[3], 0);
+}
+
+TEST_F(TechnoBench, PositionReplyWithHandshakeAndNoTerminator) {
+  auto o = defined();
+  o.position_ack = true;
+  o.reply_cr = false;
+  start(o);
+  const auto p = transact(query("P"));
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+  EXPECT_EQ(p.values[0], 0);
+}
+
+TEST_F(TechnoBench, BarePositionReplyWithoutTerminatorEndsAtTheGap) {
+  auto o = defined();
+  o.reply_cr = false;
+  start(o);
+  const auto t0 = Clock::now();
+  ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
+  EXPECT_GE(Clock::now() - t0, 20ms);  // one byte_timeout
+}
+
+TEST_F(TechnoBench, BareModeKnowsTheLength) {
+  auto o = defined();
+  o.reply_cr = false;
+  start(o, model_text(", position_reply: bare"));
+  const auto t0 = Clock::now();
+  ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
+  EXPECT_LT(Clock::now() - t0, 20ms);
+}
+
+TEST_F(TechnoBench, ErrorCharactersBecomeDeviceErrorsWithTheirCode) {
+  start(defined());
+  const struct {
+    const char* command;
+    char code;
+  } cases[] = {
+      {"A1,30", '7'}, {"d10,10,10", 'D'}, {"R9", '3'}, {"x1", '5'}, {"A1,30,0,30,0,30,0,20", 'D'},
+      {"e3", '7'}};
+  for (const auto& c : cases) {
+    const auto r = transact(ack(c.command));
+    EXPECT_EQ(r.status, Reply::Status::device_error) << c.command;
+    EXPECT_EQ(r.device_code, static_cast<unsigned char>(c.code)) << c.command << ": " << r.text;
+  }
+}
+
+TEST_F(TechnoBench, OutsideTheReachAnswers2) {
+  start(defined());
+  const auto r = transact(ack("M-1000,1000,0,30,0,30,0,30"));  // behind the home switch
+  EXPECT_EQ(r.device_code, '2');
+}
+
+TEST_F(TechnoBench, BusWideAddressedCommandIsRefusedWithoutSending) {
+  start(defined());
+  Request r = ack("n7");
+  r.bus_wide = true;
+  EXPECT_EQ(transact(r).status, Reply::Status::device_error);
+  EXPECT_TRUE(transport_->writes().empty());
+  Request stop = ack("<stop>");
+  stop.bus_wide = true;
+  EXPECT_EQ(transact(stop).status, Reply::Status::ok);
+  EXPECT_EQ(transport_->all_written(), std::string("\xff\xff"));
+}
+
+TEST_F(TechnoBench, UrgentRefusesAddressedCommands) {
+  start(defined());
+  const auto r = run(family_.send_urgent(*link_, device(0), ack("n7")));
+  EXPECT_EQ(r.status, Reply::Status::device_error);
+  EXPECT_TRUE(transport_->writes().empty());
+}
+
+TEST_F(TechnoBench, InitOnConnectSendsTheAxesDefinitionFirstAfterEveryOpen) {
+  auto o = defined();
+  o.axes = 0;
+  start(o, model_text(", init_on_connect: true"));
+  ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
+  ASSERT_EQ(transport_->writes().size(), 2u);
+  EXPECT_EQ(transport_->writes()[0], "@07\r");
+  EXPECT_EQ(transact(query("P")).status, Reply::Status::ok);
+  EXPECT_EQ(transport_->writes().size(), 3u);
+  run(family_.on_link_open(*link_, timing_));
+  EXPECT_EQ(transact(query("P")).status, Reply::Status::ok);
+  EXPECT_EQ(transport_->writes()[3], "@07\r");
+}
+
+TEST_F(TechnoBench, AnotherDeviceNumberIsSilence) {
+  start(defined());
+  const auto r = transact(query("P"), 3);
+  EXPECT_EQ(r.status, Reply::Status::timeout);
+  EXPECT_EQ(transport_->writes().front(), "@3P\r");
+  EXPECT_EQ(controller_->counters().other_device, 1u);
+}
+
+TEST_F(TechnoBench, GarbledAndTruncatedReplies) {
+  start(defined());
+  faults_.truncated_replies = 1;
+  const auto t = transact(query("P"));
+  EXPECT_EQ(t.status, Reply::Status::garbled) << t.text;
+  faults_.silence = true;
+  EXPECT_EQ(transact(ack("n7")).status, Reply::Status::timeout);
+}
+
+TEST(TechnoFamilyBasics, AddressesAndWireEstimate) {
+  TechnoFamily f;
+  std::string error;
+  const auto a = f.parse_address("0", error);
+  ASSERT_TRUE(a);
+  EXPECT_EQ(a->text, "0");
+  EXPECT_FALSE(f.parse_address("12", error));
+  EXPECT_EQ(f.estimate_wire_chars(device(0), query("P")), 4u + 20u);
+  EXPECT_EQ(f.estimate_wire_chars(device(0), ack("n7")), 5u + 1u);
+}
+
+}  // namespace
+}  // namespace fieldgate
