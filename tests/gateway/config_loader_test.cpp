@@ -93,8 +93,8 @@ TEST_F(ConfigLoaderTest, AddressOutOfFamilyRange) {
 
 TEST_F(ConfigLoaderTest, UnknownModelListsKnownOnes) {
   const auto e = load(bus("      - {name: x, address: 0, model: copley-amp, unit_id: 1}\n"));
-  EXPECT_NE(e.find("unknown model 'copley-amp' (models found: copley-amplifier"), std::string::npos)
-      << e;
+  EXPECT_NE(e.find("unknown model 'copley-amp' (models found: "), std::string::npos) << e;
+  EXPECT_NE(e.find("copley-amplifier"), std::string::npos) << e;
 }
 
 TEST_F(ConfigLoaderTest, UnknownProtocolListsFamilies) {
