@@ -7,7 +7,7 @@
 #include <chrono>
 #include <thread>
 
-#include "tests/integration/harness.hpp"
+#include "harness.hpp"
 
 namespace fieldgate::test {
 namespace {
