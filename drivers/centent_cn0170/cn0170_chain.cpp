@@ -1,0 +1,504 @@
+#include "drivers/centent_cn0170/cn0170_chain.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+namespace fieldgate::cn0170 {
+
+namespace {
+
+std::optional<bool> boolean(const std::string& v) {
+  if (v == "true" || v == "yes" || v == "on") return true;
+  if (v == "false" || v == "no" || v == "off") return false;
+  return std::nullopt;
+}
+
+std::string unit_name(int unit) {
+  return fmt::format("unit {}", unit);
+}
+
+}  // namespace
+
+Options parse_options(const std::map<std::string, std::string>& options,
+                      std::vector<std::string>& errors) {
+  Options o;
+  const auto flag = [&](const std::string& key, const std::string& value, bool& out) {
+    if (auto b = boolean(value))
+      out = *b;
+    else
+      errors.push_back(fmt::format("option {}: expected true or false, found '{}'", key, value));
+  };
+  for (const auto& [key, value] : options) {
+    if (key == "confirm_commands") {
+      flag(key, value, o.confirm_commands);
+    } else if (key == "leading_cr") {
+      flag(key, value, o.leading_cr);
+    } else if (key == "autobaud_cr") {
+      flag(key, value, o.autobaud_cr);
+    } else if (key == "discover_chain") {
+      flag(key, value, o.discover_chain);
+    } else if (key == "reselect_for_commands") {
+      flag(key, value, o.reselect_for_commands);
+    } else if (key == "guard_program_mode") {
+      flag(key, value, o.guard_program_mode);
+    } else if (key == "overflow_mode") {
+      if (value == "warning")
+        o.overflow = Options::Overflow::warning;
+      else if (value == "rts")
+        o.overflow = Options::Overflow::rts;
+      else if (value == "leave")
+        o.overflow = Options::Overflow::leave;
+      else
+        errors.push_back(
+            fmt::format("option overflow_mode: expected warning, rts or leave, found '{}'", value));
+    } else if (key == "overflow_command") {
+      if (value != "M1\\-" && value != "M1-" && value != "M1\\+" && value != "M1+")
+        errors.push_back(fmt::format(
+            "option overflow_command: expected M1\\-, M1-, M1\\+ or M1+, found '{}'", value));
+      o.overflow_command = value;
+    } else if (key == "kill_target") {
+      if (value == "first_unit")
+        o.kill_target = Options::KillTarget::first_unit;
+      else if (value == "every_unit")
+        o.kill_target = Options::KillTarget::every_unit;
+      else
+        errors.push_back(fmt::format(
+            "option kill_target: expected first_unit or every_unit, found '{}'", value));
+    } else {
+      errors.push_back(fmt::format(
+          "unknown option '{}' (known: confirm_commands, overflow_mode, overflow_command, "
+          "leading_cr, autobaud_cr, discover_chain, kill_target, reselect_for_commands, "
+          "guard_program_mode)",
+          key));
+    }
+  }
+  if (!o.overflow_command.empty() && o.overflow != Options::Overflow::leave) {
+    const bool rts = o.overflow_command.find('+') != std::string::npos;
+    if (rts != (o.overflow == Options::Overflow::rts))
+      errors.push_back(fmt::format("option overflow_command '{}' contradicts overflow_mode",
+                                   o.overflow_command));
+  }
+  return o;
+}
+
+void Chain::link_opened() {
+  selected.reset();
+  for (auto& u : units) {
+    u.mode = 0;
+    u.set_up = false;
+    u.queue_full = false;
+    u.answering = false;
+  }
+  order.clear();
+  order_known = false;
+  drain_before_next = false;
+}
+
+int Chain::chain_position(int unit) const {
+  if (!order_known) return 0;
+  const auto it = std::find(order.begin(), order.end(), unit);
+  return it == order.end() ? 0 : static_cast<int>(it - order.begin()) + 1;
+}
+
+void Chain::absorb(const Message& m) {
+  auto& u = units[static_cast<std::size_t>(m.unit)];
+  switch (m.kind) {
+    case MessageKind::autobaud: {
+      // U<n> answers the first CR after a reset: the unit lost its selection, clock and queues,
+      // and selects itself or nobody; nothing else on the chain can be trusted to be selected.
+      const auto subject = static_cast<std::size_t>(m.subject);
+      auto& reset = units[subject];
+      ++reset.counters.resets;
+      ++reset.counters.unsolicited;
+      reset.set_up = false;
+      reset.mode = 0;
+      reset.queue_full = false;
+      forget_selection();
+      log(4, fmt::format("{} reset (unsolicited 'U{}'): selection forgotten, the unit's clock "
+                         "and queues are lost",
+                         unit_name(m.subject), m.subject));
+      return;
+    }
+    case MessageKind::queue_full:
+      if (!u.queue_full)
+        log(4, fmt::format("{}: queue nearly full (Q*); instructions are refused until *Q",
+                           unit_name(m.unit)));
+      u.queue_full = true;
+      ++u.counters.overflow_warnings;
+      break;
+    case MessageKind::queue_empty:
+      if (u.queue_full) log(5, fmt::format("{}: queue empty again (*Q)", unit_name(m.unit)));
+      u.queue_full = false;
+      break;
+    case MessageKind::position_trigger:
+      ++(m.key == "X" ? u.counters.x_done : u.counters.y_done);
+      break;
+    case MessageKind::velocity_trigger:
+      ++(m.key == "X" ? u.counters.x_vmax : u.counters.y_vmax);
+      break;
+    case MessageKind::reject:
+      ++u.counters.rejects;
+      log(4, fmt::format("{} rejected \"{}\" outside an exchange", unit_name(m.unit), m.text));
+      break;
+    case MessageKind::mode:
+      u.mode = static_cast<int>(m.values.front());
+      ++stray_lines;
+      return;
+    case MessageKind::unit_list:
+    case MessageKind::time:
+    case MessageKind::date:
+      // Output of .U?, T? or D? stored in a program that runs in M3.
+      break;
+    case MessageKind::blank:
+      return;
+    default:
+      // A reply nobody waits for: late, after its exchange timed out.
+      ++stray_lines;
+      return;
+  }
+  ++u.counters.unsolicited;
+}
+
+namespace {
+
+Reply refusal(int64_t code, std::string text) {
+  Reply r;
+  r.status = Reply::Status::device_error;
+  r.device_code = code;
+  r.text = std::move(text);
+  return r;
+}
+
+void select(Chain& chain, Plan& plan, int unit) {
+  plan.bytes += encode_select(unit);
+  plan.selects = true;
+  chain.selected = unit;
+  ++chain.selections;
+  ++chain.units[static_cast<std::size_t>(unit)].counters.selections;
+}
+
+Query mode_query() {
+  return *classify_query("M?");
+}
+
+}  // namespace
+
+Plan plan_request(Chain& chain, const Options& options, int unit, const Request& request) {
+  Plan plan;
+  plan.read = request.expect == Request::Expect::values;
+  std::string error;
+  const auto normalised = normalise_request(request.command, error);
+  if (!normalised) {
+    plan.refused = refusal(kInvalidValue, error);
+    return plan;
+  }
+  const auto instructions = split_instructions(*normalised);
+  if (instructions.empty()) {
+    plan.refused = refusal(kInvalidValue, "empty request");
+    return plan;
+  }
+  const auto& state = chain.units[static_cast<std::size_t>(unit)];
+  bool assignment = false;
+  bool moves_queue = false;  // an instruction that takes a place in the Immediate Queue
+  bool mode_change = false;
+  bool only_mode_queries = true;
+  for (const auto& instruction : instructions) {
+    const auto kind = classify_instruction(instruction);
+    if (kind == InstructionKind::query) {
+      plan.expected.push_back(*classify_query(instruction));
+      if (plan.expected.back().kind != MessageKind::mode) only_mode_queries = false;
+      continue;
+    }
+    if (plan.read) {
+      plan.refused = refusal(kInvalidValue, fmt::format("'{}' is not a query", instruction));
+      return plan;
+    }
+    switch (kind) {
+      case InstructionKind::unit_command:
+        plan.refused = refusal(kInvalidValue,
+                               fmt::format("'{}': the family selects units itself", instruction));
+        return plan;
+      case InstructionKind::unit_assignment:
+        assignment = true;
+        break;
+      case InstructionKind::mode_program:
+        plan.refused = refusal(kInvalidValue,
+                               "M2 from Immediate Mode erases the stored program; the "
+                               "gateway never sends it");
+        return plan;
+      case InstructionKind::mode_immediate:
+      case InstructionKind::mode_operate:
+        mode_change = true;
+        break;
+      case InstructionKind::kill:
+      case InstructionKind::quit:
+      case InstructionKind::halt:
+        break;
+      default:
+        moves_queue = true;
+        only_mode_queries = false;
+        break;
+    }
+  }
+  plan.program_mode_ok = mode_change;
+  if (options.guard_program_mode && state.mode == 2 && !mode_change && !only_mode_queries) {
+    plan.refused = refusal(kProgramMode, fmt::format("unit {} is in Program Mode (M2): the "
+                                                     "request would be stored in its program",
+                                                     unit));
+    return plan;
+  }
+  if (state.queue_full && moves_queue) {
+    plan.refused = refusal(kQueueFull, fmt::format("unit {} warned that its queue is nearly "
+                                                   "full (Q*); waiting for *Q",
+                                                   unit));
+    return plan;
+  }
+  if (options.leading_cr) {
+    plan.bytes += '\r';
+    plan.leading_cr = true;
+  }
+  const bool command = !plan.read;
+  if (!chain.selected || *chain.selected != unit || (command && options.reselect_for_commands) ||
+      assignment)
+    select(chain, plan, unit);
+  plan.bytes += *normalised;
+  plan.bytes += '\r';
+  if (command && options.confirm_commands) {
+    plan.bytes += "M?\r";
+    plan.expected.push_back(mode_query());
+    plan.confirmation = true;
+  }
+  if (assignment) {
+    // Numbers changed: which unit is selected, and the chain order, are unknown now.
+    chain.forget_selection();
+    chain.order_known = false;
+    chain.drain_before_next = true;
+    if (plan.confirmation) {
+      // The unit we would ask may have a new number; don't wait for it.
+      plan.bytes.resize(plan.bytes.size() - 3);
+      plan.expected.pop_back();
+      plan.confirmation = false;
+    }
+  }
+  return plan;
+}
+
+Plan plan_kill(Chain& chain, const Options& options, int unit, const std::vector<int>& configured) {
+  Plan plan;
+  std::vector<int> targets;
+  if (options.kill_target == Options::KillTarget::first_unit && chain.order_known &&
+      !chain.order.empty()) {
+    targets.push_back(chain.order.front());
+  } else {
+    targets = configured;
+    if (chain.order_known)
+      for (int u : chain.order)
+        if (std::find(targets.begin(), targets.end(), u) == targets.end()) targets.push_back(u);
+    if (targets.empty()) targets.push_back(unit);
+  }
+  plan.bytes += '\r';
+  plan.leading_cr = true;
+  for (int t : targets) {
+    select(chain, plan, t);
+    // In M2 a K would be stored, not obeyed; M1 does not clear the program (§7.2).
+    if (chain.units[static_cast<std::size_t>(t)].mode == 2) plan.bytes += "M1\r";
+    plan.bytes += "K\r";
+  }
+  plan.bytes += "M?\r";
+  plan.expected.push_back(mode_query());
+  plan.confirmation = true;
+  plan.program_mode_ok = true;
+  plan.reply_unit = targets.back();
+  return plan;
+}
+
+Exchange::Exchange(Chain& chain, int unit, Plan plan, std::string what)
+    : chain_(chain),
+      unit_(plan.reply_unit.value_or(unit)),
+      plan_(std::move(plan)),
+      what_(std::move(what)) {}
+
+bool Exchange::finish(Reply::Status status, std::string text, int64_t code) {
+  reply_ = Reply{};
+  reply_.status = status;
+  reply_.text = std::move(text);
+  reply_.device_code = code;
+  finished_ = true;
+  return true;
+}
+
+bool Exchange::finish_ok() {
+  auto& state = chain_.units[static_cast<std::size_t>(unit_)];
+  state.answering = true;
+  if (plan_.confirmation && confirmed_mode_ == 2 && !plan_.program_mode_ok)
+    return finish(Reply::Status::device_error,
+                  fmt::format("unit {} is in Program Mode (M2): '{}' was stored in its program, "
+                              "not executed",
+                              unit_, what_),
+                  kStoredInProgram);
+  reply_ = Reply{};
+  reply_.status = Reply::Status::ok;
+  if (plan_.read) {
+    reply_.values = values_;
+    if (saw_position_) reply_.values.push_back(motion_);
+  }
+  finished_ = true;
+  return true;
+}
+
+void Exchange::lost() {
+  chain_.forget_selection();
+  chain_.drain_before_next = true;
+  chain_.units[static_cast<std::size_t>(unit_)].answering = false;
+}
+
+bool Exchange::on_line(std::string_view line) {
+  const Message m = parse_message(line);
+  switch (m.kind) {
+    case MessageKind::blank:
+      return false;
+    case MessageKind::unknown:
+      ++chain_.stray_lines;
+      lost();
+      return finish(Reply::Status::garbled,
+                    fmt::format("unreadable line '{}' while waiting for unit {}'s reply to '{}'",
+                                m.text, unit_, what_));
+    case MessageKind::autobaud: {
+      chain_.absorb(m);
+      const int pos_reset = chain_.chain_position(m.subject);
+      const int pos_target = chain_.chain_position(unit_);
+      // Without a leading CR, a unit at or before the target on the chain swallowed the request
+      // while it waited for its auto-baud CR. With one, the unit auto-bauded on that CR and the
+      // rest went on (into the unit itself, if it selected itself: its reply will show that).
+      if (!plan_.leading_cr &&
+          (m.subject == unit_ || (pos_reset > 0 && pos_target > 0 && pos_reset <= pos_target))) {
+        lost();
+        return finish(Reply::Status::garbled,
+                      fmt::format("unit {} reset (U{}) during the request '{}' for unit {}; the "
+                                  "request was lost and the selection is forgotten",
+                                  m.subject, m.subject, what_, unit_));
+      }
+      reset_seen_ = m.subject;
+      return false;
+    }
+    case MessageKind::reject:
+      if (m.unit != unit_) {
+        chain_.absorb(m);
+        return false;
+      }
+      ++chain_.units[static_cast<std::size_t>(unit_)].counters.rejects;
+      chain_.units[static_cast<std::size_t>(unit_)].answering = true;
+      // Replies to the rest of the request may still follow; they must not meet the next one.
+      chain_.drain_before_next = true;
+      return finish(Reply::Status::device_error,
+                    fmt::format("unit {} rejected \"{}\" (syntax error; the string was ignored)",
+                                unit_, m.text),
+                    kRejected);
+    case MessageKind::queue_full:
+    case MessageKind::queue_empty:
+    case MessageKind::position_trigger:
+    case MessageKind::velocity_trigger:
+      chain_.absorb(m);
+      return false;
+    default:
+      break;
+  }
+  if (next_ >= plan_.expected.size()) {
+    chain_.absorb(m);
+    return false;
+  }
+  const Query& expected = plan_.expected[next_];
+  const bool matches = m.kind == expected.kind && m.key == expected.key;
+  if (!matches) {
+    // Program output (time, date, [Un]) or a late reply to an exchange that timed out.
+    chain_.absorb(m);
+    return false;
+  }
+  if (m.unit != unit_) {
+    ++chain_.stray_lines;
+    // After an explicit .Un only the selected unit can have answered: this one is late.
+    if (plan_.selects) return false;
+    // Otherwise our request went to the wrong unit: one that reset selected itself.
+    lost();
+    return finish(Reply::Status::garbled,
+                  fmt::format("unit {} answered '{}' meant for unit {} (it trapped the request: "
+                              "a reset or a duplicate unit number); selection forgotten",
+                              m.unit, what_, unit_));
+  }
+  if (m.kind == MessageKind::mode)
+    chain_.units[static_cast<std::size_t>(unit_)].mode = static_cast<int>(m.values.front());
+  const bool is_confirmation = plan_.confirmation && next_ + 1 == plan_.expected.size();
+  if (is_confirmation) {
+    confirmed_mode_ = static_cast<int>(m.values.front());
+  } else {
+    values_.insert(values_.end(), m.values.begin(), m.values.end());
+    if (m.kind == MessageKind::position) {
+      saw_position_ = true;
+      motion_ |= m.values[1];
+    }
+  }
+  ++next_;
+  if (next_ == plan_.expected.size()) return finish_ok();
+  return false;
+}
+
+Reply Exchange::on_timeout(std::string_view partial) {
+  lost();
+  if (!partial.empty())
+    finish(Reply::Status::garbled,
+           fmt::format("incomplete reply '{}' from unit {} to '{}'", partial, unit_, what_));
+  else if (next_ > 0)
+    finish(Reply::Status::garbled, fmt::format("unit {} sent {} of the {} replies to '{}'", unit_,
+                                               next_, plan_.expected.size(), what_));
+  else if (reset_seen_)
+    finish(Reply::Status::garbled,
+           fmt::format("no reply from unit {} to '{}' after unit {} reset (U{})", unit_, what_,
+                       *reset_seen_, *reset_seen_));
+  else
+    finish(Reply::Status::timeout, fmt::format("no reply from unit {} to '{}'", unit_, what_));
+  return reply_;
+}
+
+Reply Exchange::on_overflow(std::string_view partial) {
+  lost();
+  finish(Reply::Status::garbled,
+         fmt::format("line of {} bytes without a terminator while waiting for unit {}",
+                     partial.size(), unit_));
+  return reply_;
+}
+
+Reply Exchange::on_too_many_lines() {
+  lost();
+  finish(Reply::Status::garbled,
+         fmt::format("too many unrelated lines while waiting for unit {}'s reply to '{}'", unit_,
+                     what_));
+  return reply_;
+}
+
+Reply Exchange::on_link_error(std::string text) {
+  chain_.forget_selection();
+  finish(Reply::Status::link_down, std::move(text));
+  return reply_;
+}
+
+std::vector<int64_t> counters_of(const Chain& chain, int unit) {
+  const auto& u = chain.units[static_cast<std::size_t>(unit)];
+  std::vector<int64_t> v(kCounterFields);
+  const auto c = [](uint64_t n) { return static_cast<int64_t>(n & 0xffffffffu); };
+  v[kResets] = c(u.counters.resets);
+  v[kRejects] = c(u.counters.rejects);
+  v[kOverflowWarnings] = c(u.counters.overflow_warnings);
+  v[kQueueFullNow] = u.queue_full ? 1 : 0;
+  v[kXMoveDone] = c(u.counters.x_done);
+  v[kYMoveDone] = c(u.counters.y_done);
+  v[kXMaxVelocity] = c(u.counters.x_vmax);
+  v[kYMaxVelocity] = c(u.counters.y_vmax);
+  v[kUnsolicited] = c(u.counters.unsolicited);
+  v[kSelections] = c(u.counters.selections);
+  v[kChainPosition] = chain.chain_position(unit);
+  v[kMode] = u.mode;
+  return v;
+}
+
+}  // namespace fieldgate::cn0170

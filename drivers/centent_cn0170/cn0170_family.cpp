@@ -1,0 +1,485 @@
+#include "drivers/centent_cn0170/cn0170_family.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <map>
+#include <mutex>
+
+namespace fieldgate {
+
+using cn0170::Message;
+using cn0170::MessageKind;
+
+namespace {
+
+// Lines one exchange may read before giving up (unsolicited chatter must not hold the bus).
+constexpr int kMaxLinesPerExchange = 64;
+
+const FrameSplitter kLineSplitter = cn0170::frame_length;
+
+// validate_model runs once per model per configuration load, on the family of the first bus
+// that uses it; a second bus with the same model finds its options here.
+std::mutex g_options_mutex;
+std::map<std::string, std::map<std::string, std::string>> g_options_by_model;
+
+void write_to_stderr(int level, std::string_view text) {
+  const std::string line = fmt::format("<{}>{}\n", level, text);
+  std::fwrite(line.data(), 1, line.size(), stderr);
+}
+
+// Whether a field of a read is written in hex on the wire; nullopt for the status and motion
+// words the family computes from position replies.
+std::optional<bool> field_is_hex(const std::vector<cn0170::Query>& queries, int field) {
+  for (const auto& q : queries) {
+    if (field < q.value_count) {
+      if (q.kind == MessageKind::position && field == 1) return std::nullopt;
+      return q.hex;
+    }
+    field -= q.value_count;
+  }
+  return std::nullopt;
+}
+
+std::string join(const std::vector<int>& units) {
+  std::string out;
+  for (int u : units) out += (out.empty() ? "" : ", ") + std::to_string(u);
+  return out;
+}
+
+}  // namespace
+
+CententFamily::CententFamily() : log_sink_(write_to_stderr) {}
+
+std::optional<NodeAddress> CententFamily::parse_address(std::string_view text,
+                                                        std::string& error) const {
+  const auto unit = cn0170::parse_unit_address(text, error);
+  if (!unit) return std::nullopt;
+  configured_.insert(*unit);
+  NodeAddress n;
+  n.number = *unit;
+  n.text = std::to_string(*unit);
+  return n;
+}
+
+void CententFamily::set_options(const cn0170::Options& options) {
+  options_ = options;
+  own_options_ = true;
+}
+
+std::vector<int> CententFamily::configured_units() const {
+  return {configured_.begin(), configured_.end()};
+}
+
+void CententFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
+  std::vector<std::string> errors;
+  const auto options = cn0170::parse_options(model.options, errors);
+  for (const auto& e : errors)
+    diagnostics.error(model.mark, fmt::format("model {}: {}", model.name, e));
+  if (errors.empty()) {
+    std::lock_guard lock(g_options_mutex);
+    for (const auto& [other, other_options] : g_options_by_model)
+      if (own_options_ && other != model.name && other_options != model.options)
+        diagnostics.error(model.mark,
+                          fmt::format("model {}: its options differ from model {}'s, but CN0170 "
+                                      "options apply to a whole chain",
+                                      model.name, other));
+    g_options_by_model[model.name] = model.options;
+    options_ = options;
+    own_options_ = true;
+  }
+
+  const auto check_command = [&](const CommandTemplate& t, const SourceMark& mark,
+                                 const std::string& what, bool in_action, bool bus_wide) {
+    const std::string& s = t.source();
+    if (s.empty()) return;
+    if (s.find_first_of("\r\n") != std::string::npos) {
+      diagnostics.error(mark,
+                        fmt::format("{}: the family adds the CR; remove it from '{}'", what, s));
+      return;
+    }
+    // Placeholders become 1, a value every numeric field accepts, to classify the instructions.
+    const std::string rendered = t.render([](std::string_view) { return int64_t{1}; });
+    for (const auto& instruction : cn0170::split_instructions(rendered)) {
+      switch (cn0170::classify_instruction(instruction)) {
+        case cn0170::InstructionKind::unit_command:
+          diagnostics.error(mark, fmt::format("{}: '{}': the family selects units itself (.Un "
+                                              "before the first request for a unit)",
+                                              what, instruction));
+          break;
+        case cn0170::InstructionKind::unit_assignment:
+          if (!in_action)
+            diagnostics.error(mark, fmt::format("{}: unit assignment '{}' belongs in an action",
+                                                what, instruction));
+          break;
+        case cn0170::InstructionKind::mode_program:
+          diagnostics.error(mark, fmt::format("{}: M2 from Immediate Mode erases the stored "
+                                              "program (manual p.7); the gateway never sends it",
+                                              what));
+          break;
+        case cn0170::InstructionKind::kill:
+          if (!bus_wide)
+            diagnostics.error(mark, fmt::format("{}: K is relayed down the whole chain (p.13): "
+                                                "put it in an action with bus_wide: true",
+                                                what));
+          break;
+        default:
+          if (bus_wide)
+            diagnostics.error(mark, fmt::format("{}: a bus-wide CN0170 action may only send K, "
+                                                "the one instruction relayed down the chain; "
+                                                "found '{}'",
+                                                what, instruction));
+          break;
+      }
+    }
+  };
+
+  for (const auto& p : model.points) {
+    if (p.read) {
+      const std::string where = "point " + p.name + " read";
+      const std::string& src = p.read->request.source();
+      if (p.read->object)
+        diagnostics.error(p.mark, fmt::format("{}: objects are for the canopen family", where));
+      if (p.read->format == NumberFormat::hex24)
+        diagnostics.error(p.mark, fmt::format("{}: the CN0170 has no 24-bit hex replies", where));
+      if (!src.empty() && src.front() == '@') {
+        if (src != cn0170::kCountersRequest)
+          diagnostics.error(p.mark, fmt::format("{}: unknown gateway-local read '{}' (the family "
+                                                "knows {})",
+                                                where, src, cn0170::kCountersRequest));
+        else if (p.read->field >= cn0170::kCounterFields)
+          diagnostics.error(p.mark, fmt::format("{}: {} has fields 0..{}", where, src,
+                                                cn0170::kCounterFields - 1));
+        if (p.read->format != NumberFormat::decimal)
+          diagnostics.error(p.mark, fmt::format("{}: {} values are plain numbers; remove the "
+                                                "format",
+                                                where, src));
+      } else if (!src.empty()) {
+        if (src.find_first_of("\r\n") != std::string::npos)
+          diagnostics.error(p.mark, fmt::format("{}: the family adds the CR", where));
+        std::vector<cn0170::Query> queries;
+        bool known = true;
+        for (const auto& part : cn0170::split_instructions(src)) {
+          auto q = cn0170::classify_query(part);
+          if (!q) {
+            diagnostics.error(p.mark, fmt::format("{}: '{}' is not a CN0170 query the family "
+                                                  "can match to its reply (digest §5)",
+                                                  where, part));
+            known = false;
+            continue;
+          }
+          queries.push_back(*q);
+        }
+        if (known && !queries.empty()) {
+          const int values = cn0170::values_of_request(queries);
+          if (p.read->field >= values) {
+            diagnostics.error(p.mark, fmt::format("{}: '{}' yields fields 0..{}, not {}", where,
+                                                  src, values - 1, p.read->field));
+          } else if (const auto hex = field_is_hex(queries, p.read->field)) {
+            // The motion word and a position's status word are the family's own numbers.
+            if (*hex && p.read->format != NumberFormat::hex)
+              diagnostics.error(p.mark, fmt::format("{}: field {} of '{}' is a hex reply "
+                                                    "(lower-case h suffix): add format: hex",
+                                                    where, p.read->field, src));
+            else if (!*hex && p.read->format == NumberFormat::hex)
+              diagnostics.error(p.mark, fmt::format("{}: field {} of '{}' is not a hex reply; "
+                                                    "remove format: hex",
+                                                    where, p.read->field, src));
+          }
+        }
+      }
+    }
+    if (p.write)
+      check_command(p.write->request, p.mark, "point " + p.name + " write", false, false);
+  }
+  for (const auto& a : model.actions) {
+    const std::string what = "action " + a.name;
+    for (const auto& s : a.steps) {
+      if (s.kind != ActionStep::Kind::send) continue;
+      check_command(s.command, s.mark, what, true, a.bus_wide);
+      if (s.urgent)
+        diagnostics.error(s.mark, fmt::format("{}: the CN0170 has no urgent commands (the line is "
+                                              "never held; K and Q are ordinary commands)",
+                                              what));
+    }
+  }
+}
+
+void CententFamily::adopt_options() {
+  if (options_adopted_) return;
+  options_adopted_ = true;
+  if (own_options_) return;
+  std::lock_guard lock(g_options_mutex);
+  if (g_options_by_model.empty()) return;
+  const auto& first = g_options_by_model.begin()->second;
+  for (const auto& [name, options] : g_options_by_model)
+    if (options != first) {
+      chain_.log(4, "CN0170 models disagree on their options; this chain uses the defaults");
+      return;
+    }
+  std::vector<std::string> errors;
+  options_ = cn0170::parse_options(first, errors);
+}
+
+void CententFamily::flush_log(Link& link) {
+  if (chain_.events.empty()) return;
+  const std::string where = link.transport().describe();
+  for (const auto& e : chain_.events)
+    if (log_sink_) log_sink_(e.level, fmt::format("centent-cn0170 chain on {}: {}", where, e.text));
+  chain_.events.clear();
+}
+
+asio::awaitable<void> CententFamily::collect(
+    Link& link, const LinkTiming& timing,
+    const std::function<void(const cn0170::Message&)>& on_message) {
+  for (int i = 0; i < kMaxLinesPerExchange; ++i) {
+    const LinkRead read = co_await link.read_frame(kLineSplitter, timing);
+    if (read.status != LinkRead::Status::frame) co_return;
+    on_message(cn0170::parse_message(read.frame));
+  }
+}
+
+asio::awaitable<void> CententFamily::on_link_open(Link& link, const LinkTiming& timing) {
+  adopt_options();
+  chain_.link_opened();
+  link.discard_input();
+  if (options_.autobaud_cr) {
+    // After a power-up every unit waits for a CR to measure the baud rate and answers U<n>;
+    // units already running read it as an empty line.
+    const std::error_code ec = co_await link.send("\r");
+    if (!ec) {
+      std::vector<int> answered;
+      const std::function<void(const Message&)> on_message = [&](const Message& m) {
+        if (m.kind == MessageKind::autobaud)
+          answered.push_back(m.subject);
+        else
+          chain_.absorb(m);
+      };
+      co_await collect(link, timing, on_message);
+      if (!answered.empty())
+        chain_.log(5, fmt::format("auto-baud CR answered by unit(s) {}", join(answered)));
+    }
+  }
+  if (options_.discover_chain) {
+    const std::error_code ec = co_await link.send(".U?\r");
+    if (!ec) {
+      std::vector<int> order;
+      const std::function<void(const Message&)> on_message = [&](const Message& m) {
+        if (m.kind == MessageKind::unit_list)
+          order.push_back(m.subject);
+        else
+          chain_.absorb(m);
+      };
+      co_await collect(link, timing, on_message);
+      chain_.order = order;
+      chain_.order_known = !order.empty();
+      if (order.empty()) {
+        chain_.log(4,
+                   "no unit answered .U? (chain unpowered, not auto-bauded, or in Program "
+                   "Mode)");
+      } else {
+        chain_.log(5, fmt::format("chain order from .U?: {}", join(order)));
+        for (int u : configured_)
+          if (std::find(order.begin(), order.end(), u) == order.end())
+            chain_.log(4, fmt::format("unit {} is configured but did not answer .U? (missing, "
+                                      "unpowered, numbered differently or in Program Mode)",
+                                      u));
+        std::set<int> reported;
+        for (int u : order) {
+          if (!reported.insert(u).second) continue;
+          const auto n = std::count(order.begin(), order.end(), u);
+          if (n > 1)
+            chain_.log(4, fmt::format("unit {} answered .U? {} times: duplicate unit numbers; "
+                                      "the one nearest the host traps everything sent to {}",
+                                      u, n, u));
+          if (!configured_.count(u))
+            chain_.log(4, fmt::format("unit {} is on the chain but not configured", u));
+        }
+      }
+    }
+  }
+  flush_log(link);
+}
+
+asio::awaitable<Reply> CententFamily::run(Link& link, int unit, cn0170::Plan plan, std::string what,
+                                          const LinkTiming& timing) {
+  if (plan.refused) co_return *plan.refused;
+  if (chain_.drain_before_next) {
+    link.discard_input();
+    chain_.drain_before_next = false;
+  }
+  Reply reply;
+  const std::error_code ec = co_await link.send(plan.bytes);
+  if (ec) {
+    chain_.forget_selection();
+    reply.status = Reply::Status::link_down;
+    reply.text = ec.message();
+  } else if (plan.expected.empty()) {
+    reply.status = Reply::Status::ok;
+  } else {
+    reply = co_await read_replies(
+        link, cn0170::Exchange(chain_, unit, std::move(plan), std::move(what)), timing);
+  }
+  co_return reply;
+}
+
+asio::awaitable<Reply> CententFamily::read_replies(Link& link, cn0170::Exchange exchange,
+                                                   const LinkTiming& timing) {
+  for (int i = 0; i < kMaxLinesPerExchange; ++i) {
+    const LinkRead read = co_await link.read_frame(kLineSplitter, timing);
+    if (read.status == LinkRead::Status::frame) {
+      if (exchange.on_line(read.frame)) break;
+      continue;
+    }
+    if (read.status == LinkRead::Status::timeout) {
+      exchange.on_timeout(read.partial);
+    } else if (read.status == LinkRead::Status::overflow) {
+      exchange.on_overflow(read.partial);
+    } else {
+      exchange.on_link_error(read.error.message());
+    }
+    co_return exchange.reply();
+  }
+  if (!exchange.finished()) exchange.on_too_many_lines();
+  co_return exchange.reply();
+}
+
+asio::awaitable<std::optional<Reply>> CententFamily::set_up(Link& link, int unit,
+                                                            const LinkTiming& timing) {
+  auto& state = chain_.units[static_cast<std::size_t>(unit)];
+  const bool recheck_mode = options_.guard_program_mode && state.mode == 2;
+  if (state.set_up && !recheck_mode) co_return std::nullopt;
+  const Request mode_query{"M?", Request::Expect::values, NumberFormat::decimal};
+  Reply mode = co_await run(link, unit, cn0170::plan_request(chain_, options_, unit, mode_query),
+                            "M?", timing);
+  if (mode.status != Reply::Status::ok) co_return mode;
+  if (state.set_up) co_return std::nullopt;
+  if (state.mode == 1 && options_.overflow != cn0170::Options::Overflow::leave) {
+    const bool rts = options_.overflow == cn0170::Options::Overflow::rts;
+    std::string command = options_.overflow_command;
+    if (command.empty()) command = rts ? "M1\\+" : "M1\\-";
+    const Request set{command, Request::Expect::ack, NumberFormat::decimal};
+    Reply r = co_await run(link, unit, cn0170::plan_request(chain_, options_, unit, set), command,
+                           timing);
+    if (r.status == Reply::Status::device_error && r.device_code == cn0170::kRejected &&
+        options_.overflow_command.empty()) {
+      // The manual prints both M1\- and M1- (§9 #11).
+      command = rts ? "M1+" : "M1-";
+      const Request plain{command, Request::Expect::ack, NumberFormat::decimal};
+      r = co_await run(link, unit, cn0170::plan_request(chain_, options_, unit, plain), command,
+                       timing);
+    }
+    if (r.status == Reply::Status::ok) {
+      chain_.log(6, fmt::format("unit {}: overflow {} mode set ({})", unit, rts ? "RTS" : "warning",
+                                command));
+    } else if (r.status == Reply::Status::device_error) {
+      chain_.log(4, fmt::format("unit {}: overflow mode not set: {}", unit, r.text));
+    } else {
+      co_return r;
+    }
+  } else if (state.mode == 2) {
+    chain_.log(4, fmt::format("unit {} is in Program Mode (M2); motor and I/O requests are "
+                              "refused until it leaves it",
+                              unit));
+  } else if (state.mode == 3) {
+    chain_.log(5, fmt::format("unit {} is in Operate Mode (M3); its overflow mode is left as it "
+                              "is",
+                              unit));
+  }
+  state.set_up = true;
+  co_return std::nullopt;
+}
+
+asio::awaitable<Reply> CententFamily::kill(Link& link, int unit, const LinkTiming& timing) {
+  cn0170::Plan plan = cn0170::plan_kill(chain_, options_, unit, configured_units());
+  const int first = *plan.reply_unit;
+  Reply reply = co_await run(link, unit, std::move(plan), "K", timing);
+  if (reply.status == Reply::Status::ok) {
+    chain_.log(4, fmt::format("kill (K) sent from unit {} down the chain", first));
+    co_return reply;
+  }
+  if (options_.kill_target == cn0170::Options::KillTarget::first_unit) {
+    // The first unit did not confirm: the K may not have started down the chain. Send it to
+    // every unit the gateway knows; each relays it further.
+    cn0170::Options every = options_;
+    every.kill_target = cn0170::Options::KillTarget::every_unit;
+    Reply again = co_await run(
+        link, unit, cn0170::plan_kill(chain_, every, unit, configured_units()), "K", timing);
+    chain_.log(
+        3, fmt::format("kill: unit {} did not confirm ({}); K sent to every unit: {}", first,
+                       reply.text, again.status == Reply::Status::ok ? "confirmed" : again.text));
+    co_return again;
+  }
+  co_return reply;
+}
+
+asio::awaitable<Reply> CententFamily::local_read(Link& link, int unit, const Request& request,
+                                                 const LinkTiming& timing) {
+  Reply r;
+  if (request.command != cn0170::kCountersRequest) {
+    r.status = Reply::Status::device_error;
+    r.device_code = cn0170::kInvalidValue;
+    r.text = "unknown gateway-local read '" + request.command + "'";
+    co_return r;
+  }
+  // Counters are the gateway's, but a unit that stopped answering must not look online.
+  if (!chain_.units[static_cast<std::size_t>(unit)].answering) {
+    const Request probe{"M?", Request::Expect::values, NumberFormat::decimal};
+    Reply answer =
+        co_await run(link, unit, cn0170::plan_request(chain_, options_, unit, probe), "M?", timing);
+    if (answer.status != Reply::Status::ok) co_return answer;
+  }
+  r.status = Reply::Status::ok;
+  r.values = cn0170::counters_of(chain_, unit);
+  co_return r;
+}
+
+asio::awaitable<Reply> CententFamily::transact(Link& link, const NodeAddress& node,
+                                               const Request& request, const LinkTiming& timing) {
+  adopt_options();
+  const int unit = node.number;
+  Reply reply;
+  if (!request.command.empty() && request.command.front() == '@') {
+    reply = co_await local_read(link, unit, request, timing);
+  } else if (request.bus_wide) {
+    reply = co_await kill(link, unit, timing);
+  } else {
+    std::optional<Reply> failed = co_await set_up(link, unit, timing);
+    if (failed) {
+      reply = std::move(*failed);
+    } else {
+      cn0170::Plan plan = cn0170::plan_request(chain_, options_, unit, request);
+      reply = co_await run(link, unit, std::move(plan), request.command, timing);
+    }
+  }
+  flush_log(link);
+  co_return reply;
+}
+
+std::size_t CententFamily::estimate_wire_chars(const NodeAddress&, const Request& request) const {
+  if (!request.command.empty() && request.command.front() == '@') return 0;
+  // Leading CR, the request and its CR, and on average half a selection (sticky for reads).
+  std::size_t chars = 1 + request.command.size() + 1 + 2;
+  std::size_t replies = 0;
+  for (const auto& part : cn0170::split_instructions(request.command)) {
+    const auto q = cn0170::classify_query(part);
+    if (!q) continue;
+    // Prefix digit, key, '=', value, 'h', CR: "2X=00C0E6B6h\r" is 13.
+    replies += q->kind == MessageKind::position ? 13 : q->kind == MessageKind::mode ? 4 : 9;
+  }
+  if (request.expect == Request::Expect::ack) {
+    chars += 4;  // commands select explicitly
+    if (options_.confirm_commands) {
+      chars += 3;    // M?\r
+      replies += 4;  // 2M1\r
+    }
+  }
+  return chars + replies;
+}
+
+FamilyPtr make_centent_cn0170_family() {
+  return std::make_shared<CententFamily>();
+}
+
+}  // namespace fieldgate

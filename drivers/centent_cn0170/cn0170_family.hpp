@@ -1,0 +1,67 @@
+#pragma once
+
+#include <functional>
+#include <set>
+#include <string_view>
+
+#include "drivers/centent_cn0170/cn0170_chain.hpp"
+#include "drivers/protocol_family.hpp"
+
+namespace fieldgate {
+
+// Centent CN0170 units on one RS-232 daisy chain (shared/protocols/centent-cn0170.md). The
+// object belongs to one bus and holds the chain's sticky unit selection (README).
+class CententFamily final : public ProtocolFamily {
+ public:
+  // Where the family's own log lines go (chain discovery, resets, overflow warnings). The
+  // default writes them to stderr with the journald priority prefix the daemon uses.
+  using LogSink = std::function<void(int level, std::string_view text)>;
+
+  CententFamily();
+
+  std::string_view name() const override { return "centent-cn0170"; }
+  // Also records the unit as configured, for the chain discovery report.
+  std::optional<NodeAddress> parse_address(std::string_view text,
+                                           std::string& error) const override;
+  // Also takes the model's options as the chain's settings.
+  void validate_model(const Model& model, Diagnostics& diagnostics) const override;
+  asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
+  asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
+                                  const LinkTiming& timing) override;
+  std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
+
+  void set_log_sink(LogSink sink) { log_sink_ = std::move(sink); }
+  void set_options(const cn0170::Options& options);
+  const cn0170::Chain& chain() const { return chain_; }
+  const cn0170::Options& options() const { return options_; }
+
+ private:
+  asio::awaitable<Reply> run(Link& link, int unit, cn0170::Plan plan, std::string what,
+                             const LinkTiming& timing);
+  asio::awaitable<Reply> read_replies(Link& link, cn0170::Exchange exchange,
+                                      const LinkTiming& timing);
+  // Mode check and overflow mode, once per unit after the link opened or the unit reset.
+  asio::awaitable<std::optional<Reply>> set_up(Link& link, int unit, const LinkTiming& timing);
+  asio::awaitable<Reply> kill(Link& link, int unit, const LinkTiming& timing);
+  asio::awaitable<Reply> local_read(Link& link, int unit, const Request& request,
+                                    const LinkTiming& timing);
+  // Reads lines until none arrives within the reply timeout; hands each to `on_message`.
+  asio::awaitable<void> collect(Link& link, const LinkTiming& timing,
+                                const std::function<void(const cn0170::Message&)>& on_message);
+  void adopt_options();
+  void flush_log(Link& link);
+  std::vector<int> configured_units() const;
+
+  cn0170::Chain chain_;
+  // parse_address and validate_model are const in the interface but are the only places a
+  // family learns its nodes and its models' options (README "What the core could change").
+  mutable std::set<int> configured_;
+  mutable cn0170::Options options_;
+  mutable bool own_options_ = false;
+  bool options_adopted_ = false;
+  LogSink log_sink_;
+};
+
+FamilyPtr make_centent_cn0170_family();
+
+}  // namespace fieldgate

@@ -1,0 +1,328 @@
+// The family's decision logic without I/O: what goes on the wire for a request, and what the
+// lines that come back mean, including unsolicited messages between them.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "drivers/centent_cn0170/cn0170_chain.hpp"
+
+namespace fieldgate::cn0170 {
+namespace {
+
+Request read(const char* c) {
+  return {c, Request::Expect::values, NumberFormat::hex};
+}
+Request command(const char* c) {
+  return {c, Request::Expect::ack, NumberFormat::decimal};
+}
+
+// Runs one exchange over canned lines; nullopt if the lines did not end it.
+std::optional<Reply> exchange(Chain& chain, const Options& options, int unit, const Request& r,
+                              std::vector<std::string> lines, std::string* bytes = nullptr) {
+  Plan plan = plan_request(chain, options, unit, r);
+  if (bytes) *bytes = plan.bytes;
+  if (plan.refused) return plan.refused;
+  Exchange ex(chain, unit, std::move(plan), r.command);
+  for (const auto& l : lines)
+    if (ex.on_line(l)) return ex.reply();
+  return std::nullopt;
+}
+
+class ChainTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    chain.order = {0, 1, 2};
+    chain.order_known = true;
+  }
+  Chain chain;
+  Options options;
+};
+
+TEST_F(ChainTest, SelectionIsStickyForReads) {
+  Plan first = plan_request(chain, options, 2, read("XP?;YP?"));
+  EXPECT_EQ(first.bytes, "\r.U2\rXP?;YP?\r");
+  Plan second = plan_request(chain, options, 2, read("XV?;YV?"));
+  EXPECT_EQ(second.bytes, "\rXV?;YV?\r");
+  Plan other = plan_request(chain, options, 0, read("XP?;YP?"));
+  EXPECT_EQ(other.bytes, "\r.U0\rXP?;YP?\r");
+  EXPECT_EQ(chain.selections, 2u);
+  EXPECT_EQ(chain.units[2].counters.selections, 1u);
+}
+
+TEST_F(ChainTest, OneSelectionPerUnitForAPollCycleInUnitOrder) {
+  for (int cycle = 0; cycle < 3; ++cycle)
+    for (int unit : {0, 0, 1, 1, 1, 2, 2})
+      (void)plan_request(chain, options, unit, read("XP?;YP?"));
+  EXPECT_EQ(chain.selections, 9u);  // 3 per cycle, one per unit
+}
+
+TEST_F(ChainTest, CommandsReselectAndAreConfirmed) {
+  (void)plan_request(chain, options, 1, read("M?"));
+  Plan p = plan_request(chain, options, 1, command("XV=200,2000;X=0FA000H"));
+  EXPECT_EQ(p.bytes, "\r.U1\rXV=200,2000;X=0FA000H\rM?\r");
+  ASSERT_EQ(p.expected.size(), 1u);
+  EXPECT_EQ(p.expected[0].kind, MessageKind::mode);
+  options.reselect_for_commands = false;
+  options.confirm_commands = false;
+  options.leading_cr = false;
+  Plan q = plan_request(chain, options, 1, command("XH"));
+  EXPECT_EQ(q.bytes, "XH\r");
+  EXPECT_TRUE(q.expected.empty());
+}
+
+TEST_F(ChainTest, ReadDemultiplexedByPrefixWithMotionWord) {
+  const auto r = exchange(chain, options, 2, read("XP?;YP?"), {"2X=00000400h\r", "2Y-00000800h\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::ok);
+  EXPECT_EQ(r->values,
+            (std::vector<int64_t>{0x400, 0, 0x800, kYMoving | kYCounterClockwise | kMoving,
+                                  kYMoving | kYCounterClockwise | kMoving}));
+  EXPECT_TRUE(chain.units[2].answering);
+}
+
+TEST_F(ChainTest, UnitZeroRepliesWithoutPrefix) {
+  const auto r = exchange(chain, options, 0, read("XP?"), {"X+00000001h\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::ok);
+  EXPECT_EQ(r->values, (std::vector<int64_t>{1, kXMoving | kMoving, kXMoving | kMoving}));
+}
+
+TEST_F(ChainTest, CrLfRepliesAndBlankLinesAreFine) {
+  const auto r = exchange(chain, options, 1, read("P1?;P2?"), {"1P1=1\r", "\n", "1P2=0\r", "\n"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->values, (std::vector<int64_t>{1, 0}));
+}
+
+TEST_F(ChainTest, RejectedStringIsADeviceError) {
+  const auto r = exchange(chain, options, 1, command("XQ=5"), {"1\"XQ=5\" ?\r", "1M1\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::device_error);
+  EXPECT_EQ(r->device_code, kRejected);
+  EXPECT_EQ(r->text, "unit 1 rejected \"XQ=5\" (syntax error; the string was ignored)");
+  EXPECT_EQ(chain.units[1].counters.rejects, 1u);
+  EXPECT_TRUE(chain.drain_before_next);
+}
+
+TEST_F(ChainTest, ConfirmationShowingProgramModeMeansStored) {
+  const auto r = exchange(chain, options, 1, command("X=1000"), {"1M2\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::device_error);
+  EXPECT_EQ(r->device_code, kStoredInProgram);
+  EXPECT_EQ(chain.units[1].mode, 2);
+  // Now motor and I/O traffic is refused before it is sent; mode queries and M1 pass.
+  const auto refused = exchange(chain, options, 1, read("XP?"), {});
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->device_code, kProgramMode);
+  EXPECT_FALSE(plan_request(chain, options, 1, read("M?")).refused);
+  const auto back = exchange(chain, options, 1, command("M1"), {"1M1\r"});
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->status, Reply::Status::ok);
+  EXPECT_EQ(chain.units[1].mode, 1);
+}
+
+TEST_F(ChainTest, NeverSendsM2OrItsOwnSelections) {
+  EXPECT_EQ(plan_request(chain, options, 1, command("M2")).refused->device_code, kInvalidValue);
+  EXPECT_EQ(plan_request(chain, options, 1, command(".U2;X=5")).refused->device_code,
+            kInvalidValue);
+  EXPECT_EQ(plan_request(chain, options, 1, read("X=5")).refused->text, "'X=5' is not a query");
+  EXPECT_EQ(plan_request(chain, options, 1, command("XR3")).refused->text,
+            "'XR3': step resolution must be 1, 2, 10 or 125");
+}
+
+TEST_F(ChainTest, OverflowWarningBlocksQueuedInstructionsUntilQueueEmpty) {
+  // Q* arrives ahead of the reply to a poll: counted, not taken for the reply.
+  const auto r = exchange(chain, options, 2, read("XP?"), {"2Q*\r", "2X=00000005h\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->values[0], 5);
+  EXPECT_TRUE(chain.units[2].queue_full);
+  EXPECT_EQ(chain.units[2].counters.overflow_warnings, 1u);
+  const auto refused = exchange(chain, options, 2, command("X+100"), {});
+  EXPECT_EQ(refused->device_code, kQueueFull);
+  // Stops and queries still go.
+  EXPECT_FALSE(plan_request(chain, options, 2, command("Q")).refused);
+  EXPECT_FALSE(plan_request(chain, options, 2, read("XP?")).refused);
+  EXPECT_FALSE(plan_request(chain, options, 1, command("X+100")).refused);
+  chain.absorb(parse_message("2*Q"));
+  EXPECT_FALSE(chain.units[2].queue_full);
+  EXPECT_FALSE(plan_request(chain, options, 2, command("X+100")).refused);
+}
+
+TEST_F(ChainTest, ResetOfAnUpstreamUnitLosesTheRequestAtOnce) {
+  options.leading_cr = false;
+  (void)plan_request(chain, options, 2, read("XP?"));
+  ASSERT_EQ(chain.selected, 2);
+  const auto r = exchange(chain, options, 2, read("XP?"), {"U1\r"});
+  ASSERT_TRUE(r) << "no need to wait out the timeout";
+  EXPECT_EQ(r->status, Reply::Status::garbled);
+  EXPECT_NE(r->text.find("unit 1 reset (U1)"), std::string::npos) << r->text;
+  EXPECT_FALSE(chain.selected);
+  EXPECT_EQ(chain.units[1].counters.resets, 1u);
+  EXPECT_FALSE(chain.units[1].set_up);
+  // The next request selects again.
+  EXPECT_EQ(plan_request(chain, options, 2, read("XP?")).bytes, ".U2\rXP?\r");
+}
+
+TEST_F(ChainTest, ResetAnsweringOurLeadingCrLetsTheRequestThrough) {
+  // The reset unit auto-bauds on the CR that starts every transmission, then takes the .U2.
+  const auto r = exchange(chain, options, 2, command("X+100"), {"U1\r", "2M1\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::ok);
+  EXPECT_EQ(chain.units[1].counters.resets, 1u);
+  // Silence after it: the reset is named in the failure.
+  Plan plan = plan_request(chain, options, 2, read("XP?"));
+  Exchange ex(chain, 2, plan, "XP?");
+  EXPECT_FALSE(ex.on_line("U1\r"));
+  EXPECT_EQ(ex.on_timeout("").text, "no reply from unit 2 to 'XP?' after unit 1 reset (U1)");
+}
+
+TEST_F(ChainTest, ResetDownstreamDoesNotLoseTheReply) {
+  const auto r = exchange(chain, options, 0, read("XP?"), {"U2\r", "X=00000007h\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::ok);
+  EXPECT_EQ(r->values[0], 7);
+  EXPECT_EQ(chain.units[2].counters.resets, 1u);
+  EXPECT_FALSE(chain.selected) << "after a reset no selection is trusted";
+}
+
+TEST_F(ChainTest, ReplyFromAnotherUnitMeansItTrappedTheRequest) {
+  (void)plan_request(chain, options, 2, read("XP?"));
+  const auto r = exchange(chain, options, 2, read("XP?"), {"1X=00000000h\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::garbled);
+  EXPECT_EQ(r->text,
+            "unit 1 answered 'XP?' meant for unit 2 (it trapped the request: a reset or "
+            "a duplicate unit number); selection forgotten");
+  EXPECT_FALSE(chain.selected);
+  // After an explicit .U2 a reply from unit 1 can only be a late one.
+  const auto late = exchange(chain, options, 2, read("XP?"), {"1X=00000000h\r", "2X=00000001h\r"});
+  ASSERT_TRUE(late);
+  EXPECT_EQ(late->status, Reply::Status::ok);
+  EXPECT_EQ(late->values[0], 1);
+}
+
+TEST_F(ChainTest, LateReplyOfAnotherKindIsSkipped) {
+  const auto r =
+      exchange(chain, options, 1, read("XP?"), {"1M1\r", "1XV=0000h\r", "1XP\r", "1X=00000009h\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::ok);
+  EXPECT_EQ(r->values[0], 9);
+  EXPECT_EQ(chain.units[1].counters.x_done, 1u);
+  EXPECT_EQ(chain.stray_lines, 2u);
+}
+
+TEST_F(ChainTest, GarbageEndsTheExchange) {
+  const auto r = exchange(chain, options, 1, read("XP?"), {"\x13#~z\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::garbled);
+  EXPECT_TRUE(chain.drain_before_next);
+  EXPECT_FALSE(chain.selected);
+}
+
+TEST_F(ChainTest, TimeoutForgetsTheSelection) {
+  Plan plan = plan_request(chain, options, 1, read("XP?;YP?"));
+  Exchange silent(chain, 1, plan, "XP?;YP?");
+  const Reply r = silent.on_timeout("");
+  EXPECT_EQ(r.status, Reply::Status::timeout);
+  EXPECT_EQ(r.text, "no reply from unit 1 to 'XP?;YP?'");
+  EXPECT_FALSE(chain.selected);
+  EXPECT_TRUE(chain.drain_before_next);
+
+  Exchange half(chain, 1, plan, "XP?;YP?");
+  EXPECT_FALSE(half.on_line("1X=00000000h\r"));
+  EXPECT_EQ(half.on_timeout("").status, Reply::Status::garbled);
+  Exchange cut(chain, 1, plan, "XP?;YP?");
+  EXPECT_EQ(cut.on_timeout("1X=000").text, "incomplete reply '1X=000' from unit 1 to 'XP?;YP?'");
+}
+
+TEST_F(ChainTest, KillGoesToTheFirstUnitOfTheChain) {
+  chain.order = {3, 0, 1};
+  Plan p = plan_kill(chain, options, 1, {0, 1, 3});
+  EXPECT_EQ(p.bytes, "\r.U3\rK\rM?\r");
+  EXPECT_EQ(p.reply_unit, 3);
+  Exchange ex(chain, 1, std::move(p), "K");
+  EXPECT_TRUE(ex.on_line("3M1\r"));
+  EXPECT_EQ(ex.reply().status, Reply::Status::ok);
+}
+
+TEST_F(ChainTest, KillWithoutChainOrderGoesToEveryUnit) {
+  chain.order_known = false;
+  chain.units[1].mode = 2;  // stores K in Program Mode: M1 first
+  Plan p = plan_kill(chain, options, 1, {0, 1});
+  EXPECT_EQ(p.bytes, "\r.U0\rK\r.U1\rM1\rK\rM?\r");
+  options.kill_target = Options::KillTarget::every_unit;
+  chain.order_known = true;
+  EXPECT_EQ(plan_kill(chain, options, 1, {0, 1}).bytes, "\r.U0\rK\r.U1\rM1\rK\r.U2\rK\rM?\r");
+}
+
+TEST_F(ChainTest, RenumberingForgetsSelectionAndOrder) {
+  Plan p = plan_request(chain, options, 2, command(".U2=5"));
+  EXPECT_EQ(p.bytes, "\r.U2\r.U2=5\r");
+  EXPECT_TRUE(p.expected.empty());
+  EXPECT_FALSE(chain.selected);
+  EXPECT_FALSE(chain.order_known);
+}
+
+TEST_F(ChainTest, UnsolicitedProgramOutputIsCounted) {
+  const auto r = exchange(chain, options, 0, read("M?"), {"1[U1]\r", "112:00.00\r", "M1\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->values, std::vector<int64_t>{1});
+  EXPECT_EQ(chain.units[1].counters.unsolicited, 2u);
+}
+
+TEST_F(ChainTest, CountersOfAUnit) {
+  chain.absorb(parse_message("U1"));
+  chain.absorb(parse_message("1Q*"));
+  chain.absorb(parse_message("1YP"));
+  (void)plan_request(chain, options, 1, read("M?"));
+  const auto c = counters_of(chain, 1);
+  ASSERT_EQ(c.size(), static_cast<std::size_t>(kCounterFields));
+  EXPECT_EQ(c[kResets], 1);
+  EXPECT_EQ(c[kOverflowWarnings], 1);
+  EXPECT_EQ(c[kQueueFullNow], 1);
+  EXPECT_EQ(c[kYMoveDone], 1);
+  EXPECT_EQ(c[kUnsolicited], 3);
+  EXPECT_EQ(c[kSelections], 1);
+  EXPECT_EQ(c[kChainPosition], 2);
+}
+
+TEST_F(ChainTest, RandomLinesNeverCrashAndAlwaysEndTheExchange) {
+  std::mt19937 random(170);
+  const std::string alphabet = "XYPVACM=+-?;h0123456789ABCDEF[]U\"*Q/\\ :.\r\n\x01\xff";
+  for (int round = 0; round < 2000; ++round) {
+    Plan plan = plan_request(chain, options, static_cast<int>(random() % 10), read("XP?;YP?;M?"));
+    Exchange ex(chain, 1, plan, "XP?;YP?;M?");
+    bool over = false;
+    for (int line = 0; line < 20 && !over; ++line) {
+      std::string text;
+      const auto length = random() % 16;
+      for (std::size_t i = 0; i < length; ++i) text += alphabet[random() % alphabet.size()];
+      (void)parse_message(text);
+      over = ex.on_line(text + "\r");
+    }
+    const Reply r = over ? ex.reply() : ex.on_timeout("");
+    EXPECT_TRUE(r.status != Reply::Status::ok || r.values.size() == 5u);
+    chain.units[1].mode = 0;
+    chain.units[1].queue_full = false;
+  }
+}
+
+TEST(Cn0170Options, ParsedAndChecked) {
+  std::vector<std::string> errors;
+  const auto o = parse_options(
+      {{"overflow_mode", "rts"}, {"confirm_commands", "false"}, {"kill_target", "every_unit"}},
+      errors);
+  EXPECT_TRUE(errors.empty());
+  EXPECT_EQ(o.overflow, Options::Overflow::rts);
+  EXPECT_FALSE(o.confirm_commands);
+  EXPECT_EQ(o.kill_target, Options::KillTarget::every_unit);
+  (void)parse_options({{"overflow_mode", "loud"}, {"leading_cr", "maybe"}, {"speed", "1"}}, errors);
+  ASSERT_EQ(errors.size(), 3u);
+  EXPECT_EQ(errors[0], "option leading_cr: expected true or false, found 'maybe'");
+  errors.clear();
+  (void)parse_options({{"overflow_command", "M1+"}}, errors);
+  EXPECT_EQ(errors,
+            std::vector<std::string>{"option overflow_command 'M1+' contradicts overflow_mode"});
+}
+
+}  // namespace
+}  // namespace fieldgate::cn0170

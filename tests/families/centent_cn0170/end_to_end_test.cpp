@@ -1,0 +1,302 @@
+// The real daemon against fieldgate-sim-centent on a PTY, through Modbus TCP (libmodbus).
+#include <gtest/gtest.h>
+
+#include <iostream>
+#include <regex>
+#include <thread>
+
+#include "harness.hpp"
+
+namespace fieldgate::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Register layout of config/models/centent-cn0170.yaml.
+constexpr int kXPosition = 0, kMotion = 4, kResets = 14, kOverflowWarnings = 16, kQueueFull = 17,
+              kChainPosition = 23;                                      // input registers
+constexpr int kXProfile = 2, kOut1 = 4;                                 // holding registers
+constexpr int kCommand = 100, kActionStatus = 101, kActionError = 102;  // action block
+constexpr int kXTarget = 110, kXDistance = 114, kXResolution = 125;     // setpoints
+constexpr int kDiagLastGoodAge = 1001, kDiagNodeState = 1014;
+constexpr int kMoveXAbsolute = 1, kMoveXRelative = 2, kHomeX = 7, kQuit = 10, kKill = 12,
+              kJogXCw = 15;
+constexpr int kXMovingBit = 0, kMovingBit = 4;
+constexpr int kDeviceFailure = 0x04, kTargetFailed = 0x0B;
+
+std::string nodes(const std::vector<int>& units, const std::string& poll) {
+  std::string out;
+  for (int u : units)
+    out += "      - {name: cn" + std::to_string(u) + ", address: " + std::to_string(u) +
+           ", model: centent-cn0170, unit_id: " + std::to_string(u + 1) + poll + "}\n";
+  return out;
+}
+
+class CententPlant : public Plant {
+ public:
+  CententPlant(const std::string& sim_units, const std::string& config_nodes,
+               std::vector<std::string> extra = {})
+      : Plant({SimulatedBus{"chain", "centent-cn0170", argv(sim_units, std::move(extra)),
+                            "baud: 115200",
+                            "reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, "
+                            "offline_after: 3, probe_interval: 300ms",
+                            config_nodes}}) {}
+
+  // A control command to the simulator; returns its "ok …" reply line.
+  std::string control(const std::string& command) {
+    const std::string verb = command.substr(0, command.find(' '));
+    const auto count = [&] {
+      const std::string log = sim().log();
+      std::size_t n = 0;
+      for (auto p = log.find("ok " + verb); p != std::string::npos;
+           p = log.find("ok " + verb, p + 1))
+        ++n;
+      return n;
+    };
+    const std::size_t before = count();
+    sim().send_line(command);
+    if (!wait_until([&] { return count() > before; }, 5s)) return "no reply";
+    const std::string log = sim().log();
+    const auto at = log.rfind("ok " + verb);
+    return log.substr(at, log.find('\n', at) - at);
+  }
+  uint64_t stat(const std::string& command, const std::string& key) {
+    const std::string line = control(command);
+    std::smatch m;
+    if (!std::regex_search(line, m, std::regex(" " + key + "=([0-9]+)"))) return ~0ull;
+    return std::stoull(m[1]);
+  }
+
+ private:
+  static std::vector<std::string> argv(const std::string& units, std::vector<std::string> extra) {
+    std::vector<std::string> a{FIELDGATE_SIM_CENTENT, "--link", "{link}", "--units", units};
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+  }
+};
+
+class CententEndToEnd : public ::testing::Test {
+ protected:
+  void start(const std::string& sim_units, const std::vector<int>& units,
+             const std::string& poll = ", poll: {fast: 100ms, slow: 1s}",
+             std::vector<std::string> extra = {}) {
+    plant_ = std::make_unique<CententPlant>(sim_units, nodes(units, poll), std::move(extra));
+    client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
+  }
+  void wait_online(const std::vector<int>& unit_ids) {
+    for (int id : unit_ids)
+      ASSERT_TRUE(wait_until([&] { return client_->read_input(id, kXPosition, 5).ok(); }))
+          << "unit id " << id << " never came online\n"
+          << plant_->daemon().log();
+  }
+  void TearDown() override {
+    if (HasFailure() && plant_)
+      std::cerr << "--- daemon log ---\n"
+                << plant_->daemon().log() << "--- sim log ---\n"
+                << plant_->sim().log();
+  }
+  int action_status(int id) {
+    auto r = client_->read_holding(id, kActionStatus, 1);
+    return r.ok() ? r.values[0] : -1;
+  }
+  std::optional<uint32_t> age_ms(int id) {
+    auto r = client_->read_input(id, kDiagLastGoodAge, 2);
+    if (!r.ok()) return std::nullopt;
+    return (static_cast<uint32_t>(r.values[0]) << 16) | r.values[1];
+  }
+  int motion(int id) {
+    auto r = client_->read_input(id, kMotion, 1);
+    return r.ok() ? r.values[0] : -1;
+  }
+
+  std::unique_ptr<CententPlant> plant_;
+  std::unique_ptr<ModbusClient> client_;
+};
+
+TEST_F(CententEndToEnd, BothAxesOfThreeUnitsPerCycleWithOneSelectionEach) {
+  // A 100 ms cycle reads X and Y of the three units (one line per unit); the slow class is
+  // pushed out of the way (one status read per unit at start).
+  start("0,1,2", {0, 1, 2}, ", poll: {fast: 100ms, slow: 3600s}");
+  wait_online({1, 2, 3});
+  for (int id : {1, 2, 3}) {
+    auto r = client_->read_input(id, kXPosition, 5);  // X, Y, motion word
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(r.values, (std::vector<uint16_t>{0, 0, 0, 0, 0}));
+  }
+  std::this_thread::sleep_for(500ms);  // past the first contact (mode check, M1\-)
+  const uint64_t sel0 = plant_->stat("stats", "selections");
+  const uint64_t lines0 = plant_->stat("stats 0", "lines");
+  std::this_thread::sleep_for(3s);
+  const uint64_t sel1 = plant_->stat("stats", "selections");
+  const uint64_t lines1 = plant_->stat("stats 0", "lines");
+  const double cycles = static_cast<double>(lines1 - lines0);
+  const double per_cycle = static_cast<double>(sel1 - sel0) / cycles;
+  std::cout << "[ measured ] " << cycles << " cycles, " << (sel1 - sel0)
+            << " selections: " << per_cycle << " .Un per cycle of 3 units\n";
+  RecordProperty("selections_per_cycle", std::to_string(per_cycle));
+  EXPECT_GE(cycles, 20.0);
+  EXPECT_NEAR(per_cycle, 3.0, 0.15) << "one selection per unit and cycle";
+  // Positions of both axes of all three units are fresh.
+  for (int id : {1, 2, 3}) EXPECT_LT(age_ms(id).value_or(~0u), 300u);
+}
+
+TEST_F(CententEndToEnd, DefaultScheduleSelectionCount) {
+  start("0,1,2", {0, 1, 2}, "");
+  wait_online({1, 2, 3});
+  std::this_thread::sleep_for(2500ms);
+  const uint64_t sel0 = plant_->stat("stats", "selections");
+  const uint64_t lines0 = plant_->stat("stats 0", "lines");
+  std::this_thread::sleep_for(4s);
+  const uint64_t sel1 = plant_->stat("stats", "selections");
+  const uint64_t lines1 = plant_->stat("stats 0", "lines");
+  // Per 200 ms cycle unit 0 gets its position line; per 2 s its status line and M?.
+  const double cycles = static_cast<double>(lines1 - lines0) / (1.0 + 2.0 / 10.0);
+  const double per_cycle = static_cast<double>(sel1 - sel0) / cycles;
+  std::cout << "[ measured ] default schedule: " << per_cycle
+            << " .Un per 200 ms cycle (3 position lines + 0.6 slow lines per cycle)\n";
+  RecordProperty("default_selections_per_cycle", std::to_string(per_cycle));
+  // A slow line between two other units' position lines costs one extra selection at most.
+  EXPECT_LE(per_cycle, 3.0 + 0.6 + 0.2);
+  EXPECT_GE(per_cycle, 2.8);
+}
+
+TEST_F(CententEndToEnd, MoveOnUnit2WhileUnits0And1KeepUpdating) {
+  start("0,1,2", {0, 1, 2});
+  wait_online({1, 2, 3});
+  ASSERT_TRUE(client_->write_single(2, kCommand, kJogXCw).ok());  // unit 1 runs at 500 steps/s
+  ASSERT_TRUE(client_->write_i32(3, kXTarget, 3000 * 1024).ok());
+  ASSERT_TRUE(client_->write_single(3, kCommand, kMoveXAbsolute).ok());
+  EXPECT_EQ(action_status(3), 1);  // confirmed by the unit; the move is under way
+  int32_t last2 = -1, last1 = -1;
+  for (int i = 0; i < 6; ++i) {
+    std::this_thread::sleep_for(200ms);
+    const auto p2 = client_->read_input_i32(3, kXPosition);
+    const auto p1 = client_->read_input_i32(2, kXPosition);
+    ASSERT_TRUE(p2 && p1);
+    EXPECT_GT(*p2, last2) << "unit 2 advances";
+    EXPECT_GT(*p1, last1) << "unit 1 keeps updating";
+    last2 = *p2;
+    last1 = *p1;
+    for (int id : {1, 2}) EXPECT_LT(age_ms(id).value_or(~0u), 400u) << "unit id " << id;
+  }
+  ASSERT_TRUE(wait_until([&] { return action_status(3) == 2; }, 10s));
+  EXPECT_EQ(client_->read_input_i32(3, kXPosition), 3000 * 1024);
+  EXPECT_EQ(motion(3) & (1 << kXMovingBit), 0);
+  EXPECT_EQ(client_->read_input_i32(1, kXPosition), 0) << "unit 0 never moved";
+  ASSERT_TRUE(client_->write_single(2, kCommand, kQuit).ok());
+  ASSERT_TRUE(wait_until([&] { return action_status(2) == 2; }, 5s));
+  // A negative relative move on unit 2 (signed distance, sent as X-…H).
+  ASSERT_TRUE(client_->write_i32(3, kXDistance, -1024 * 1000).ok());
+  ASSERT_TRUE(client_->write_single(3, kCommand, kMoveXRelative).ok());
+  ASSERT_TRUE(wait_until([&] { return action_status(3) == 2; }, 10s));
+  EXPECT_EQ(client_->read_input_i32(3, kXPosition), 2000 * 1024);
+}
+
+TEST_F(CententEndToEnd, MissingUnitGoesOfflineWithoutStallingTheChain) {
+  start("0,1,2,4", {0, 1, 2, 3});
+  wait_online({1, 2, 3});
+  ASSERT_TRUE(wait_until([&] {
+    auto d = client_->read_input(4, kDiagNodeState, 1);
+    return d.ok() && d.values[0] == 2;
+  }));
+  EXPECT_EQ(client_->read_input(4, kXPosition, 2).exception, kTargetFailed);
+  EXPECT_EQ(client_->write_single(4, kCommand, kMoveXAbsolute).exception, kTargetFailed);
+  for (int i = 0; i < 5; ++i) {
+    std::this_thread::sleep_for(200ms);
+    for (int id : {1, 2, 3}) EXPECT_LT(age_ms(id).value_or(~0u), 400u) << "unit id " << id;
+  }
+  const std::string log = plant_->daemon().log();
+  EXPECT_NE(log.find("chain order from .U?: 0, 1, 2, 4"), std::string::npos) << log;
+  EXPECT_NE(log.find("unit 3 is configured but did not answer .U?"), std::string::npos) << log;
+  EXPECT_NE(log.find("unit 4 is on the chain but not configured"), std::string::npos) << log;
+  EXPECT_NE(log.find("node cn3 (3) offline"), std::string::npos) << log;
+  ASSERT_TRUE(wait_until([&] { return client_->read_input(3, kChainPosition, 1).ok(); }, 5s));
+  EXPECT_EQ(client_->read_input(1, kChainPosition, 1).values, std::vector<uint16_t>{1});
+  EXPECT_EQ(client_->read_input(3, kChainPosition, 1).values, std::vector<uint16_t>{3});
+}
+
+TEST_F(CententEndToEnd, UnsolicitedResetResynchronisesTheSelection) {
+  start("0,1,2", {0, 1, 2});
+  wait_online({1, 2, 3});
+  EXPECT_EQ(plant_->control("reset 1"), "ok reset 1");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        auto r = client_->read_input(2, kResets, 1);
+        return r.ok() && r.values[0] == 1;
+      },
+      5s));
+  // Every unit answers again, with fresh positions.
+  std::this_thread::sleep_for(500ms);
+  for (int id : {1, 2, 3}) EXPECT_LT(age_ms(id).value_or(~0u), 400u) << "unit id " << id;
+  // A move for unit 2 reaches unit 2, not the unit that reset (which selects itself).
+  ASSERT_TRUE(client_->write_i32(3, kXDistance, 1024 * 100).ok());
+  ASSERT_TRUE(client_->write_single(3, kCommand, kMoveXRelative).ok());
+  ASSERT_TRUE(wait_until([&] { return action_status(3) == 2; }, 10s));
+  EXPECT_EQ(client_->read_input_i32(3, kXPosition), 1024 * 100);
+  EXPECT_EQ(client_->read_input_i32(2, kXPosition), 0);
+  EXPECT_NE(plant_->control("position 1").find(" x=0 "), std::string::npos);
+  const std::string log = plant_->daemon().log();
+  EXPECT_NE(log.find("unit 1 reset (unsolicited 'U1')"), std::string::npos) << log;
+}
+
+TEST_F(CententEndToEnd, KillWrittenToAnyUnitStopsTheWholeChain) {
+  start("0,1,2", {0, 1, 2});
+  wait_online({1, 2, 3});
+  for (int id : {1, 2, 3}) ASSERT_TRUE(client_->write_single(id, kCommand, kJogXCw).ok());
+  ASSERT_TRUE(
+      wait_until([&] { return (motion(1) & motion(2) & motion(3) & (1 << kMovingBit)) != 0; }, 3s));
+  ASSERT_TRUE(client_->write_single(3, kCommand, kKill).ok());
+  ASSERT_TRUE(wait_until([&] { return motion(1) == 0 && motion(2) == 0 && motion(3) == 0; }, 2s));
+  EXPECT_EQ(plant_->stat("stats 0", "kills"), 1u) << "K went to the first unit";
+  EXPECT_EQ(plant_->stat("stats 2", "kills"), 1u) << "and was relayed";
+  EXPECT_NE(plant_->daemon().log().find("kill (K) sent from unit 0 down the chain"),
+            std::string::npos);
+}
+
+TEST_F(CententEndToEnd, RefusalsAnswer04WithTheFamilyCode) {
+  start("0,1", {0, 1});
+  wait_online({1, 2});
+  // XR accepts 1, 2, 10 or 125 only: refused before anything is sent.
+  ASSERT_TRUE(client_->write_single(1, kXResolution, 3).ok());
+  EXPECT_EQ(client_->write_single(1, kCommand, kHomeX).exception, kDeviceFailure);
+  EXPECT_EQ(client_->read_holding(1, kActionError, 1).values, std::vector<uint16_t>{4});
+  // Queue nearly full (Q*): moves are refused until *Q.
+  plant_->control("emit 1 Q*");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        auto r = client_->read_input(2, kQueueFull, 1);
+        return r.ok() && r.values[0] == 1;
+      },
+      5s));
+  EXPECT_EQ(client_->read_input(2, kOverflowWarnings, 1).values, std::vector<uint16_t>{1});
+  EXPECT_EQ(client_->write_single(2, kCommand, kMoveXAbsolute).exception, kDeviceFailure);
+  EXPECT_EQ(client_->read_holding(2, kActionError, 1).values, std::vector<uint16_t>{2});
+  plant_->control("emit 1 *Q");
+  ASSERT_TRUE(wait_until(
+      [&] {
+        auto r = client_->read_input(2, kQueueFull, 1);
+        return r.ok() && r.values[0] == 0;
+      },
+      5s));
+  EXPECT_TRUE(client_->write_single(2, kCommand, kMoveXAbsolute).ok());
+}
+
+TEST_F(CententEndToEnd, AutobaudAtStartAndSettingsReadBack) {
+  start("0,1", {0, 1}, ", poll: {fast: 100ms, slow: 200ms}", {"--power-up"});
+  wait_online({1, 2});
+  EXPECT_NE(plant_->daemon().log().find("auto-baud CR answered by unit(s) 0, 1"),
+            std::string::npos);
+  ASSERT_TRUE(client_->write_single(2, kXProfile, 18).ok());  // sent as XC\P
+  ASSERT_TRUE(client_->write_single(2, kOut1, 1).ok());
+  EXPECT_NE(plant_->control("position 1").find("out1=1"), std::string::npos);
+  ASSERT_TRUE(wait_until(
+      [&] {
+        auto r = client_->read_holding(2, kXProfile, 3);
+        return r.ok() && r.values[0] == 18 && r.values[2] == 1;
+      },
+      3s));
+  EXPECT_EQ(client_->write_single(2, kXProfile, 20).exception, 0x03);  // max 19
+}
+
+}  // namespace
+}  // namespace fieldgate::test

@@ -1,0 +1,377 @@
+// CententFamily through a real Link against the simulated chain, in one process: the family
+// writes to one end of a socketpair, the DaisyChain answers on the other.
+#include <gtest/gtest.h>
+
+#include <boost/asio/as_tuple.hpp>
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/local/connect_pair.hpp>
+#include <boost/asio/local/stream_protocol.hpp>
+#include <boost/asio/use_awaitable.hpp>
+#include <boost/asio/write.hpp>
+
+#include <thread>
+
+#include "drivers/centent_cn0170/cn0170_family.hpp"
+#include "sim/centent/daisy_chain.hpp"
+
+namespace fieldgate {
+namespace {
+
+using namespace std::chrono_literals;
+using Socket = asio::local::stream_protocol::socket;
+constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
+
+class PairTransport final : public ByteTransport {
+ public:
+  explicit PairTransport(Socket socket) : socket_(std::move(socket)) {}
+  asio::awaitable<std::error_code> open() override { co_return std::error_code{}; }
+  void close() override { socket_.close(); }
+  bool is_open() const override { return socket_.is_open(); }
+  asio::awaitable<std::error_code> write(std::string_view bytes) override {
+    auto [ec, n] =
+        co_await asio::async_write(socket_, asio::buffer(bytes.data(), bytes.size()), use_tuple);
+    (void)n;
+    co_return ec ? std::make_error_code(std::errc::io_error) : std::error_code{};
+  }
+  asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
+      asio::mutable_buffer buffer) override {
+    auto [ec, n] = co_await socket_.async_read_some(buffer, use_tuple);
+    co_return std::pair{ec ? std::make_error_code(std::errc::io_error) : std::error_code{}, n};
+  }
+  void discard_input() override {
+    boost::system::error_code ec;
+    char buf[4096];
+    while (socket_.available(ec) > 0 && !ec) socket_.read_some(asio::buffer(buf), ec);
+  }
+  std::string describe() const override { return "test-pair"; }
+  double char_time_us() const override { return 0; }
+
+ private:
+  Socket socket_;
+};
+
+class FamilyOnChain : public ::testing::Test {
+ protected:
+  void TearDown() override {
+    // Let the chain's coroutine see its socket close before the io_context goes.
+    if (sim_side_) sim_side_->close();
+    if (transport_) transport_->close();
+    io_.poll();
+  }
+
+  void start(std::vector<int> units, sim::centent::ChainOptions options = {},
+             std::vector<std::string> configured = {"0", "1", "2"}) {
+    options.units = std::move(units);
+    chain_ = std::make_unique<sim::centent::DaisyChain>(options, sim::SimClock::now());
+    Socket ours(io_), theirs(io_);
+    asio::local::connect_pair(ours, theirs);
+    transport_ = std::make_unique<PairTransport>(std::move(ours));
+    link_ = std::make_unique<Link>(*transport_);
+    sim_side_ = std::make_unique<Socket>(std::move(theirs));
+    asio::co_spawn(io_, serve(), [](std::exception_ptr) {});
+    family_.set_log_sink([this](int level, std::string_view text) {
+      log_ += std::to_string(level) + " " + std::string(text) + "\n";
+    });
+    std::string error;
+    for (const auto& c : configured) nodes_[std::stoi(c)] = *family_.parse_address(c, error);
+    run(family_.on_link_open(*link_, timing_));
+  }
+
+  // The chain's side: frames host lines and answers them.
+  asio::awaitable<void> serve() {
+    std::string pending;
+    char buf[512];
+    for (;;) {
+      auto [ec, n] = co_await sim_side_->async_read_some(asio::buffer(buf), use_tuple);
+      if (ec) co_return;
+      pending.append(buf, n);
+      while (const auto length = sim::centent::DaisyChain::frame(pending)) {
+        const std::string line = pending.substr(0, length);
+        pending.erase(0, length);
+        wire_ += line;
+        const auto reply = chain_->handle(line, sim::SimClock::now());
+        if (reply.bytes.empty()) continue;
+        auto [wec, w] =
+            co_await asio::async_write(*sim_side_, asio::buffer(reply.bytes), use_tuple);
+        if (wec) co_return;
+      }
+    }
+  }
+
+  template <typename T>
+  T run(asio::awaitable<T> work) {
+    std::optional<T> result;
+    asio::co_spawn(io_, std::move(work), [&](std::exception_ptr e, T value) {
+      if (e) std::rethrow_exception(e);
+      result = std::move(value);
+    });
+    while (!result) io_.run_one();
+    return std::move(*result);
+  }
+  void run(asio::awaitable<void> work) {
+    bool done = false;
+    asio::co_spawn(io_, std::move(work), [&](std::exception_ptr e) {
+      if (e) std::rethrow_exception(e);
+      done = true;
+    });
+    while (!done) io_.run_one();
+  }
+
+  Reply call(int unit, std::string command, Request::Expect expect = Request::Expect::values,
+             bool bus_wide = false) {
+    Request r{std::move(command), expect, NumberFormat::hex, bus_wide};
+    return run(family_.transact(*link_, nodes_.at(unit), r, timing_));
+  }
+  Reply command(int unit, std::string c) { return call(unit, std::move(c), Request::Expect::ack); }
+  std::uint64_t selections() const { return chain_->stats().selections; }
+
+  asio::io_context io_;
+  std::unique_ptr<sim::centent::DaisyChain> chain_;
+  std::unique_ptr<PairTransport> transport_;
+  std::unique_ptr<Link> link_;
+  std::unique_ptr<Socket> sim_side_;
+  CententFamily family_;
+  std::map<int, NodeAddress> nodes_;
+  LinkTiming timing_{30ms, 10ms};
+  std::string log_;
+  std::string wire_;
+};
+
+TEST_F(FamilyOnChain, LinkOpenAutobaudsAndDiscoversTheChain) {
+  sim::centent::ChainOptions o;
+  o.power_up = true;
+  start({0, 1, 4}, o, {"0", "1", "2"});
+  EXPECT_EQ(wire_, "\r.U?\r");
+  EXPECT_NE(
+      log_.find("5 centent-cn0170 chain on test-pair: auto-baud CR answered by unit(s) 0, 1, 4"),
+      std::string::npos)
+      << log_;
+  EXPECT_NE(log_.find("chain order from .U?: 0, 1, 4"), std::string::npos) << log_;
+  EXPECT_NE(log_.find("4 centent-cn0170 chain on test-pair: unit 2 is configured but did not "
+                      "answer .U?"),
+            std::string::npos)
+      << log_;
+  EXPECT_NE(log_.find("unit 4 is on the chain but not configured"), std::string::npos) << log_;
+  EXPECT_EQ(family_.chain().chain_position(4), 3);
+}
+
+TEST_F(FamilyOnChain, FirstContactChecksModeAndSetsWarningMode) {
+  start({0, 1, 2});
+  wire_.clear();
+  const Reply r = call(1, "XP?;YP?");
+  ASSERT_EQ(r.status, Reply::Status::ok) << r.text;
+  EXPECT_EQ(wire_, "\r.U1\rM?\r\r.U1\rM1\\-\rM?\r\rXP?;YP?\r");
+  EXPECT_EQ(r.values, (std::vector<int64_t>{0, 0, 0, 0, 0}));
+  wire_.clear();
+  (void)call(1, "XP?;YP?");
+  EXPECT_EQ(wire_, "\rXP?;YP?\r") << "set up once; selection sticky";
+}
+
+TEST_F(FamilyOnChain, PlainOverflowMnemonicWhenTheBackslashFormIsRejected) {
+  sim::centent::ChainOptions o;
+  o.unit.accept_backslash_overflow = false;
+  start({0, 1}, o, {"0", "1"});
+  ASSERT_EQ(call(0, "M?").status, Reply::Status::ok);
+  EXPECT_NE(wire_.find("M1-\r"), std::string::npos) << wire_;
+  EXPECT_NE(log_.find("unit 0: overflow warning mode set (M1-)"), std::string::npos) << log_;
+  EXPECT_EQ(family_.chain().units[0].counters.rejects, 1u);
+}
+
+TEST_F(FamilyOnChain, PollCycleNeedsOneSelectionPerUnit) {
+  start({0, 1, 2});
+  for (int unit : {0, 1, 2}) ASSERT_EQ(call(unit, "M?").status, Reply::Status::ok);
+  const auto before = selections();
+  for (int cycle = 0; cycle < 10; ++cycle)
+    for (int unit : {0, 1, 2}) {
+      ASSERT_EQ(call(unit, "XP?;YP?").status, Reply::Status::ok);
+      ASSERT_EQ(call(unit, "XV?;YV?").status, Reply::Status::ok);
+      ASSERT_EQ(call(unit, "@counters").status, Reply::Status::ok);
+    }
+  EXPECT_EQ(selections() - before, 30u);
+}
+
+TEST_F(FamilyOnChain, MoveIsConfirmedAndRuns) {
+  start({0, 1, 2});
+  const Reply r = command(2, "XV=200,4000;X=0FA000H");
+  ASSERT_EQ(r.status, Reply::Status::ok) << r.text;
+  const Reply moving = call(2, "XP?;YP?");
+  ASSERT_EQ(moving.status, Reply::Status::ok);
+  EXPECT_EQ(moving.values[4] & cn0170::kXMoving, cn0170::kXMoving);
+  EXPECT_FALSE(chain_->unit_at(1).moving('X', sim::SimClock::now()));
+}
+
+TEST_F(FamilyOnChain, RejectedCommandIsADeviceErrorAndTheNextRequestIsClean) {
+  start({0, 1, 2});
+  const Reply r = command(1, "XQ=5");
+  EXPECT_EQ(r.status, Reply::Status::device_error);
+  EXPECT_EQ(r.device_code, cn0170::kRejected);
+  const Reply next = call(1, "XP?");
+  EXPECT_EQ(next.status, Reply::Status::ok) << next.text;
+}
+
+TEST_F(FamilyOnChain, MissingUnitTimesOutAndOthersAnswer) {
+  start({0, 1}, {}, {"0", "1", "2"});
+  const Reply r = call(2, "XP?;YP?");
+  EXPECT_EQ(r.status, Reply::Status::timeout) << r.text;
+  EXPECT_EQ(r.text, "no reply from unit 2 to 'M?'");
+  EXPECT_EQ(call(1, "XP?").status, Reply::Status::ok);
+  // @counters of an unanswering unit probes it instead of pretending it is there.
+  EXPECT_EQ(call(2, "@counters").status, Reply::Status::timeout);
+}
+
+TEST_F(FamilyOnChain, ResetMessageResynchronisesTheSelection) {
+  start({0, 1, 2});
+  ASSERT_EQ(call(2, "XP?").status, Reply::Status::ok);
+  const auto sel = selections();
+  chain_->control("reset", std::vector<std::string>{"1"}, sim::SimClock::now());
+  // The leading CR auto-bauds unit 1, which answers U1 and selects itself: it traps the query
+  // meant for unit 2 and its prefixed reply gives it away.
+  const Reply lost = call(2, "XP?");
+  EXPECT_EQ(lost.status, Reply::Status::garbled);
+  EXPECT_NE(lost.text.find("unit 1 answered 'XP?' meant for unit 2"), std::string::npos)
+      << lost.text;
+  EXPECT_EQ(family_.chain().units[1].counters.resets, 1u);
+  const Reply again = call(2, "XP?");
+  EXPECT_EQ(again.status, Reply::Status::ok) << again.text;
+  EXPECT_EQ(selections() - sel, 1u);
+  // Unit 1 is set up again on its next contact.
+  wire_.clear();
+  EXPECT_EQ(call(1, "XP?").status, Reply::Status::ok);
+  EXPECT_NE(wire_.find("M1\\-"), std::string::npos) << wire_;
+  EXPECT_NE(log_.find("unit 1 reset (unsolicited 'U1')"), std::string::npos) << log_;
+}
+
+TEST_F(FamilyOnChain, ResetBeforeACommandCannotMisdirectIt) {
+  start({0, 1, 2});
+  ASSERT_EQ(call(2, "XP?").status, Reply::Status::ok);
+  chain_->control("reset", std::vector<std::string>{"1"}, sim::SimClock::now());
+  // The command re-selects after the leading CR, so the reset unit passes it on to unit 2.
+  const Reply r = command(2, "X=0FA000H");
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  const auto now = sim::SimClock::now();
+  EXPECT_TRUE(chain_->unit_at(2).moving('X', now));
+  EXPECT_FALSE(chain_->unit_at(1).moving('X', now));
+}
+
+TEST_F(FamilyOnChain, KillGoesToTheFirstUnitAndStopsTheChain) {
+  start({0, 1, 2});
+  for (int unit : {0, 1, 2}) ASSERT_EQ(command(unit, "X++1000").status, Reply::Status::ok);
+  wire_.clear();
+  const Reply r = call(2, "K", Request::Expect::ack, true);
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  EXPECT_EQ(wire_, "\r.U0\rK\rM?\r");
+  const auto now = sim::SimClock::now();
+  for (std::size_t p = 0; p < 3; ++p) EXPECT_FALSE(chain_->unit_at(p).moving('X', now)) << p;
+}
+
+TEST_F(FamilyOnChain, KillFallsBackToEveryUnitWhenTheFirstIsSilent) {
+  start({0, 1, 2});
+  for (int unit : {1, 2}) ASSERT_EQ(command(unit, "X++1000").status, Reply::Status::ok);
+  chain_->control("unit-off", std::vector<std::string>{"0"}, sim::SimClock::now());
+  const Reply r = call(1, "K", Request::Expect::ack, true);
+  EXPECT_NE(r.status, Reply::Status::ok) << "nothing reaches units behind an unpowered unit";
+  EXPECT_NE(log_.find("kill: unit 0 did not confirm"), std::string::npos) << log_;
+}
+
+TEST_F(FamilyOnChain, QueueWarningBlocksMovesUntilQueueEmpty) {
+  start({0, 3}, {}, {"0", "3"});
+  ASSERT_EQ(call(3, "M?").status, Reply::Status::ok);
+  chain_->control("emit", std::vector<std::string>{"3", "Q*"}, sim::SimClock::now());
+  EXPECT_EQ(call(3, "XP?").status, Reply::Status::ok);
+  const Reply refused = command(3, "X+100");
+  EXPECT_EQ(refused.device_code, cn0170::kQueueFull);
+  EXPECT_EQ(call(3, "@counters").values[cn0170::kQueueFullNow], 1);
+  chain_->control("emit", std::vector<std::string>{"3", "*Q"}, sim::SimClock::now());
+  EXPECT_EQ(call(3, "XP?").status, Reply::Status::ok);
+  EXPECT_EQ(command(3, "X+100").status, Reply::Status::ok);
+}
+
+TEST_F(FamilyOnChain, ProgramModeUnitIsGuarded) {
+  start({0, 1});
+  chain_->handle(".U1\r", sim::SimClock::now());
+  chain_->handle("M2\r", sim::SimClock::now());
+  const Reply r = call(1, "XP?");
+  EXPECT_EQ(r.status, Reply::Status::device_error);
+  EXPECT_EQ(r.device_code, cn0170::kProgramMode);
+  EXPECT_EQ(call(1, "M?").values, std::vector<int64_t>{2});
+  EXPECT_TRUE(chain_->unit_at(1).program().empty()) << "nothing was stored";
+  EXPECT_EQ(command(1, "M1").status, Reply::Status::ok);
+  EXPECT_EQ(call(1, "XP?").status, Reply::Status::ok);
+}
+
+TEST_F(FamilyOnChain, GarbageAndSilenceGivePreciseStatuses) {
+  start({0, 1});
+  ASSERT_EQ(call(1, "XP?").status, Reply::Status::ok);
+  chain_->control("emit", std::vector<std::string>{"1", "#$%&"}, sim::SimClock::now());
+  const Reply garbled = call(1, "XP?");
+  EXPECT_EQ(garbled.status, Reply::Status::garbled);
+  EXPECT_NE(garbled.text.find("unreadable line"), std::string::npos) << garbled.text;
+  EXPECT_EQ(call(1, "XP?").status, Reply::Status::ok);
+  chain_->control("unit-off", std::vector<std::string>{"1"}, sim::SimClock::now());
+  EXPECT_EQ(call(1, "XP?").status, Reply::Status::timeout);
+  EXPECT_EQ(call(0, "XP?").status, Reply::Status::ok);
+}
+
+TEST_F(FamilyOnChain, SettingRewritesReachTheUnit) {
+  start({0, 1});
+  EXPECT_EQ(command(1, "XC17;XH1;XR125").status, Reply::Status::ok);
+  EXPECT_EQ(call(1, "XC?").values, std::vector<int64_t>{17});
+  EXPECT_TRUE(chain_->unit_at(1).axis('X').home_cw);
+  EXPECT_EQ(command(1, "XR3").device_code, cn0170::kInvalidValue);
+  EXPECT_EQ(command(1, "XP=0400H;X+0FFFFFC00H").status, Reply::Status::ok);
+  std::this_thread::sleep_for(100ms);
+  EXPECT_EQ(call(1, "XP?").values[0], 0);
+}
+
+TEST(CententFamilyModel, ValidateModelCatchesMistakes) {
+  CententFamily family;
+  Model m;
+  m.name = "bad";
+  m.options = {{"overflow_mode", "loud"}};
+  const auto point = [&](const char* name, const char* read, NumberFormat f, int field = 0) {
+    PointDef p;
+    p.name = name;
+    std::string error;
+    p.read = ReadSpec{*CommandTemplate::compile(read, error), field, f, std::nullopt};
+    m.points.push_back(p);
+  };
+  point("a", "XP?;YP?", NumberFormat::decimal);
+  point("b", "P1?;XP?", NumberFormat::hex);
+  point("c", "XP?", NumberFormat::hex, 3);
+  point("d", "XQ?", NumberFormat::decimal);
+  point("e", "@count", NumberFormat::decimal);
+  point("f", "@counters", NumberFormat::decimal, 11);
+  point("g", "XP?;YP?", NumberFormat::decimal, 4);  // the motion word: either format
+  point("h", "P1?;XP?", NumberFormat::hex, 1);
+  ActionDef a;
+  a.name = "stop_all";
+  a.bus_wide = false;
+  ActionStep s;
+  std::string error;
+  s.command = *CommandTemplate::compile("K", error);
+  a.steps.push_back(s);
+  s.command = *CommandTemplate::compile(".U2;M2", error);
+  a.steps.push_back(s);
+  m.actions.push_back(a);
+  Diagnostics d;
+  family.validate_model(m, d);
+  const std::string text = d.to_text();
+  for (const char* expected :
+       {"option overflow_mode: expected warning, rts or leave, found 'loud'",
+        "point a read: field 0 of 'XP?;YP?' is a hex reply (lower-case h suffix): add format: hex",
+        "point b read: field 0 of 'P1?;XP?' is not a hex reply; remove format: hex",
+        "point c read: 'XP?' yields fields 0..2, not 3",
+        "point d read: 'XQ?' is not a CN0170 query",
+        "point e read: unknown gateway-local read '@count'",
+        "action stop_all: K is relayed down the whole chain (p.13): put it in an action with "
+        "bus_wide: true",
+        "action stop_all: '.U2': the family selects units itself",
+        "action stop_all: M2 from Immediate Mode erases the stored program"})
+    EXPECT_NE(text.find(expected), std::string::npos) << expected << "\n" << text;
+  for (const char* fine : {"point f", "point g", "point h"})
+    EXPECT_EQ(text.find(fine), std::string::npos) << text;
+}
+
+}  // namespace
+}  // namespace fieldgate
