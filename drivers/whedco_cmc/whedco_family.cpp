@@ -1,0 +1,417 @@
+#include "drivers/whedco_cmc/whedco_family.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+namespace fieldgate {
+
+namespace {
+
+using whedco::EchoMode;
+using whedco::QueryKind;
+
+std::string printable(std::string_view bytes) {
+  std::string out;
+  for (const char c : bytes) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '\r')
+      out += "\\r";
+    else if (c == '\n')
+      out += "\\n";
+    else if (u < 0x20 || u >= 0x7f)
+      out += fmt::format("\\x{:02x}", u);
+    else
+      out += c;
+  }
+  return out;
+}
+
+bool has_control_bytes(std::string_view s) {
+  for (const char c : s) {
+    const auto u = static_cast<unsigned char>(c);
+    if ((u < 0x20 && c != '\r' && c != '\n' && c != '\t') || u >= 0x7f) return true;
+  }
+  return false;
+}
+
+bool has_text(std::string_view s) {
+  for (const char c : s)
+    if ((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || c == '?') return true;
+  return false;
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() &&
+         (s.front() == ' ' || s.front() == '\r' || s.front() == '\n' || s.front() == '\t'))
+    s.remove_prefix(1);
+  while (!s.empty() &&
+         (s.back() == ' ' || s.back() == '\r' || s.back() == '\n' || s.back() == '\t'))
+    s.remove_suffix(1);
+  return s;
+}
+
+Reply garbled(std::string text) {
+  Reply r;
+  r.status = Reply::Status::garbled;
+  r.text = std::move(text);
+  return r;
+}
+
+Reply rejected(std::string_view body, std::string_view line) {
+  Reply r;
+  r.status = Reply::Status::device_error;
+  r.device_code = whedco::kRejected;
+  r.text = fmt::format("unit answered '{}' to '{}'", printable(body), line);
+  return r;
+}
+
+Reply refused(std::string text) {
+  Reply r;
+  r.status = Reply::Status::device_error;
+  r.device_code = whedco::kRefusedByGateway;
+  r.text = "not sent: " + std::move(text);
+  return r;
+}
+
+bool is_axis(char c) {
+  return c == 'W' || c == 'X' || c == 'Y' || c == 'Z';
+}
+
+bool is_hex(char c) {
+  return (c >= '0' && c <= '9') || (c >= 'A' && c <= 'F');
+}
+
+// Commands that answer with a value (§3.8, §3.7, §5.3.1): what a read may send.
+bool is_query(std::string_view t) {
+  if (t.ends_with('?')) return true;
+  if (t == "RS" || t == "FC" || t == "RDI" || t == "RDB") return true;
+  if (t.size() == 3 && is_axis(t[2]) &&
+      (t.starts_with("RS") || t.starts_with("RC") || t.starts_with("RP") || t.starts_with("FE") ||
+       t.starts_with("FC")))
+    return true;
+  return t.size() == 3 && t.starts_with("RA") && is_hex(t[2]);  // RAd: analog input d
+}
+
+}  // namespace
+
+EchoMode WhedcoFamily::echo_mode(const NodeAddress& node) {
+  switch (node.axis) {
+    case 'e':
+      return EchoMode::echo;
+    case 'n':
+      return EchoMode::non_echo;
+    default:
+      return EchoMode::automatic;
+  }
+}
+
+std::optional<NodeAddress> WhedcoFamily::parse_address(std::string_view text,
+                                                       std::string& error) const {
+  const auto a = whedco::parse_address(text, error);
+  if (!a) return std::nullopt;
+  NodeAddress n;
+  n.number = a->unit;
+  // The canonical text is the address digit alone, so two nodes on one unit are caught however
+  // their formats are written.
+  n.text = std::to_string(a->unit);
+  n.axis = a->mode == EchoMode::echo ? 'e' : (a->mode == EchoMode::non_echo ? 'n' : 0);
+  return n;
+}
+
+void WhedcoFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
+  for (const auto& [key, value] : model.options)
+    diagnostics.error(model.mark,
+                      fmt::format("model {}: option '{}' is not a whedco-cmc option (the family "
+                                  "has none: the communication format is set per node in "
+                                  "'address', e.g. 4/non-echo; reply layouts by each read's "
+                                  "'format' and 'field')",
+                                  model.name, key));
+  const auto render = [](const CommandTemplate& t) {
+    return t.render([](std::string_view) { return int64_t{1}; });
+  };
+  const auto check = [&](const CommandTemplate& t, const SourceMark& mark, const std::string& what,
+                         bool query) {
+    std::string error;
+    const auto prepared = whedco::prepare_command(render(t), error);
+    if (!prepared) {
+      diagnostics.error(mark, fmt::format("{}: {}", what, error));
+      return;
+    }
+    if (query && !is_query(prepared->text))
+      diagnostics.error(mark, fmt::format("{}: '{}' is no query (a load command with '?', Vd=?, "
+                                          "RS, RSa, RPa, RCa, FEa, FC, FCa, RAd, RDI, RDB)",
+                                          what, t.source()));
+    if (!query && is_query(prepared->text))
+      diagnostics.error(mark, fmt::format("{}: '{}' is a query; its value would not be the "
+                                          "prompt the command waits for",
+                                          what, t.source()));
+  };
+  for (const auto& p : model.points) {
+    if (p.read) {
+      if (p.read->object)
+        diagnostics.error(p.mark,
+                          fmt::format("point {}: objects are for the canopen family", p.name));
+      else
+        check(p.read->request, p.mark, "point " + p.name + " read", true);
+      if (p.read->format == NumberFormat::hex24)
+        diagnostics.error(p.mark, fmt::format("point {}: Whedco replies are decimal or hex; "
+                                              "hex24 does not apply",
+                                              p.name));
+    }
+    if (p.write) {
+      if (p.write->object)
+        diagnostics.error(p.mark,
+                          fmt::format("point {}: objects are for the canopen family", p.name));
+      else
+        check(p.write->request, p.mark, "point " + p.name + " write", false);
+    }
+  }
+  for (const auto& a : model.actions) {
+    if (a.bus_wide)
+      diagnostics.error(a.mark, fmt::format("action {}: Whedco CMC units have no broadcast "
+                                            "address; give each unit its own action",
+                                            a.name));
+    for (const auto& s : a.steps) {
+      if (s.kind != ActionStep::Kind::send) continue;
+      check(s.command, s.mark, "action " + a.name, false);
+      if (s.urgent)
+        diagnostics.error(s.mark, fmt::format("action {}: whedco-cmc has no urgent commands; "
+                                              "a Whedco exchange never holds the line",
+                                              a.name));
+    }
+  }
+}
+
+Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame) {
+  bool echoed = false;
+  std::string_view body = whedco::strip_echo(frame, x.line, echoed);
+  const auto prompt = body.rfind(whedco::kPrompt);
+  if (prompt == std::string_view::npos)
+    return garbled("no '*' prompt in '" + printable(frame) + "'");
+  body = trim(body.substr(0, prompt));
+  if (x.mode == EchoMode::echo && !echoed)
+    return garbled(
+        fmt::format("no echo of '{}' before '{}': is the unit set to non-echo "
+                    "(SW2-5)?",
+                    x.line, printable(frame)));
+  if (x.mode == EchoMode::non_echo && echoed)
+    return garbled(
+        fmt::format("the unit echoed '{}': it is set to echo (SW2-5), the node to "
+                    "non-echo",
+                    x.line));
+  if (has_control_bytes(body)) return garbled("'" + printable(frame) + "'");
+  // An echo that went wrong on the line: the unit's address followed by a mnemonic.
+  if (!echoed && x.mode != EchoMode::non_echo && body.size() >= 2 && body[0] == x.line[0] &&
+      ((body[1] >= 'A' && body[1] <= 'Z') || body[1] == '!'))
+    return garbled(fmt::format("corrupted echo '{}' of '{}'", printable(frame), x.line));
+
+  Reply r;
+  if (x.expect == Request::Expect::ack) {
+    if (!body.empty()) return rejected(body, x.line);
+    r.status = Reply::Status::ok;
+    return r;
+  }
+  if (body.empty()) return garbled(fmt::format("prompt without a value for '{}'", x.line));
+
+  switch (x.kind) {
+    case QueryKind::axis_fault: {
+      std::optional<int64_t> code;
+      if (const auto numbers = whedco::parse_numbers(body, true); numbers && numbers->size() == 1)
+        code = numbers->front().mantissa;
+      else if (const auto from_text = whedco::axis_fault_from_text(body))
+        code = *from_text;
+      if (!code) return has_text(body) ? rejected(body, x.line) : garbled(printable(frame));
+      r.status = Reply::Status::ok;
+      r.values = {*code, *code != whedco::kAxisFunctional ? 1 : 0};
+      return r;
+    }
+    case QueryKind::unit_fault: {
+      std::optional<int64_t> code;
+      const bool hex = x.format == NumberFormat::hex;
+      if (const auto numbers = whedco::parse_numbers(body, hex);
+          numbers && numbers->size() == 1 && numbers->front().decimals == 0)
+        code = numbers->front().mantissa;
+      else
+        code = whedco::unit_fault_from_text(body);
+      if (!code) return has_text(body) ? rejected(body, x.line) : garbled(printable(frame));
+      r.status = Reply::Status::ok;
+      r.values = {*code, *code != whedco::kUnitFunctional ? 1 : 0};
+      return r;
+    }
+    case QueryKind::bit_list:
+      if (const auto bits = whedco::parse_bit_string(body)) {
+        r.status = Reply::Status::ok;
+        r.values = {*bits};
+        return r;
+      }
+      break;
+    case QueryKind::plain:
+      break;
+  }
+  const auto numbers = whedco::parse_numbers(body, x.format == NumberFormat::hex);
+  if (!numbers || numbers->empty())
+    return has_text(body) ? rejected(body, x.line) : garbled("'" + printable(frame) + "'");
+  for (const auto& n : *numbers) {
+    const auto v = whedco::to_internal(n, x.unit_ratio);
+    if (!v) return garbled(fmt::format("value '{}' out of range", printable(body)));
+    r.values.push_back(*v);
+  }
+  r.status = Reply::Status::ok;
+  return r;
+}
+
+asio::awaitable<void> WhedcoFamily::resync(Link& link, const LinkTiming& timing) {
+  const bool drain = resync_ == Resync::void_and_drain;
+  resync_ = Resync::none;
+  link.discard_input();
+  const auto ec = co_await link.send(whedco::kLineVoid);
+  if (ec) co_return;  // the request that follows reports the broken link
+  // A unit holding part of a line now ignores it and prompts; after a garbled reply, whatever
+  // is still on its way is waited out too, so it cannot pass for the next reply.
+  LinkTiming wait = timing;
+  if (!drain) wait.reply_timeout = timing.byte_timeout;
+  const FrameSplitter until_prompt = [drain](std::string_view b) -> std::size_t {
+    if (drain) return 0;
+    const auto p = b.find(whedco::kPrompt);
+    return p == std::string_view::npos ? 0 : p + 1;
+  };
+  const LinkRead read = co_await link.read_frame(until_prompt, wait);
+  (void)read;
+  link.discard_input();
+}
+
+asio::awaitable<void> WhedcoFamily::on_link_open(Link& link, const LinkTiming& timing) {
+  // The port may have been closed for a while: unit ratios may have changed, and a unit may hold
+  // part of a line from before.
+  unit_ratios_.clear();
+  resync_ = Resync::void_and_drain;
+  co_await resync(link, timing);
+}
+
+asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const NodeAddress& node,
+                                              const std::string& command, Request::Expect expect,
+                                              NumberFormat format, QueryKind kind, int unit_ratio,
+                                              const LinkTiming& timing) {
+  if (resync_ != Resync::none) co_await resync(link, timing);
+  // Replies carry no address: anything left over from an earlier exchange would pass for this
+  // one's reply.
+  link.discard_input();
+  WhedcoExchange x;
+  x.line = whedco::sent_line(node.number, command);
+  x.mode = echo_mode(node);
+  x.expect = expect;
+  x.format = format;
+  x.kind = kind;
+  x.unit_ratio = unit_ratio;
+  Reply r;
+  const std::error_code ec = co_await link.send(x.line + whedco::kTerminator);
+  if (ec) {
+    r.status = Reply::Status::link_down;
+    r.text = ec.message();
+    co_return r;
+  }
+  const std::string line = x.line;
+  const EchoMode mode = x.mode;
+  const FrameSplitter splitter = [line, mode](std::string_view buffer) {
+    return whedco::frame_length(buffer, line, mode);
+  };
+  // After its echo a unit executes the command before it answers (2 ms on average, position
+  // reads 5-10 ms, A.2): that pause is bounded by the reply timeout, not the byte timeout.
+  LinkTiming read_timing = timing;
+  if (mode != EchoMode::non_echo)
+    read_timing.byte_timeout = std::max(timing.byte_timeout, timing.reply_timeout);
+  const LinkRead read = co_await link.read_frame(splitter, read_timing);
+  switch (read.status) {
+    case LinkRead::Status::frame:
+      r = interpret_whedco_reply(x, read.frame);
+      if (r.status == Reply::Status::garbled) resync_ = Resync::void_and_drain;
+      co_return r;
+    case LinkRead::Status::timeout:
+      if (read.partial.empty()) {
+        r.status = Reply::Status::timeout;
+        r.text = "no reply";
+        resync_ = Resync::void_line;
+      } else {
+        r.status = Reply::Status::garbled;
+        r.text = "incomplete reply '" + printable(read.partial) + "'";
+        resync_ = Resync::void_and_drain;
+      }
+      co_return r;
+    case LinkRead::Status::overflow:
+      r.status = Reply::Status::garbled;
+      r.text = "reply longer than any Whedco reply, no '*' prompt";
+      resync_ = Resync::void_and_drain;
+      co_return r;
+    case LinkRead::Status::error:
+      r.status = Reply::Status::link_down;
+      r.text = read.error.message();
+      co_return r;
+  }
+  co_return r;
+}
+
+asio::awaitable<Reply> WhedcoFamily::transact(Link& link, const NodeAddress& node,
+                                              const Request& request, const LinkTiming& timing) {
+  if (request.bus_wide)
+    co_return refused(
+        fmt::format("'{}' for every unit: Whedco CMC units have no broadcast "
+                    "address",
+                    request.command));
+  std::string error;
+  const auto prepared = whedco::prepare_command(request.command, error);
+  if (!prepared) co_return refused(error);
+
+  int ratio = 1;
+  if (prepared->quantity != whedco::Quantity::none) {
+    const auto key = std::make_pair(node.number, prepared->axis);
+    auto it = unit_ratios_.find(key);
+    if (it == unit_ratios_.end()) {
+      const std::string query = std::string("UR") + prepared->axis + "?";
+      Reply ur = co_await exchange(link, node, query, Request::Expect::values,
+                                   NumberFormat::decimal, QueryKind::plain, 1, timing);
+      if (ur.status != Reply::Status::ok) {
+        ur.text = fmt::format("reading the unit ratio of axis {} ({}): {}", prepared->axis, query,
+                              ur.text);
+        co_return ur;
+      }
+      if (ur.values.size() != 1 || ur.values[0] < whedco::kMinUnitRatio ||
+          ur.values[0] > whedco::kMaxUnitRatio)
+        co_return garbled(
+            fmt::format("unit ratio of axis {} is not a whole number 1..10000", prepared->axis));
+      it = unit_ratios_.emplace(key, static_cast<int>(ur.values[0])).first;
+    }
+    ratio = it->second;
+  }
+  const std::string wire = whedco::wire_command(*prepared, ratio);
+  Reply r = co_await exchange(link, node, wire, request.expect, request.format, prepared->kind,
+                              prepared->scaled_reply ? ratio : 1, timing);
+  if (r.status == Reply::Status::ok && prepared->unit_ratio_axis) {
+    const auto key = std::make_pair(node.number, *prepared->unit_ratio_axis);
+    if (prepared->unit_ratio_written) {
+      unit_ratios_[key] = static_cast<int>(*prepared->unit_ratio_written);
+    } else if (r.values.size() == 1 && r.values[0] >= whedco::kMinUnitRatio &&
+               r.values[0] <= whedco::kMaxUnitRatio) {
+      unit_ratios_[key] = static_cast<int>(r.values[0]);
+    }
+  }
+  co_return r;
+}
+
+std::size_t WhedcoFamily::estimate_wire_chars(const NodeAddress& node,
+                                              const Request& request) const {
+  const std::size_t line = request.command.size() + 2;
+  // Auto-detected units are counted as echoing: the factory setting, and the larger cost.
+  const std::size_t echo = echo_mode(node) == EchoMode::non_echo ? 0 : line + 1;
+  // "-8388607.1234\r\n*" or "*".
+  const std::size_t reply = request.expect == Request::Expect::values ? 16 : 1;
+  return line + echo + reply;
+}
+
+}  // namespace fieldgate
+
+namespace fieldgate {
+FamilyPtr make_whedco_cmc_family() {
+  return std::make_shared<WhedcoFamily>();
+}
+}  // namespace fieldgate

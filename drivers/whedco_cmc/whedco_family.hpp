@@ -1,0 +1,59 @@
+#pragma once
+
+#include <map>
+#include <string>
+#include <utility>
+
+#include "drivers/protocol_family.hpp"
+#include "drivers/whedco_cmc/whedco_codec.hpp"
+
+namespace fieldgate {
+
+// Whedco CMC coordinated motion controllers: one CMC-0 per address digit, several on one
+// RS-422/485 line, each with up to four axes W, X, Y, Z named in the commands.
+//
+// Sticky state of the line, kept here because a family instance belongs to one bus: the unit
+// ratio of every axis seen (so internal units can be converted to the user units the wire
+// carries), and whether the line must be voided before the next request.
+class WhedcoFamily final : public ProtocolFamily {
+ public:
+  std::string_view name() const override { return "whedco-cmc"; }
+  std::optional<NodeAddress> parse_address(std::string_view text,
+                                           std::string& error) const override;
+  void validate_model(const Model& model, Diagnostics& diagnostics) const override;
+  asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
+  asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
+                                  const LinkTiming& timing) override;
+  std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
+
+  // The communication format a node was configured with (NodeAddress::axis carries it: the
+  // address of a CMC-0 has no axis letter).
+  static whedco::EchoMode echo_mode(const NodeAddress& node);
+
+ private:
+  enum class Resync { none, void_line, void_and_drain };
+
+  asio::awaitable<Reply> exchange(Link& link, const NodeAddress& node, const std::string& command,
+                                  Request::Expect expect, NumberFormat format,
+                                  whedco::QueryKind kind, int unit_ratio, const LinkTiming& timing);
+  asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
+
+  std::map<std::pair<int, char>, int> unit_ratios_;  // (unit, axis) -> pulses per user unit
+  Resync resync_ = Resync::none;
+};
+
+// One exchange as interpret_whedco_reply() needs to know it.
+struct WhedcoExchange {
+  std::string line;  // address and command as sent, without CR: what an echo repeats
+  whedco::EchoMode mode = whedco::EchoMode::automatic;
+  Request::Expect expect = Request::Expect::ack;
+  NumberFormat format = NumberFormat::decimal;
+  whedco::QueryKind kind = whedco::QueryKind::plain;
+  int unit_ratio = 1;  // factor from the reply's user units to internal units
+};
+
+// The decision part of transact(): what a complete frame (up to the `*` prompt) means.
+// Fault queries give two values: the code and a faulted flag (axis: code != 8, unit: != 0).
+Reply interpret_whedco_reply(const WhedcoExchange& exchange, std::string_view frame);
+
+}  // namespace fieldgate
