@@ -65,7 +65,7 @@ struct ActionRunner::Confirmation {
 };
 
 ActionRunner::ActionRunner(asio::any_io_executor executor, ProcessImage& image, BusOf bus_of)
-    : executor_(executor), image_(image), bus_of_(std::move(bus_of)), waiters_(image.size()) {}
+    : executor_(executor), image_(image), bus_of_(std::move(bus_of)) {}
 
 ActionRunner::~ActionRunner() {
   stop();
@@ -73,12 +73,12 @@ ActionRunner::~ActionRunner() {
 
 void ActionRunner::stop() {
   stopping_ = true;
-  for (auto& list : waiters_)
-    for (auto* t : list) t->cancel();
+  for (std::size_t i = 0; i < image_.size(); ++i)
+    for (auto* t : image_.node(static_cast<int>(i)).waiters) t->cancel();
 }
 
 void ActionRunner::node_updated(int node_index) {
-  for (auto* t : waiters_[static_cast<std::size_t>(node_index)]) t->cancel();
+  for (auto* t : image_.node(node_index).waiters) t->cancel();
 }
 
 asio::awaitable<Reply> ActionRunner::start(int node_index, ModelPtr model_ptr,
@@ -221,7 +221,7 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
                                           SteadyTime acknowledged) {
   const Model& model = *model_ptr;
   asio::steady_timer wake(executor_);
-  auto& list = waiters_[static_cast<std::size_t>(node_index)];
+  auto& list = image_.node(node_index).waiters;
   list.push_back(&wake);
   const auto deadline = acknowledged + action.timeout;
   auto& node = image_.node(node_index);

@@ -60,7 +60,6 @@ class ActionRunner {
   asio::any_io_executor executor_;
   ProcessImage& image_;
   BusOf bus_of_;
-  std::vector<std::vector<asio::steady_timer*>> waiters_;  // per node
   bool stopping_ = false;
 };
 

@@ -1,5 +1,7 @@
 #pragma once
 
+#include <boost/asio/steady_timer.hpp>
+
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -48,6 +50,9 @@ inline constexpr uint16_t kActionErrorUnreachable = 0xfffd;
 
 struct NodeImage {
   std::vector<PointValue> points;  // by model point index
+  // Action watches waiting for fresh values; the bus wakes them after each update. Kept here,
+  // not in a runner, so a watch started before a reload is still woken after it.
+  std::vector<boost::asio::steady_timer*> waiters;
   std::vector<int64_t> setpoints;  // by model setpoint index
   NodeCounters counters;
   NodeState state = NodeState::starting;

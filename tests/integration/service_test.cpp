@@ -135,6 +135,27 @@ TEST_F(ServiceTest, ReloadWithUnchangedBusKeepsClientAndPolling) {
   EXPECT_EQ(client_->read_input(2, 1000, 1).values, std::vector<uint16_t>{1});
 }
 
+TEST_F(ServiceTest, MoveStartedBeforeAReloadCompletesAfterIt) {
+  ASSERT_TRUE(client_->write_single(2, 100, 1).ok());   // enable
+  ASSERT_TRUE(client_->write_i32(2, 110, 30000).ok());  // target: a move of about 3 s
+  ASSERT_TRUE(client_->write_single(2, 100, 3).ok());   // move_absolute
+  EXPECT_EQ(client_->read_holding(2, 101, 1).values, std::vector<uint16_t>{1});
+  plant_->daemon().signal(SIGHUP);  // same file: the bus is kept
+  // Keep reading the notify socket as systemd does: a full datagram queue would block the daemon.
+  ASSERT_TRUE(wait_until([&] {
+    notify_->messages();
+    return plant_->daemon().log().find("reloaded:") != std::string::npos;
+  }));
+  ASSERT_TRUE(wait_until(
+      [&] {
+        notify_->messages();
+        return client_->read_holding(2, 101, 1).values == std::vector<uint16_t>{2};
+      },
+      std::chrono::seconds(20)))
+      << "the move's completion watch must survive the reload";
+  EXPECT_EQ(client_->read_input_i32(2, 0), 30000);
+}
+
 TEST_F(ServiceTest, BadReloadKeepsTheRunningConfiguration) {
   std::string config = read_file(plant_->config_path());
   std::ofstream(plant_->config_path())
