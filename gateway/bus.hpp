@@ -40,6 +40,13 @@ struct BusCounters {
   uint64_t commands = 0;
   bool link_up = false;
   bool open_attempted = false;  // the first open finished, successfully or not
+  // CAN buses (bytes_sent/bytes_received count the frames' data bytes there).
+  uint64_t frames_sent = 0;
+  uint64_t frames_received = 0;
+  uint64_t error_frames = 0;  // error frames from the CAN controller or driver, all classes
+  uint64_t bus_off = 0;       // error frames that reported bus-off
+  uint64_t rx_dropped = 0;    // frames the kernel dropped because the receive queue was full
+  uint64_t tx_dropped = 0;    // frames never sent: the transmit queue stayed full
 };
 
 // One field link with its own scheduler. Serial links carry one transaction at a time
@@ -69,5 +76,9 @@ class Bus {
 std::shared_ptr<Bus> make_bus(asio::any_io_executor executor,
                               std::shared_ptr<const void> config_owner, const BusConfig& config,
                               int first_node_index, Bus::NodeUpdated on_update);
+// The CAN bus runtime (gateway/can_bus.cpp), for buses with `can:`.
+std::shared_ptr<Bus> make_can_bus(asio::any_io_executor executor,
+                                  std::shared_ptr<const void> config_owner, const BusConfig& config,
+                                  int first_node_index, Bus::NodeUpdated on_update);
 
 }  // namespace fieldgate

@@ -214,13 +214,19 @@ class ConfigParser {
     }
   }
 
-  void parse_timing(const YAML::Node& node, BusTiming& t, const std::string& where) {
+  void parse_timing(const YAML::Node& node, BusTiming& t, const std::string& where, bool can) {
     if (!r_.expect_map(node, where)) return;
-    r_.reject_unknown_keys(
-        node,
-        {"reply_timeout", "byte_timeout", "inter_frame_gap", "turnaround", "retries",
-         "offline_after", "probe_interval", "reconnect_min", "reconnect_max"},
-        where);
+    r_.reject_unknown_keys(node,
+                           {"reply_timeout", "byte_timeout", "inter_frame_gap", "turnaround",
+                            "retries", "offline_after", "probe_interval", "reconnect_min",
+                            "reconnect_max", "heartbeat_timeout", "start_nodes"},
+                           where);
+    for (const char* key : {"heartbeat_timeout", "start_nodes"})
+      if (node[key] && !can)
+        r_.error(node[key], fmt::format("{} {}: only a CAN bus (can: ...) has heartbeats and NMT",
+                                        where, key));
+    if (node["start_nodes"])
+      t.start_nodes = r_.boolean(node["start_nodes"], where + " start_nodes").value_or(false);
     auto dur = [&](const char* key, microseconds& out) {
       if (node[key]) out = r_.duration(node[key], where + " " + key).value_or(out);
     };
@@ -231,6 +237,9 @@ class ConfigParser {
     dur("probe_interval", t.probe_interval);
     dur("reconnect_min", t.reconnect_min);
     dur("reconnect_max", t.reconnect_max);
+    dur("heartbeat_timeout", t.heartbeat_timeout);
+    if (t.heartbeat_timeout.count() < 0)
+      r_.error(node["heartbeat_timeout"], where + " heartbeat_timeout: must not be negative");
     if (node["retries"])
       t.retries =
           static_cast<int>(r_.integer(node["retries"], where + " retries", 0, 10).value_or(1));
@@ -276,6 +285,23 @@ class ConfigParser {
     }
   }
 
+  void parse_can(const YAML::Node& node, TransportConfig& t, const std::string& where) {
+    if (!r_.expect_map(node, where)) return;
+    r_.reject_unknown_keys(node, {"interface"}, where);
+    const auto i = r_.require(node, "interface", where);
+    if (!i) return;
+    const auto name = expand(*i, where + " interface");
+    if (!name) return;
+    // Linux interface names: 1..15 bytes (IFNAMSIZ), no '/', no white space.
+    if (name->empty() || name->size() > 15 || name->find_first_of("/ \t\n:") != std::string::npos) {
+      r_.error(*i, fmt::format("{} interface: '{}' is not a network interface name (such as "
+                               "can0 or vcan0)",
+                               where, *name));
+      return;
+    }
+    t.can_interface = *name;
+  }
+
   void parse_bus(const YAML::Node& node, GatewayConfig& config) {
     if (!r_.expect_map(node, "bus")) return;
     BusConfig bus;
@@ -288,7 +314,8 @@ class ConfigParser {
         for (const auto& other : config.buses)
           if (other.name == *s) r_.error(*n, fmt::format("{}: bus name is already used", where));
       }
-    r_.reject_unknown_keys(node, {"name", "protocol", "serial", "tcp", "timing", "nodes"}, where);
+    r_.reject_unknown_keys(node, {"name", "protocol", "serial", "tcp", "can", "timing", "nodes"},
+                           where);
     if (auto p = r_.require(node, "protocol", where)) {
       if (auto s = r_.string(*p, where + " protocol")) {
         bus.protocol = *s;
@@ -302,8 +329,13 @@ class ConfigParser {
     }
     const bool has_serial = static_cast<bool>(node["serial"]);
     const bool has_tcp = static_cast<bool>(node["tcp"]);
-    if (has_serial == has_tcp) {
-      r_.error(node, fmt::format("{}: needs exactly one of 'serial' or 'tcp'", where));
+    const bool has_can = static_cast<bool>(node["can"]);
+    const bool one_transport = int(has_serial) + int(has_tcp) + int(has_can) == 1;
+    if (!one_transport) {
+      r_.error(node, fmt::format("{}: needs exactly one of 'serial', 'tcp' or 'can'", where));
+    } else if (has_can) {
+      bus.transport.kind = TransportConfig::Kind::can;
+      parse_can(node["can"], bus.transport, where + " can");
     } else if (has_serial) {
       bus.transport.kind = TransportConfig::Kind::serial;
       parse_serial(node["serial"], bus.transport.serial, where + " serial", true);
@@ -321,13 +353,24 @@ class ConfigParser {
         parse_serial(tcp, bus.transport.serial, where + " tcp", false);
       }
     }
-    if (node["timing"]) parse_timing(node["timing"], bus.timing, where + " timing");
+    // CANopen needs a CAN interface and nothing else runs on one.
+    const bool canopen = bus.protocol == "canopen";
+    if (bus.family && one_transport && canopen != has_can) {
+      if (canopen)
+        r_.error(node["protocol"], fmt::format("{}: protocol canopen runs on a CAN interface: "
+                                               "give can: {{interface: can0}} instead of {}",
+                                               where, has_serial ? "serial" : "tcp"));
+      else
+        r_.error(node["can"], fmt::format("{}: a CAN interface carries protocol canopen, not {}",
+                                          where, bus.protocol));
+    }
+    if (node["timing"]) parse_timing(node["timing"], bus.timing, where + " timing", has_can);
     if (auto nodes = r_.require(node, "nodes", where);
         nodes && r_.expect_sequence(*nodes, where + " nodes")) {
       for (const auto& n : *nodes) parse_node(n, bus, config, where);
       if (nodes->size() == 0) r_.error(*nodes, where + ": has no nodes");
     }
-    if (bus.family && r_.diagnostics().ok()) {
+    if (bus.family && r_.diagnostics().ok() && bus.transport.kind != TransportConfig::Kind::can) {
       const auto budget = compute_poll_budget(bus);
       if (budget.wire_seconds_per_second > 1.0)
         config.warnings.push_back(fmt::format(
@@ -337,7 +380,7 @@ class ConfigParser {
             bus.transport.serial.baud));
     }
     bus.signature = YAML::Dump(node) + "\n--- link " + bus.transport.serial.device + " " +
-                    bus.transport.host + "\n";
+                    bus.transport.host + " " + bus.transport.can_interface + "\n";
     for (const auto& n : bus.nodes)
       if (n.model)
         bus.signature += "\n--- model " + n.model->name + "\n" + file_text(n.model->mark.file);

@@ -48,14 +48,19 @@ struct BusTiming {
   microseconds probe_interval{std::chrono::seconds(2)};
   microseconds reconnect_min{std::chrono::milliseconds(500)};
   microseconds reconnect_max{std::chrono::seconds(10)};
+  // CAN buses only. Heartbeat consumer time: a node whose heartbeat (0x700 + ID) stays away
+  // this long goes offline; 0 means no heartbeat consumer.
+  microseconds heartbeat_timeout{0};
+  bool start_nodes = false;  // NMT start for every node at start-up and after its boot-up
 };
 
 struct TransportConfig {
-  enum class Kind { serial, tcp };
+  enum class Kind { serial, tcp, can };
   Kind kind = Kind::serial;
   SerialSettings serial;  // for tcp only baud and framing matter (wire time)
   std::string host;
   uint16_t port = 0;
+  std::string can_interface;  // SocketCAN interface name (can0, vcan0)
 };
 
 // Installation limits of a writable point, narrower than the model's (travel, speed).

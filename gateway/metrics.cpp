@@ -65,6 +65,15 @@ std::string render_metrics(const Gateway& gateway) {
       {"fieldgate_bus_sent_bytes_total", "Bytes written to the link.", &BusCounters::bytes_sent},
       {"fieldgate_bus_received_bytes_total", "Bytes read from the link.",
        &BusCounters::bytes_received},
+      {"fieldgate_bus_can_frames_sent_total", "CAN frames sent.", &BusCounters::frames_sent},
+      {"fieldgate_bus_can_frames_received_total", "CAN frames received.",
+       &BusCounters::frames_received},
+      {"fieldgate_bus_can_error_frames_total", "CAN error frames.", &BusCounters::error_frames},
+      {"fieldgate_bus_can_bus_off_total", "CAN bus-off events.", &BusCounters::bus_off},
+      {"fieldgate_bus_can_rx_dropped_total", "CAN frames the kernel dropped on receive.",
+       &BusCounters::rx_dropped},
+      {"fieldgate_bus_can_tx_dropped_total", "CAN frames that could not be sent.",
+       &BusCounters::tx_dropped},
   };
   for (const auto& c : counters) {
     w.family(c.name, "counter", c.help);

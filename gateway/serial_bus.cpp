@@ -114,6 +114,9 @@ void SerialBus::stop() {
 std::shared_ptr<Bus> make_bus(asio::any_io_executor executor,
                               std::shared_ptr<const void> config_owner, const BusConfig& config,
                               int first_node_index, Bus::NodeUpdated on_update) {
+  if (config.transport.kind == TransportConfig::Kind::can)
+    return make_can_bus(executor, std::move(config_owner), config, first_node_index,
+                        std::move(on_update));
   return std::make_shared<SerialBus>(executor, std::move(config_owner), config, first_node_index,
                                      std::move(on_update));
 }

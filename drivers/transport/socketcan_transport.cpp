@@ -8,12 +8,17 @@
 #include <unistd.h>
 
 #include <boost/asio/as_tuple.hpp>
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/detached.hpp>
 #include <boost/asio/experimental/awaitable_operators.hpp>
+#include <boost/asio/post.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cstring>
+#include <optional>
 
 namespace fieldgate {
 
@@ -33,6 +38,7 @@ SocketCanTransport::SocketCanTransport(asio::any_io_executor executor, std::stri
     : executor_(executor), interface_(std::move(interface)), descriptor_(executor) {}
 
 SocketCanTransport::~SocketCanTransport() {
+  *alive_ = false;
   close();
 }
 
@@ -79,47 +85,64 @@ std::error_code SocketCanTransport::open(const std::vector<uint32_t>& cob_ids) {
 }
 
 void SocketCanTransport::close() {
+  tx_queue_.clear();
+  tx_error_.clear();
   if (!descriptor_.is_open()) return;
   boost::system::error_code ignored;
   descriptor_.close(ignored);
 }
 
 bool SocketCanTransport::drain(std::vector<CanFrame>& frames, std::error_code& ec) {
+  // recvmmsg takes a burst (32 nodes answering at once) in one system call.
+  constexpr std::size_t kBurst = 32;
+  std::array<can_frame, kBurst> raw{};
+  std::array<iovec, kBurst> iov{};
+  std::array<mmsghdr, kBurst> msgs{};
+  struct Control {
+    alignas(cmsghdr) char bytes[CMSG_SPACE(sizeof(uint32_t))];
+  };
+  std::array<Control, kBurst> control{};
   const int fd = descriptor_.native_handle();
-  for (std::size_t n = 0; n < kMaxBatch; ++n) {
-    can_frame raw{};
-    iovec iov{&raw, sizeof raw};
-    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(uint32_t))];
-    msghdr msg{};
-    msg.msg_iov = &iov;
-    msg.msg_iovlen = 1;
-    msg.msg_control = control;
-    msg.msg_controllen = sizeof control;
-    const ssize_t got = ::recvmsg(fd, &msg, MSG_DONTWAIT);
+  for (std::size_t total = 0; total < kMaxBatch;) {
+    for (std::size_t i = 0; i < kBurst; ++i) {
+      iov[i] = {&raw[i], sizeof raw[i]};
+      msgs[i] = {};
+      msgs[i].msg_hdr.msg_iov = &iov[i];
+      msgs[i].msg_hdr.msg_iovlen = 1;
+      msgs[i].msg_hdr.msg_control = control[i].bytes;
+      msgs[i].msg_hdr.msg_controllen = sizeof control[i].bytes;
+    }
+    const int got = ::recvmmsg(fd, msgs.data(), kBurst, MSG_DONTWAIT, nullptr);
     if (got < 0) {
       if (errno == EINTR) continue;
       if (errno == EAGAIN || errno == EWOULDBLOCK) return true;
       ec = last_error();  // ENETDOWN, ENODEV: the interface went down or away
       return false;
     }
-    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c; c = CMSG_NXTHDR(&msg, c))
-      if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL) {
-        uint32_t dropped = 0;
-        std::memcpy(&dropped, CMSG_DATA(c), sizeof dropped);
-        stats_.rx_dropped = std::max<uint64_t>(stats_.rx_dropped, dropped);
-      }
-    if (static_cast<std::size_t>(got) != sizeof raw || (raw.can_id & CAN_EFF_FLAG)) continue;
-    CanFrame f;
-    f.error = raw.can_id & CAN_ERR_FLAG;
-    f.rtr = !f.error && (raw.can_id & CAN_RTR_FLAG);
-    f.id = f.error ? (raw.can_id & CAN_ERR_MASK) : (raw.can_id & CAN_SFF_MASK);
-    f.len = std::min<uint8_t>(raw.len, 8);
-    if (!f.rtr) std::memcpy(f.data.data(), raw.data, f.len);
-    if (f.error)
-      ++stats_.error_frames;
-    else
-      ++stats_.frames_received;
-    frames.push_back(f);
+    for (int m = 0; m < got; ++m) {
+      auto& msg = msgs[static_cast<std::size_t>(m)];
+      const can_frame& r = raw[static_cast<std::size_t>(m)];
+      for (cmsghdr* c = CMSG_FIRSTHDR(&msg.msg_hdr); c; c = CMSG_NXTHDR(&msg.msg_hdr, c))
+        if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL) {
+          uint32_t dropped = 0;
+          std::memcpy(&dropped, CMSG_DATA(c), sizeof dropped);
+          stats_.rx_dropped = std::max<uint64_t>(stats_.rx_dropped, dropped);
+        }
+      if (msg.msg_len != sizeof r || (r.can_id & CAN_EFF_FLAG)) continue;
+      CanFrame f;
+      f.error = r.can_id & CAN_ERR_FLAG;
+      f.rtr = !f.error && (r.can_id & CAN_RTR_FLAG);
+      f.id = f.error ? (r.can_id & CAN_ERR_MASK) : (r.can_id & CAN_SFF_MASK);
+      f.len = std::min<uint8_t>(r.len, 8);
+      if (!f.rtr) std::memcpy(f.data.data(), r.data, f.len);
+      if (f.error)
+        ++stats_.error_frames;
+      else
+        ++stats_.frames_received;
+      frames.push_back(f);
+    }
+    total += static_cast<std::size_t>(got);
+    if (static_cast<std::size_t>(got) < kBurst) return true;  // the queue is empty now
   }
   return true;
 }
@@ -138,27 +161,78 @@ asio::awaitable<std::error_code> SocketCanTransport::receive(std::vector<CanFram
 
 asio::awaitable<std::error_code> SocketCanTransport::send(const CanFrame& frame,
                                                           std::chrono::microseconds timeout) {
+  if (!descriptor_.is_open()) co_return std::make_error_code(std::errc::bad_file_descriptor);
+  if (tx_error_) co_return tx_error_;
+  if (tx_queue_.size() >= kMaxQueued) {
+    ++stats_.tx_dropped;
+    co_return std::make_error_code(std::errc::timed_out);
+  }
   can_frame raw{};
   raw.can_id = frame.id | (frame.rtr ? CAN_RTR_FLAG : 0u) | (frame.error ? CAN_ERR_FLAG : 0u);
   raw.len = frame.len;
   std::memcpy(raw.data, frame.data.data(), std::min<std::size_t>(frame.len, 8));
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  for (;;) {
-    if (!descriptor_.is_open()) co_return std::make_error_code(std::errc::bad_file_descriptor);
-    const ssize_t n = ::write(descriptor_.native_handle(), &raw, sizeof raw);
-    if (n == static_cast<ssize_t>(sizeof raw)) {
-      ++stats_.frames_sent;
-      co_return std::error_code{};
+  tx_queue_.push_back(raw);
+  tx_timeout_ = timeout;
+  // Every frame queued by the handlers that run now goes out in one sendmmsg: after a burst of
+  // answers each node's worker queues its next request, and they leave together.
+  if (!flush_posted_ && !tx_waiting_) {
+    flush_posted_ = true;
+    asio::post(executor_, [this, alive = alive_] {
+      if (!*alive) return;
+      flush_posted_ = false;
+      if (!tx_waiting_) start_flush();
+    });
+  }
+  co_return std::error_code{};
+}
+
+SocketCanTransport::Flush SocketCanTransport::flush() {
+  constexpr std::size_t kBurst = 64;
+  std::array<can_frame, kBurst> raw{};
+  std::array<iovec, kBurst> iov{};
+  std::array<mmsghdr, kBurst> msgs{};
+  while (!tx_queue_.empty()) {
+    if (!descriptor_.is_open()) return Flush::failed;
+    const std::size_t n = std::min(kBurst, tx_queue_.size());
+    for (std::size_t i = 0; i < n; ++i) {
+      raw[i] = tx_queue_[i];
+      iov[i] = {&raw[i], sizeof raw[i]};
+      msgs[i] = {};
+      msgs[i].msg_hdr.msg_iov = &iov[i];
+      msgs[i].msg_hdr.msg_iovlen = 1;
     }
-    if (n >= 0) co_return std::make_error_code(std::errc::message_size);
+    const int sent = ::sendmmsg(descriptor_.native_handle(), msgs.data(), static_cast<unsigned>(n),
+                                MSG_DONTWAIT);
+    if (sent > 0) {
+      tx_queue_.erase(tx_queue_.begin(), tx_queue_.begin() + sent);
+      stats_.frames_sent += static_cast<uint64_t>(sent);
+      continue;
+    }
     if (errno == EINTR) continue;
-    const int err = errno;
-    if (err != EAGAIN && err != EWOULDBLOCK && err != ENOBUFS)
-      co_return std::error_code{err, std::generic_category()};
-    if (std::chrono::steady_clock::now() >= deadline)
-      co_return std::make_error_code(std::errc::timed_out);
-    asio::steady_timer timer(executor_);
-    if (err == ENOBUFS) {
+    if (errno == EAGAIN || errno == EWOULDBLOCK) return Flush::blocked;
+    if (errno == ENOBUFS) return Flush::no_buffers;
+    // ENETDOWN, ENODEV: the link failed; the reader sees it too.
+    tx_error_ = last_error();
+    stats_.tx_dropped += tx_queue_.size();
+    tx_queue_.clear();
+    return Flush::failed;
+  }
+  return Flush::done;
+}
+
+void SocketCanTransport::start_flush() {
+  const auto r = flush();
+  if (r != Flush::blocked && r != Flush::no_buffers) return;
+  tx_waiting_ = true;
+  asio::co_spawn(executor_, wait_writable(r == Flush::no_buffers, alive_), asio::detached);
+}
+
+asio::awaitable<void> SocketCanTransport::wait_writable(bool no_buffers,
+                                                        std::shared_ptr<bool> alive) {
+  auto deadline = std::chrono::steady_clock::now() + tx_timeout_;
+  asio::steady_timer timer(executor_);
+  for (;;) {
+    if (no_buffers) {
       // The driver queue is full and poll() would say writable at once: retry on a timer.
       timer.expires_after(std::chrono::milliseconds(1));
       co_await timer.async_wait(use_tuple);
@@ -167,7 +241,23 @@ asio::awaitable<std::error_code> SocketCanTransport::send(const CanFrame& frame,
       co_await (descriptor_.async_wait(asio::posix::descriptor_base::wait_write, use_tuple) ||
                 timer.async_wait(use_tuple));
     }
+    if (!*alive) co_return;
+    const auto before = tx_queue_.size();
+    const auto r = flush();
+    if (r == Flush::done || r == Flush::failed) break;
+    no_buffers = r == Flush::no_buffers;
+    const auto now = std::chrono::steady_clock::now();
+    if (tx_queue_.size() < before) {
+      deadline = now + tx_timeout_;  // progress
+    } else if (now >= deadline) {
+      // Nothing went out for a whole timeout (a bus-off controller, nobody acknowledging): the
+      // frames are stale, and the transfers waiting for them time out.
+      stats_.tx_dropped += tx_queue_.size();
+      tx_queue_.clear();
+      break;
+    }
   }
+  tx_waiting_ = false;
 }
 
 }  // namespace fieldgate

@@ -125,7 +125,7 @@ TEST_F(ConfigLoaderTest, SerialAndTcpAreExclusive) {
   const auto e = load(
       "buses:\n  - name: b\n    protocol: copley-ascii\n"
       "    nodes:\n      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n");
-  EXPECT_NE(e.find("needs exactly one of 'serial' or 'tcp'"), std::string::npos) << e;
+  EXPECT_NE(e.find("needs exactly one of 'serial', 'tcp' or 'can'"), std::string::npos) << e;
 }
 
 TEST_F(ConfigLoaderTest, SetpointOverrideChecked) {
@@ -157,6 +157,119 @@ TEST_F(ConfigLoaderTest, PollBudgetWarning) {
   ASSERT_EQ(c->gateway.warnings.size(), 1u);
   EXPECT_NE(c->gateway.warnings[0].find("bus slow: the configured polls need"), std::string::npos)
       << c->gateway.warnings[0];
+}
+
+// --- CAN buses ---------------------------------------------------------------------------------
+
+std::string can_bus(const std::string& transport, const std::string& extra = "",
+                    const std::string& protocol = "canopen",
+                    const std::string& nodes =
+                        "      - {name: a, address: 2, model: canopen-cia402, unit_id: 1}\n") {
+  return "buses:\n  - name: c\n    protocol: " + protocol + "\n" + transport + extra +
+         "    nodes:\n" + nodes;
+}
+
+TEST_F(ConfigLoaderTest, CanBusLoads) {
+  std::optional<LoadedConfig> c;
+  EXPECT_EQ(load(can_bus("    can: {interface: vcan0}\n",
+                         "    timing: {reply_timeout: 20ms, heartbeat_timeout: 500ms, "
+                         "start_nodes: true}\n",
+                         "canopen",
+                         "      - {name: a, address: 2, model: canopen-cia402, unit_id: 1}\n"
+                         "      - {name: b, address: 0x7F, model: canopen-cia301, unit_id: 2}\n"),
+                 &c),
+            "");
+  ASSERT_TRUE(c);
+  const auto& b = c->gateway.buses.at(0);
+  EXPECT_EQ(b.transport.kind, TransportConfig::Kind::can);
+  EXPECT_EQ(b.transport.can_interface, "vcan0");
+  EXPECT_EQ(b.timing.heartbeat_timeout, std::chrono::milliseconds(500));
+  EXPECT_TRUE(b.timing.start_nodes);
+  EXPECT_EQ(b.nodes.at(1).address.text, "127");
+  EXPECT_TRUE(c->gateway.warnings.empty());
+  // Defaults: no heartbeat consumer, nodes left in their NMT state.
+  EXPECT_EQ(load(can_bus("    can: {interface: can0}\n"), &c), "");
+  EXPECT_EQ(c->gateway.buses.at(0).timing.heartbeat_timeout.count(), 0);
+  EXPECT_FALSE(c->gateway.buses.at(0).timing.start_nodes);
+}
+
+TEST_F(ConfigLoaderTest, CanInterfaceFromEnvironment) {
+  ::setenv("FIELDGATE_TEST_CAN", "can1", 1);
+  std::optional<LoadedConfig> c;
+  EXPECT_EQ(load(can_bus("    can: {interface: \"${FIELDGATE_TEST_CAN}\"}\n"), &c), "");
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->gateway.buses.at(0).transport.can_interface, "can1");
+}
+
+TEST_F(ConfigLoaderTest, CanTransportErrors) {
+  auto e = load(can_bus("    can: {interface: vcan0}\n    serial: {device: /dev/null}\n"));
+  EXPECT_NE(e.find("gw.yaml:3:5: error: bus c: needs exactly one of 'serial', 'tcp' or 'can'"),
+            std::string::npos)
+      << e;
+  e = load(can_bus("    can: {interface: vcan0, bitrate: 500000}\n"));
+  EXPECT_NE(e.find("gw.yaml:5:29: error: bus c can: unknown key 'bitrate'"), std::string::npos)
+      << e;
+  e = load(can_bus("    can: {}\n"));
+  EXPECT_NE(e.find("gw.yaml:5:10: error: bus c can: missing required key 'interface'"),
+            std::string::npos)
+      << e;
+  e = load(can_bus("    can: {interface: \"can 0\"}\n"));
+  EXPECT_NE(e.find("gw.yaml:5:22: error: bus c can interface: 'can 0' is not a network interface "
+                   "name (such as can0 or vcan0)"),
+            std::string::npos)
+      << e;
+  e = load(can_bus("    can: {interface: a_very_long_interface_name}\n"));
+  EXPECT_NE(e.find("is not a network interface name"), std::string::npos) << e;
+}
+
+TEST_F(ConfigLoaderTest, CanopenAndCanBelongTogether) {
+  auto e = load(can_bus("    serial: {device: /dev/null}\n"));
+  EXPECT_NE(e.find("gw.yaml:4:15: error: bus c: protocol canopen runs on a CAN interface: give "
+                   "can: {interface: can0} instead of serial"),
+            std::string::npos)
+      << e;
+  e = load(can_bus("    can: {interface: vcan0}\n", "", "copley-ascii",
+                   "      - {name: a, address: 2, model: copley-amplifier, unit_id: 1}\n"));
+  EXPECT_NE(e.find("gw.yaml:5:10: error: bus c: a CAN interface carries protocol canopen, not "
+                   "copley-ascii"),
+            std::string::npos)
+      << e;
+}
+
+TEST_F(ConfigLoaderTest, CanTimingKeys) {
+  auto e = load(bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n",
+                    "    timing: {heartbeat_timeout: 1s, start_nodes: true}\n"));
+  EXPECT_NE(e.find("gw.yaml:6:33: error: bus b timing heartbeat_timeout: only a CAN bus (can: ...) "
+                   "has heartbeats and NMT"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("gw.yaml:6:50: error: bus b timing start_nodes: only a CAN bus"),
+            std::string::npos)
+      << e;
+  e = load(can_bus("    can: {interface: vcan0}\n", "    timing: {start_nodes: maybe}\n"));
+  EXPECT_NE(e.find("gw.yaml:6:27: error: bus c timing start_nodes: expected true or false"),
+            std::string::npos)
+      << e;
+  e = load(can_bus("    can: {interface: vcan0}\n", "    timing: {heartbeat_timeout: soon}\n"));
+  EXPECT_NE(e.find("gw.yaml:6:33: error: bus c timing heartbeat_timeout:"), std::string::npos) << e;
+}
+
+TEST_F(ConfigLoaderTest, CanopenNodeAddresses) {
+  auto e = load(can_bus("    can: {interface: vcan0}\n", "", "canopen",
+                        "      - {name: a, address: 0, model: canopen-cia402, unit_id: 1}\n"
+                        "      - {name: b, address: 128, model: canopen-cia402, unit_id: 2}\n"
+                        "      - {name: c, address: 5, model: canopen-cia402, unit_id: 3}\n"
+                        "      - {name: d, address: 0x05, model: canopen-cia402, unit_id: 4}\n"));
+  EXPECT_NE(e.find("gw.yaml:7:28: error: node a address: expected a CANopen node ID 1..127, "
+                   "found '0'"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("gw.yaml:8:28: error: node b address: expected a CANopen node ID 1..127"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("gw.yaml:10:28: error: node d: address 5 is already used by node c on bus c"),
+            std::string::npos)
+      << e;
 }
 
 TEST_F(ConfigLoaderTest, ShippedDemoConfigIsValid) {

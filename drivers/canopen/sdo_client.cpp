@@ -1,0 +1,259 @@
+#include "drivers/canopen/sdo_client.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+namespace fieldgate::canopen {
+
+namespace {
+// Server command specifiers (byte 0, bits 7..5).
+constexpr uint8_t kScsUploadSegment = 0;
+constexpr uint8_t kScsDownloadSegment = 1;
+constexpr uint8_t kScsInitiateUpload = 2;
+constexpr uint8_t kScsInitiateDownload = 3;
+constexpr uint8_t kScsAbort = 4;
+
+uint8_t scs(const SdoPayload& p) {
+  return static_cast<uint8_t>(p[0] >> 5);
+}
+bool toggle_of(const SdoPayload& p) {
+  return (p[0] & 0x10) != 0;
+}
+}  // namespace
+
+const SdoClient::State SdoClient::kIdle{"idle", &SdoClient::idle_recv};
+const SdoClient::State SdoClient::kUploadInitiate{"upload initiate",
+                                                  &SdoClient::upload_initiate_recv};
+const SdoClient::State SdoClient::kUploadSegment{"upload segment", &SdoClient::upload_segment_recv};
+const SdoClient::State SdoClient::kDownloadInitiate{"download initiate",
+                                                    &SdoClient::download_initiate_recv};
+const SdoClient::State SdoClient::kDownloadSegment{"download segment",
+                                                   &SdoClient::download_segment_recv};
+
+SdoClient::SdoClient(uint8_t node, std::chrono::microseconds timeout)
+    : node_(node), timeout_(timeout) {}
+
+std::optional<TimePoint> SdoClient::deadline() const {
+  if (idle()) return std::nullopt;
+  return deadline_;
+}
+
+SdoStep SdoClient::upload(uint16_t index, uint8_t sub, TimePoint now) {
+  if (!idle()) {
+    SdoResult r;
+    r.status = SdoResult::Status::client_abort;
+    r.abort_code = sdo_abort::general;
+    r.text = "an SDO transfer to this node is already running";
+    return {std::nullopt, r};
+  }
+  index_ = index;
+  sub_ = sub;
+  toggle_ = false;
+  size_.reset();
+  data_.clear();
+  offset_ = 0;
+  return request(kUploadInitiate, sdo_upload_request(index, sub), now);
+}
+
+SdoStep SdoClient::download(uint16_t index, uint8_t sub, std::vector<uint8_t> data, TimePoint now) {
+  if (!idle()) {
+    SdoResult r;
+    r.status = SdoResult::Status::client_abort;
+    r.abort_code = sdo_abort::general;
+    r.text = "an SDO transfer to this node is already running";
+    return {std::nullopt, r};
+  }
+  index_ = index;
+  sub_ = sub;
+  toggle_ = false;
+  size_.reset();
+  data_ = std::move(data);
+  offset_ = 0;
+  return request(kDownloadInitiate, sdo_download_request(index, sub, data_), now);
+}
+
+SdoStep SdoClient::on_frame(const CanFrame& frame, TimePoint now) {
+  if (frame.error || frame.rtr || frame.id != cob::sdo_tx + node_) return {};
+  // CiA 301 SDO frames always have 8 bytes; like the common stacks, ignore anything shorter.
+  if (frame.len != 8) {
+    ++ignored_;
+    return {};
+  }
+  return (this->*state_->on_recv)(frame.data, now);
+}
+
+SdoStep SdoClient::on_time(TimePoint now) {
+  if (idle() || now < deadline_) return {};
+  SdoResult r;
+  r.status = SdoResult::Status::timeout;
+  r.abort_code = sdo_abort::timeout;
+  r.text = fmt::format("no SDO response from node {} within {} ms ({} of 0x{:04X}:{})", node_,
+                       std::chrono::duration_cast<std::chrono::milliseconds>(timeout_).count(),
+                       state_->name, index_, sub_);
+  return finish(std::move(r),
+                sdo_request_frame(node_, sdo_abort_request(index_, sub_, sdo_abort::timeout)));
+}
+
+SdoStep SdoClient::abort(uint32_t code) {
+  if (idle()) return {};
+  return client_abort(code, abort_text(code));
+}
+
+bool SdoClient::same_object(const SdoPayload& response) const {
+  return sdo_index(response) == index_ && sdo_subindex(response) == sub_;
+}
+
+SdoStep SdoClient::request(const State& next, const SdoPayload& payload, TimePoint now) {
+  state_ = &next;
+  deadline_ = now + timeout_;
+  return {sdo_request_frame(node_, payload), std::nullopt};
+}
+
+SdoStep SdoClient::finish(SdoResult result, std::optional<CanFrame> send) {
+  state_ = &kIdle;
+  if (result.status == SdoResult::Status::ok) result.data = std::move(data_);
+  data_.clear();
+  return {std::move(send), std::move(result)};
+}
+
+SdoStep SdoClient::finish_ok() {
+  return finish(SdoResult{});
+}
+
+SdoStep SdoClient::server_abort(const SdoPayload& response) {
+  SdoResult r;
+  r.status = SdoResult::Status::server_abort;
+  r.abort_code = sdo_u32(response);
+  r.text = fmt::format("SDO abort 0x{:08X} from node {} for 0x{:04X}:{}: {}", r.abort_code, node_,
+                       index_, sub_, abort_text(r.abort_code));
+  return finish(std::move(r));
+}
+
+SdoStep SdoClient::client_abort(uint32_t code, std::string why) {
+  SdoResult r;
+  r.status = SdoResult::Status::client_abort;
+  r.abort_code = code;
+  r.text = fmt::format("SDO transfer with node {} for 0x{:04X}:{} aborted by the gateway: {}",
+                       node_, index_, sub_, why);
+  return finish(std::move(r), sdo_request_frame(node_, sdo_abort_request(index_, sub_, code)));
+}
+
+SdoStep SdoClient::idle_recv(const SdoPayload&, TimePoint) {
+  ++ignored_;
+  return {};
+}
+
+SdoStep SdoClient::upload_initiate_recv(const SdoPayload& response, TimePoint now) {
+  const uint8_t cs = scs(response);
+  if (cs == kScsAbort) {
+    if (!same_object(response)) return idle_recv(response, now);
+    return server_abort(response);
+  }
+  if (cs != kScsInitiateUpload)
+    return client_abort(
+        sdo_abort::command_specifier,
+        fmt::format("unexpected response 0x{:02X} to an upload request", response[0]));
+  if (!same_object(response)) return idle_recv(response, now);  // a late answer to another
+  const bool expedited = response[0] & 0x02;
+  const bool size_indicated = response[0] & 0x01;
+  if (expedited) {
+    const std::size_t n = size_indicated ? 4 - ((response[0] >> 2) & 0x03) : 4;
+    data_.assign(response.begin() + 4, response.begin() + 4 + static_cast<std::ptrdiff_t>(n));
+    return finish_ok();
+  }
+  if (size_indicated) {
+    size_ = sdo_u32(response);
+    if (*size_ > kMaxUpload)
+      return client_abort(sdo_abort::out_of_memory,
+                          fmt::format("the server announced {} bytes, more than the {} the "
+                                      "gateway accepts",
+                                      *size_, kMaxUpload));
+  }
+  toggle_ = false;
+  return request(kUploadSegment, sdo_upload_segment_request(toggle_), now);
+}
+
+SdoStep SdoClient::upload_segment_recv(const SdoPayload& response, TimePoint now) {
+  const uint8_t cs = scs(response);
+  if (cs == kScsAbort) {
+    if (!same_object(response)) return idle_recv(response, now);
+    return server_abort(response);
+  }
+  if (cs != kScsUploadSegment)
+    return client_abort(
+        sdo_abort::command_specifier,
+        fmt::format("unexpected response 0x{:02X} to an upload segment request", response[0]));
+  if (toggle_of(response) != toggle_)
+    return client_abort(sdo_abort::toggle_bit,
+                        fmt::format("toggle bit {} where {} was due", toggle_of(response) ? 1 : 0,
+                                    toggle_ ? 1 : 0));
+  const std::size_t n = 7 - ((response[0] >> 1) & 0x07);
+  const bool last = response[0] & 0x01;
+  data_.insert(data_.end(), response.begin() + 1,
+               response.begin() + 1 + static_cast<std::ptrdiff_t>(n));
+  if ((size_ && data_.size() > *size_) || data_.size() > kMaxUpload)
+    return client_abort(sdo_abort::length_too_high,
+                        fmt::format("the server sent more than the {} bytes it announced",
+                                    size_.value_or(kMaxUpload)));
+  if (!last) {
+    toggle_ = !toggle_;
+    return request(kUploadSegment, sdo_upload_segment_request(toggle_), now);
+  }
+  if (size_ && data_.size() != *size_) {
+    // The server has ended the transfer, so there is nobody left to send an abort to.
+    SdoResult r;
+    r.status = SdoResult::Status::client_abort;
+    r.abort_code = sdo_abort::length_too_low;
+    r.text = fmt::format("node {} sent {} bytes of 0x{:04X}:{} but announced {}", node_,
+                         data_.size(), index_, sub_, *size_);
+    return finish(std::move(r));
+  }
+  return finish_ok();
+}
+
+SdoStep SdoClient::download_initiate_recv(const SdoPayload& response, TimePoint now) {
+  const uint8_t cs = scs(response);
+  if (cs == kScsAbort) {
+    if (!same_object(response)) return idle_recv(response, now);
+    return server_abort(response);
+  }
+  if (cs != kScsInitiateDownload)
+    return client_abort(
+        sdo_abort::command_specifier,
+        fmt::format("unexpected response 0x{:02X} to a download request", response[0]));
+  if (!same_object(response)) return idle_recv(response, now);
+  if (!data_.empty() && data_.size() <= 4) return finish_ok();  // expedited: done
+  toggle_ = false;
+  return next_download_segment(now);
+}
+
+SdoStep SdoClient::next_download_segment(TimePoint now) {
+  const std::size_t n = std::min<std::size_t>(7, data_.size() - offset_);
+  const bool last = offset_ + n >= data_.size();
+  const auto payload =
+      sdo_download_segment(toggle_, std::span<const uint8_t>(data_).subspan(offset_, n), last);
+  offset_ += n;
+  return request(kDownloadSegment, payload, now);
+}
+
+SdoStep SdoClient::download_segment_recv(const SdoPayload& response, TimePoint now) {
+  const uint8_t cs = scs(response);
+  if (cs == kScsAbort) {
+    if (!same_object(response)) return idle_recv(response, now);
+    return server_abort(response);
+  }
+  if (cs != kScsDownloadSegment)
+    return client_abort(
+        sdo_abort::command_specifier,
+        fmt::format("unexpected response 0x{:02X} to a download segment", response[0]));
+  if (toggle_of(response) != toggle_)
+    return client_abort(sdo_abort::toggle_bit,
+                        fmt::format("toggle bit {} where {} was due", toggle_of(response) ? 1 : 0,
+                                    toggle_ ? 1 : 0));
+  if (offset_ >= data_.size()) return finish_ok();
+  toggle_ = !toggle_;
+  return next_download_segment(now);
+}
+
+}  // namespace fieldgate::canopen

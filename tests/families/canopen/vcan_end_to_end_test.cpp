@@ -1,0 +1,240 @@
+// End to end on a kernel vcan0: the fieldgate daemon with a CAN bus, fieldgate-sim-canopen with
+// two CiA 402 drives, a libmodbus client as the PLC and candump as the foreign observer. Runs
+// inside scripts/vcan-run; the tests share one plant (one User-Mode Linux boot) and run in order.
+#include <gtest/gtest.h>
+
+#include <regex>
+
+#include "gateway/config_loader.hpp"
+#include "vcan_fixture.hpp"
+
+namespace fieldgate {
+namespace {
+
+using namespace std::chrono_literals;
+using test::can_interface;
+using test::ModbusClient;
+using test::wait_until;
+
+constexpr int kModbusDeviceFailure = 0x04;
+constexpr int kModbusTargetFailed = 0x0B;
+
+class VcanEndToEnd : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (!test::vcan_present()) return;
+    p = new Plant;
+    p->candump = std::make_unique<test::Candump>(p->dir);
+    if (!p->candump->wait_listening()) {
+      p->error = "candump does not log frames";
+      return;
+    }
+    p->sim = std::make_unique<test::CanopenSim>(p->dir, "2,3");
+    if (!p->sim->wait_ready()) {
+      p->error = "simulator did not start: " + p->sim->log();
+      return;
+    }
+    const auto config = p->dir / "gw.yaml";
+    std::ofstream(config) << "modbus:\n  listen: 127.0.0.1:0\n"
+                          << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
+                          << "buses:\n  - name: can\n    protocol: canopen\n"
+                          << "    can: {interface: " << can_interface() << "}\n"
+                          << "    timing: {reply_timeout: 300ms, retries: 1, offline_after: 3, "
+                             "probe_interval: 500ms, heartbeat_timeout: 1s, start_nodes: true}\n"
+                          << "    nodes:\n"
+                          << "      - {name: axis2, address: 2, model: canopen-cia402, unit_id: 1, "
+                             "poll: {fast: 50ms, identity: 1s}}\n"
+                          << "      - {name: axis3, address: 3, model: canopen-cia402, unit_id: 2, "
+                             "poll: {fast: 50ms, identity: 1s}}\n";
+    Diagnostics d;
+    auto loaded = load_gateway_config(config.string(), d);
+    if (!loaded) {
+      p->error = d.to_text();
+      return;
+    }
+    p->map = std::make_unique<RegisterMap>(loaded->register_map);
+    p->daemon = std::make_unique<test::ChildProcess>(
+        std::vector<std::string>{FIELDGATE_BINARY, "--config", config.string()},
+        p->dir / "daemon.log");
+    const std::regex listening("modbus: listening on [0-9.]+:([0-9]+)");
+    std::smatch m;
+    std::string log;
+    wait_until(
+        [&] {
+          log = p->daemon->log();
+          return std::regex_search(log, m, listening) || !p->daemon->running();
+        },
+        30s);
+    if (!std::regex_search(log, m, listening)) {
+      p->error = "daemon did not start listening:\n" + log;
+      return;
+    }
+    p->client = std::make_unique<ModbusClient>("127.0.0.1", std::stoi(m[1]));
+  }
+  static void TearDownTestSuite() {
+    delete p;
+    p = nullptr;
+  }
+  void SetUp() override {
+    ASSERT_TRUE(test::vcan_present());
+    ASSERT_TRUE(p);
+    ASSERT_EQ(p->error, "");
+  }
+  void TearDown() override {
+    if (HasFailure() && p && p->daemon) std::cerr << "--- daemon log\n" << p->daemon->log();
+  }
+
+  // Register address of a named entry of a unit's map (points, setpoints, diag.*).
+  static int address(int unit, Table table, const std::string& name) {
+    const auto* u = p->map->unit(static_cast<uint8_t>(unit));
+    for (const auto& e : u->tables[static_cast<std::size_t>(table)])
+      if (e.name == name) return e.address;
+    ADD_FAILURE() << "unit " << unit << " has no " << name;
+    return 0;
+  }
+  static std::optional<int64_t> input(int unit, const std::string& name, bool wide = false) {
+    const auto r =
+        p->client->read_input(unit, address(unit, Table::input_registers, name), wide ? 2 : 1);
+    if (!r.ok()) return std::nullopt;
+    return wide ? static_cast<int64_t>(
+                      static_cast<int32_t>((uint32_t{r.values[0]} << 16) | r.values[1]))
+                : r.values[0];
+  }
+  static int input_exception(int unit, const std::string& name) {
+    return p->client->read_input(unit, address(unit, Table::input_registers, name), 1).exception;
+  }
+  static uint32_t input_u32(int unit, const std::string& name) {
+    return static_cast<uint32_t>(input(unit, name, true).value_or(-1));
+  }
+  static int action(int unit, int code) {
+    return p->client->write_single(unit, layout::action_block, static_cast<uint16_t>(code))
+        .exception;
+  }
+  static int action_status(int unit) {
+    const auto r = p->client->read_holding(unit, layout::action_block + 1, 2);
+    return r.ok() ? r.values[0] : -1;
+  }
+  static int action_error(int unit) {
+    const auto r = p->client->read_holding(unit, layout::action_block + 2, 1);
+    return r.ok() ? r.values[0] : -1;
+  }
+  static bool online(int unit) { return input(unit, "diag.online") == 1; }
+
+  struct Plant {
+    test::ScratchDir dir;
+    std::unique_ptr<test::Candump> candump;
+    std::unique_ptr<test::CanopenSim> sim;
+    std::unique_ptr<RegisterMap> map;
+    std::unique_ptr<test::ChildProcess> daemon;
+    std::unique_ptr<ModbusClient> client;
+    std::string error;
+    ~Plant() {
+      client.reset();
+      if (daemon) daemon->terminate();
+    }
+  };
+  static Plant* p;
+};
+
+VcanEndToEnd::Plant* VcanEndToEnd::p = nullptr;
+
+TEST_F(VcanEndToEnd, NodesOnlineAndStarted) {
+  ASSERT_TRUE(wait_until([] { return online(1) && online(2); }, 30s));
+  EXPECT_TRUE(
+      wait_until([] { return input(1, "nmt_state") == 5 && input(2, "nmt_state") == 5; }, 10s));
+  EXPECT_GE(p->candump->count("000#0102"), 1u);
+  EXPECT_GE(p->candump->count("000#0103"), 1u);
+  EXPECT_TRUE(wait_until([] { return input_u32(1, "vendor_id") == 0x00F1E1D6u; }));
+  EXPECT_TRUE(wait_until([] { return input_u32(2, "serial_number") == 0x51000003u; }));
+}
+
+TEST_F(VcanEndToEnd, ExpeditedWriteOfAPointExactFrames) {
+  const auto mark = p->candump->size();
+  const auto addr = address(1, Table::holding_registers, "heartbeat_time");
+  ASSERT_TRUE(p->client->write_single(1, addr, 150).ok());
+  EXPECT_TRUE(wait_until([&] {
+    return p->candump->count("602#2B17100096000000", mark) == 1 &&
+           p->candump->count("582#6017100000000000", mark) >= 1;
+  })) << p->candump->text(mark);
+  EXPECT_EQ(p->client->read_holding(1, addr, 1).values.at(0), 150);
+}
+
+TEST_F(VcanEndToEnd, AbortIsException04WithTheCodeReadable) {
+  const auto mode = address(1, Table::holding_registers, "modes_of_operation");
+  const auto r = p->client->write_single(1, mode, 3);  // profile velocity: not in the simulator
+  EXPECT_EQ(r.exception, kModbusDeviceFailure);
+  EXPECT_TRUE(wait_until([] { return input_u32(1, "sdo_abort_code") == 0x06090030u; }));
+  // The diagnostic block's 16-bit register keeps the abort code's low word.
+  EXPECT_EQ(input(1, "diag.last_device_error"), 0x0030);
+  EXPECT_TRUE(p->candump->count("582#8060600030000906") >= 1) << p->candump->text();
+  EXPECT_TRUE(online(1));  // an abort is an answer
+}
+
+TEST_F(VcanEndToEnd, PdoPointsUpdateWithoutSdo) {
+  const auto mark = p->candump->size();
+  std::this_thread::sleep_for(2s);
+  EXPECT_GE(p->candump->count("182#.*", mark), 5u);
+  EXPECT_EQ(p->candump->count("60[23]#4041600000000000", mark), 0u);
+  EXPECT_EQ(p->candump->count("60[23]#4064600000000000", mark), 0u);
+  EXPECT_GE(p->candump->count("602#406C600000000000", mark), 5u);  // SDO-polled velocity
+  EXPECT_EQ(input(1, "statusword").value_or(0) & 0x4F, 0x40);
+}
+
+TEST_F(VcanEndToEnd, EnableAndMoveAbsolute) {
+  ASSERT_EQ(action(1, 1), 0) << "enable";
+  EXPECT_EQ(action_status(1), 2);
+  ASSERT_TRUE(wait_until([] { return (input(1, "statusword").value_or(0) & 0x6F) == 0x27; }));
+  const auto target = address(1, Table::holding_registers, "target");
+  ASSERT_TRUE(p->client->write_i32(1, target, 4000).ok());
+  const auto velocity = address(1, Table::holding_registers, "velocity");
+  ASSERT_TRUE(p->client->write_i32(1, velocity, 20000).ok());
+  const auto mark = p->candump->size();
+  ASSERT_EQ(action(1, 3), 0) << "move_absolute";
+  ASSERT_TRUE(wait_until([] { return action_status(1) == 2; }, 30s))
+      << "action status " << action_status(1) << " error " << action_error(1);
+  EXPECT_EQ(input(1, "position_actual", true), 4000);
+  EXPECT_EQ(input(1, "statusword").value_or(0) & 0x0400, 0x0400);  // target reached
+  // The new-setpoint handshake on the wire: target, bit 4 rising with bit 5, bit 4 down.
+  const auto f = p->candump->frames();
+  std::vector<std::string> cw;
+  for (std::size_t i = mark; i < f.size(); ++i)
+    if (f[i].rfind("602#2B406000", 0) == 0 || f[i].rfind("602#237A6000", 0) == 0)
+      cw.push_back(f[i]);
+  EXPECT_EQ(cw, (std::vector<std::string>{"602#237A6000A00F0000", "602#2B4060002F000000",
+                                          "602#2B4060003F000000", "602#2B4060002F000000"}));
+  // The position came by TPDO while moving, not by SDO.
+  EXPECT_EQ(p->candump->count("602#4064600000000000", mark), 0u);
+  EXPECT_GE(p->candump->count("182#37[0-9A-F]{2}[0-9A-F]{8}", mark), 3u);
+}
+
+TEST_F(VcanEndToEnd, EmergencySurfaces) {
+  p->sim->command("fault 2 0x2310");
+  ASSERT_TRUE(wait_until([] { return input(1, "emcy_code") == 0x2310; }));
+  EXPECT_EQ(input(1, "emcy_error_register"), 0x03);
+  EXPECT_EQ(input(1, "diag.last_device_error"), 0x2310);
+  EXPECT_TRUE(wait_until([] { return (input(1, "statusword").value_or(0) & 0x08) != 0; }));
+  EXPECT_GE(p->candump->count("082#1023030000000000"), 1u);
+  ASSERT_EQ(action(1, 7), 0) << "fault_reset";
+  EXPECT_TRUE(wait_until([] { return input(1, "emcy_code") == 0; }));
+  EXPECT_TRUE(wait_until([] { return (input(1, "statusword").value_or(0) & 0x4F) == 0x40; }));
+  EXPECT_EQ(input(1, "diag.last_device_error"), 0x2310);  // the last error stays readable
+}
+
+TEST_F(VcanEndToEnd, HeartbeatLossIsOfflineAndBack) {
+  ASSERT_TRUE(online(2));
+  p->sim->command("power-off 3");
+  ASSERT_TRUE(wait_until([] { return input(2, "diag.online") == 0; }, 20s));
+  EXPECT_EQ(input_exception(2, "position_actual"), kModbusTargetFailed);
+  EXPECT_EQ(action(2, 1), kModbusTargetFailed);
+  EXPECT_TRUE(online(1));
+  const auto mark = p->candump->size();
+  p->sim->command("power-on 3");
+  ASSERT_TRUE(wait_until([] { return online(2); }, 20s));
+  EXPECT_TRUE(wait_until([] { return input(2, "nmt_state") == 5; }));
+  EXPECT_GE(p->candump->count("703#00", mark), 1u);
+  EXPECT_GE(p->candump->count("000#0103", mark), 1u);
+  EXPECT_TRUE(input(2, "position_actual", true).has_value());
+}
+
+}  // namespace
+}  // namespace fieldgate
