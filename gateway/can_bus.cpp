@@ -9,6 +9,7 @@
 #include <algorithm>
 
 #include "gateway/log.hpp"
+#include "gateway/reply_accounting.hpp"
 
 namespace fieldgate {
 
@@ -561,33 +562,13 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
 
 void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {
   auto& c = n.image->counters;
-  switch (reply.status) {
-    case Reply::Status::ok:
-      c.consecutive_timeouts = 0;
-      c.last_good = at;
-      c.ever_good = true;
+  switch (count_reply(c, counters_, reply, at)) {
+    case ReplyOutcome::answered:
       set_state(n, NodeState::online, {});
       break;
-    case Reply::Status::device_error:
-      c.consecutive_timeouts = 0;
-      ++c.errors;
-      ++counters_.errors;
-      c.last_device_error = reply.device_code;
-      c.last_error_text = reply.text;
-      set_state(n, NodeState::online, {});
+    case ReplyOutcome::garbled:
       break;
-    case Reply::Status::garbled:
-      ++c.errors;
-      ++counters_.errors;
-      c.last_error_text = reply.text;
-      break;
-    case Reply::Status::timeout:
-    case Reply::Status::unreachable:
-    case Reply::Status::link_down:
-      ++c.timeouts;
-      ++counters_.timeouts;
-      ++c.consecutive_timeouts;
-      c.last_error_text = reply.text;
+    case ReplyOutcome::failed:
       if (reply.status == Reply::Status::timeout &&
           c.consecutive_timeouts >= static_cast<uint32_t>(config_.timing.offline_after)) {
         n.offline_by_heartbeat = false;  // its heartbeat may go on while SDO is dead

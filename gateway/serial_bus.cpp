@@ -8,6 +8,7 @@
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/tcp_transport.hpp"
 #include "gateway/log.hpp"
+#include "gateway/reply_accounting.hpp"
 
 namespace fieldgate {
 
@@ -180,34 +181,13 @@ void SerialBus::all_nodes_offline(std::string_view why) {
 
 void SerialBus::record(NodeRuntime& n, const Reply& reply) {
   auto& c = (*n.image).counters;
-  switch (reply.status) {
-    case Reply::Status::ok:
-      c.consecutive_timeouts = 0;
-      c.last_good = Clock::now();
-      c.ever_good = true;
+  switch (count_reply(c, counters_, reply, Clock::now())) {
+    case ReplyOutcome::answered:
       set_state(n, NodeState::online, {});
       break;
-    case Reply::Status::device_error:
-      // The node answered, so it is there; the error belongs to the command.
-      c.consecutive_timeouts = 0;
-      ++c.errors;
-      ++counters_.errors;
-      c.last_device_error = reply.device_code;
-      c.last_error_text = reply.text;
-      set_state(n, NodeState::online, {});
+    case ReplyOutcome::garbled:
       break;
-    case Reply::Status::garbled:
-      ++c.errors;
-      ++counters_.errors;
-      c.last_error_text = reply.text;
-      break;
-    case Reply::Status::timeout:
-    case Reply::Status::unreachable:
-    case Reply::Status::link_down:
-      ++c.timeouts;
-      ++counters_.timeouts;
-      ++c.consecutive_timeouts;
-      c.last_error_text = reply.text;
+    case ReplyOutcome::failed:
       if (c.consecutive_timeouts >= static_cast<uint32_t>(config_.timing.offline_after) ||
           (*n.image).state == NodeState::offline)
         set_state(n, NodeState::offline,
