@@ -25,6 +25,21 @@ constexpr auto kErrorLogInterval = std::chrono::seconds(10);
 // Probe of an offline node without heartbeat consumer: the device type, which every CiA 301
 // device has.
 const ObjectAddress kProbeObject{0x1000, 0, DataType::unsigned32};
+const ObjectAddress kHeartbeatObject{0x1017, 0, DataType::unsigned16};
+const ObjectAddress kErrorRegisterObject{0x1001, 0, DataType::unsigned8};
+// The consumer time is this many producer times, as in Lely's dcfgen (heartbeat_multiplier):
+// two heartbeats may be lost before the node counts as gone.
+constexpr int kHeartbeatMultiplier = 3;
+
+std::string error_register_text(uint8_t reg) {
+  static constexpr const char* kBits[] = {
+      "generic",       "current",        "voltage",  "temperature",
+      "communication", "device profile", "reserved", "manufacturer-specific"};
+  std::string text;
+  for (int bit = 0; bit < 8; ++bit)
+    if (reg & (1u << bit)) text += (text.empty() ? "" : ", ") + std::string(kBits[bit]);
+  return text.empty() ? "no error" : text;
+}
 
 Reply make_reply(Reply::Status status, std::string text, int64_t code = 0) {
   Reply r;
@@ -64,10 +79,26 @@ struct CanBus::NodeRuntime {
   bool urgent_waiting = false;
   SteadyTime next_probe{};
 
-  // Heartbeat consumer.
+  // Heartbeat consumer. The deadline is armed once the producer time is configured; until a
+  // heartbeat follows, a passing deadline means the node produces none (SDO liveness), after
+  // that it means the heartbeat was lost (offline).
   SteadyTime heartbeat_deadline = SteadyTime::max();
-  bool offline_by_heartbeat = false;  // comes back with its heartbeat, not by probing
+  bool heartbeat_seen = false;        // since the producer time was configured
+  int64_t producer_ms = 0;            // the producer time last written
+  bool offline_by_heartbeat = false;  // its heartbeat stopped; probed by SDO meanwhile
+  bool configure_pending = false;     // 0x1017 to write (before NMT start)
   bool start_pending = false;         // NMT start to send
+  // Node guarding, for the NMT state of a node watched by SDO: sent every producer time until
+  // one consumer time passed without an answer (the node does not guard either).
+  SteadyTime next_guard = SteadyTime::max();
+  std::optional<SteadyTime> guarding_since;
+  bool guard_answered = false;
+  // NMT start sent by the bus; a later pre-operational heartbeat means the node stayed there.
+  std::optional<SteadyTime> start_sent;
+  bool pre_operational_check = false;  // read its error register and report
+  // The error register read when the node was found staying pre-operational: when it clears,
+  // the bus sends NMT start once more.
+  std::optional<uint8_t> stuck_error_register;
 
   NodeStatus status;
 };
@@ -286,10 +317,9 @@ asio::awaitable<void> CanBus::run() {
                 config_.timing.start_nodes ? ", NMT start" : "");
     const auto now = BusClock::now();
     for (auto& n : nodes_) {
-      n->start_pending = config_.timing.start_nodes;
+      bring_up(*n, true);
       // TPDOs get one poll period to show up before their points are read by SDO.
       for (const auto& [cob, points] : n->tpdo_points) n->tpdo_seen[cob] = now;
-      if (heartbeat_consumer()) n->heartbeat_deadline = now + config_.timing.heartbeat_timeout;
       n->next_probe = now;
     }
     wake_all();
@@ -426,30 +456,54 @@ void CanBus::on_error_frame(const CanFrame& frame, SteadyTime now) {
 void CanBus::on_heartbeat(NodeRuntime& n, uint8_t state, SteadyTime now) {
   const auto previous = n.status.nmt_state;
   n.status.nmt_state = state;
-  if (heartbeat_consumer()) n.heartbeat_deadline = now + config_.timing.heartbeat_timeout;
+  if (n.guarding_since) n.guard_answered = true;
   auto& img = *n.image;
   if (state == nmt_state::boot_up) {
     if (img.state == NodeState::online)
       log::warning("bus {}: node {} ({}) sent boot-up: it restarted", config_.name, n.config->name,
                    n.id);
-    if (config_.timing.start_nodes) n.start_pending = true;
     n.next_probe = now;
+    bring_up(n, true);  // its 0x1017 is back at its default
     if (heartbeat_consumer()) set_state(n, NodeState::online, {});
-  } else if (img.state == NodeState::offline) {
-    if (heartbeat_consumer() && n.offline_by_heartbeat) {
-      set_state(n, NodeState::online, {});
-      if (config_.timing.start_nodes && state != nmt_state::operational) n.start_pending = true;
-    } else if (!heartbeat_consumer()) {
-      n.next_probe = std::min(n.next_probe, now);  // it is there: probe now
+  } else {
+    // The consumer is armed once the producer time is configured (and not given up on).
+    if (heartbeat_consumer() && n.heartbeat_deadline != SteadyTime::max()) {
+      if (!n.heartbeat_seen) {
+        n.heartbeat_seen = true;
+        n.status.liveness = Liveness::heartbeat;
+      }
+      n.heartbeat_deadline = now + config_.timing.heartbeat_timeout;
     }
-  } else if (img.state == NodeState::starting && heartbeat_consumer()) {
-    set_state(n, NodeState::online, {});
+    if (img.state == NodeState::offline) {
+      if (heartbeat_consumer() && n.offline_by_heartbeat) {
+        set_state(n, NodeState::online, {});
+        if (state == nmt_state::operational) n.start_pending = false;
+      } else {
+        n.next_probe = std::min(n.next_probe, now);  // it is there: probe now
+      }
+    } else if (img.state == NodeState::starting && heartbeat_consumer()) {
+      set_state(n, NodeState::online, {});
+    }
+    if (state == nmt_state::operational) {
+      if (n.status.stays_pre_operational)
+        log::notice("bus {}: node {} ({}) is operational now", config_.name, n.config->name, n.id);
+      n.status.stays_pre_operational = false;
+      n.stuck_error_register.reset();
+      n.start_sent.reset();
+    } else if (state == nmt_state::pre_operational && n.start_sent && !n.start_pending &&
+               !n.status.stays_pre_operational && !n.pre_operational_check) {
+      // A heartbeat sent after the node had time to carry out the start.
+      const auto grace = std::max<SteadyTime::duration>(
+          config_.timing.link.reply_timeout, std::chrono::milliseconds(heartbeat_producer_ms()));
+      if (now - *n.start_sent >= grace) n.pre_operational_check = true;
+    }
   }
   if (previous != state) {
     log::info("bus {}: node {} NMT state {}", config_.name, n.config->name, nmt_state_text(state));
     refresh_local_points(n, now);
   }
-  if (n.start_pending || img.state == NodeState::offline) n.wake.cancel();
+  if (n.start_pending || n.pre_operational_check || img.state == NodeState::offline)
+    n.wake.cancel();
 }
 
 void CanBus::on_emergency(NodeRuntime& n, const Emergency& e) {
@@ -464,6 +518,7 @@ void CanBus::on_emergency(NodeRuntime& n, const Emergency& e) {
     log::warning("bus {}: node {}: {}", config_.name, n.config->name, c.last_error_text);
   } else {
     log::notice("bus {}: node {}: EMCY error reset", config_.name, n.config->name);
+    error_register_seen(n, e.error_register);
   }
   refresh_local_points(n, BusClock::now());
 }
@@ -515,6 +570,19 @@ asio::awaitable<void> CanBus::heartbeat_supervisor() {
     SteadyTime next = SteadyTime::max();
     for (auto& n : nodes_) {
       if (!link_up_ || n->image->state == NodeState::offline) continue;
+      if (now >= n->heartbeat_deadline && !n->heartbeat_seen) {
+        // The producer time was accepted, yet nothing came: this node has no working heartbeat
+        // producer. Its SDO answers tell whether it is there, never a deadline.
+        watch_by_sdo(*n, now);
+        log::warning(
+            "bus {}: node {} ({}) sent no heartbeat within {} ms of its producer time 0x1017 "
+            "being set to {} ms; liveness by SDO from now on (offline after {} SDO timeouts)",
+            config_.name, n->config->name, n->id,
+            std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.heartbeat_timeout)
+                .count(),
+            n->producer_ms, config_.timing.offline_after);
+        continue;
+      }
       if (now >= n->heartbeat_deadline) {
         n->offline_by_heartbeat = true;
         set_state(*n, NodeState::offline,
@@ -544,20 +612,118 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
     log::notice("bus {}: node {} ({}) online{}", config_.name, n.config->name, n.id,
                 old == NodeState::offline ? " again" : "");
     n.offline_by_heartbeat = false;
-    if (heartbeat_consumer()) {
-      // A full consumer time from now, also for a node that came back by answering a probe.
-      n.heartbeat_deadline = now + config_.timing.heartbeat_timeout;
-      supervisor_wake_.cancel();
-    }
-    plan_.restart_node(n.index, now);
+    // Back from offline, it may have restarted unseen: configure it again, then NMT start.
+    if (old == NodeState::offline) bring_up(n, true);
+    resume_polls(n, now);
     for (const auto& [cob, points] : n.tpdo_points) n.tpdo_seen[cob] = now;
     refresh_local_points(n, now);
   } else if (state == NodeState::offline) {
     log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name, n.id, why);
     img.counters.last_error_text = std::string(why);
     n.next_probe = now + config_.timing.probe_interval;
+    n.heartbeat_deadline = SteadyTime::max();
+    n.pre_operational_check = false;
   }
   n.wake.cancel();
+}
+
+void CanBus::bring_up(NodeRuntime& n, bool start) {
+  n.configure_pending = heartbeat_consumer();
+  n.status.liveness = Liveness::sdo;  // until a heartbeat follows the configuration
+  n.heartbeat_deadline = SteadyTime::max();
+  n.heartbeat_seen = false;
+  n.start_pending = start && config_.timing.start_nodes;
+  n.start_sent.reset();
+  n.pre_operational_check = false;
+  n.stuck_error_register.reset();
+  n.status.stays_pre_operational = false;
+  n.next_guard = SteadyTime::max();
+  n.guarding_since.reset();
+  n.guard_answered = false;
+  n.wake.cancel();
+}
+
+void CanBus::watch_by_sdo(NodeRuntime& n, SteadyTime now) {
+  n.status.liveness = Liveness::sdo;
+  n.heartbeat_deadline = SteadyTime::max();
+  if (n.guarding_since) return;
+  n.guarding_since = now;
+  n.guard_answered = false;
+  n.next_guard = now;
+  n.wake.cancel();
+}
+
+void CanBus::forget_nmt_state(NodeRuntime& n) {
+  n.status.nmt_state.reset();
+  for (const int p : n.local_points)
+    if (n.sources[static_cast<std::size_t>(p)]->local == LocalValue::nmt_state)
+      n.image->points[static_cast<std::size_t>(p)].valid = false;
+  notify(n);
+}
+
+asio::awaitable<void> CanBus::guard(NodeRuntime& n, SteadyTime now) {
+  if (!n.guard_answered && now - *n.guarding_since >= config_.timing.heartbeat_timeout) {
+    n.next_guard = SteadyTime::max();
+    log::warning("bus {}: node {} ({}) answers no node guarding either: its NMT state is unknown",
+                 config_.name, n.config->name, n.id);
+    forget_nmt_state(n);
+    co_return;
+  }
+  n.next_guard = now + std::chrono::milliseconds(heartbeat_producer_ms());
+  CanFrame rtr;
+  rtr.id = cob::heartbeat + n.id;
+  rtr.len = 1;
+  rtr.rtr = true;
+  co_await send_frame(rtr);
+}
+
+uint16_t CanBus::heartbeat_producer_ms() const {
+  const auto ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.heartbeat_timeout)
+          .count() /
+      kHeartbeatMultiplier;
+  return static_cast<uint16_t>(std::clamp<int64_t>(ms, 1, 0xFFFF));
+}
+
+void CanBus::resume_polls(NodeRuntime& n, SteadyTime now) {
+  // Not restaggered from now: a node that keeps coming back would run only the first item of
+  // each class. Each overdue item moves to the latest due time of its own phase not after now,
+  // so every one runs at once, in its order, without counting the offline time as overruns.
+  for (std::size_t i = 0; i < plan_.items().size(); ++i) {
+    auto& item = plan_.item(i);
+    if (item.node != n.index || item.next_due >= now || item.period.count() <= 0) continue;
+    item.next_due += item.period * ((now - item.next_due) / item.period);
+  }
+}
+
+void CanBus::error_register_seen(NodeRuntime& n, uint8_t reg) {
+  if (reg != 0 || !n.stuck_error_register || *n.stuck_error_register == 0) return;
+  log::notice("bus {}: node {} ({}) error register cleared: NMT start again", config_.name,
+              n.config->name, n.id);
+  n.stuck_error_register.reset();  // once: if it stays pre-operational, that is reported
+  n.status.stays_pre_operational = false;
+  n.start_pending = config_.timing.start_nodes;
+  n.wake.cancel();
+}
+
+void CanBus::store_object(NodeRuntime& n, uint16_t index, uint8_t sub,
+                          std::span<const uint8_t> bytes, SteadyTime now) {
+  const auto& model = *n.config->model;
+  bool stored = false;
+  for (std::size_t p = 0; p < n.sources.size(); ++p) {
+    const auto& src = n.sources[p];
+    if (!src || src->kind == PointSource::Kind::local || !src->object ||
+        src->object->index != index || src->object->sub != sub)
+      continue;
+    std::string error;
+    const auto v = decode_point_value(*src, model.points[p].type, bytes, error);
+    if (!v) continue;  // another reading of the object (length, type): left to its own poll
+    n.image->points[p] = {*v, now, true};
+    stored = true;
+  }
+  if (index == kErrorRegisterObject.index && sub == 0 && !bytes.empty())
+    error_register_seen(n, bytes[0]);
+  if (stored) notify(n);
 }
 
 void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {
@@ -666,6 +832,8 @@ asio::awaitable<Reply> CanBus::upload(NodeRuntime& n, const ObjectAddress& objec
       }
       // Kept for decode_point_value of string points, which slice the bytes themselves.
       if (!is_integer(object.type)) reply.values.assign(result->data.begin(), result->data.end());
+      if (reply.status == Reply::Status::ok)
+        store_object(n, object.index, object.sub, result->data, n.finished_at);
     }
     if (reply.status != Reply::Status::timeout && reply.status != Reply::Status::garbled) break;
     if (attempt < retries) record(n, reply, n.finished_at);
@@ -681,6 +849,7 @@ asio::awaitable<Reply> CanBus::download(NodeRuntime& n, const Operation& op, Ste
   else
     data = encode_integer(op.object.type, op.value);
   n.finished_at = now;
+  const std::vector<uint8_t> written = data;
   const SdoStep first = n.sdo.download(op.object.index, op.object.sub, std::move(data), now);
   auto result = co_await sdo_exchange(n, first);
   if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
@@ -689,6 +858,20 @@ asio::awaitable<Reply> CanBus::download(NodeRuntime& n, const Operation& op, Ste
   ++n.image->counters.transactions;
   Reply reply = reply_of(n, *result);
   record(n, reply, n.finished_at);
+  // Confirmed: the points of this object hold the written value until their next poll.
+  if (reply.status == Reply::Status::ok) {
+    store_object(n, op.object.index, op.object.sub, written, n.finished_at);
+    if (heartbeat_consumer() && op.object.index == kHeartbeatObject.index &&
+        op.object.sub == kHeartbeatObject.sub) {
+      // A new producer time (ours or a PLC's): a heartbeat must follow within the consumer
+      // time, or the node is one without (a PLC wrote 0): SDO liveness, never a false loss.
+      n.heartbeat_seen = false;
+      n.producer_ms = op.value;
+      n.status.liveness = Liveness::sdo;
+      n.heartbeat_deadline = n.finished_at + config_.timing.heartbeat_timeout;
+      supervisor_wake_.cancel();
+    }
+  }
   co_return reply;
 }
 
@@ -745,7 +928,10 @@ asio::awaitable<Reply> CanBus::execute(NodeRuntime& n, const Request& request, b
       const bool sent = co_await send_frame(nmt_frame(op->nmt, target));
       if (!sent)
         co_return make_reply(Reply::Status::link_down, "cannot send NMT: bus link is down");
-      if (op->nmt == NmtCommand::start) n.start_pending = false;
+      if (op->nmt == NmtCommand::start) {
+        n.start_pending = false;
+        n.start_sent = BusClock::now();
+      }
       co_return make_reply(Reply::Status::ok, {});
     }
   }
@@ -789,9 +975,7 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
 
 asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now) {
   const auto info = items_[item_index];
-  auto& item = plan_.item(item_index);
-  const auto targets = item.targets;
-  const auto period = item.period;
+  const auto period = plan_.item(item_index).period;
   n.finished_at = now;
   if (info.kind == ItemInfo::Kind::local) {
     refresh_local_points(n, now);
@@ -808,30 +992,68 @@ asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, S
   // Due again a period after it was started, so a poll that is due sooner than its transfer
   // takes runs straight after it.
   plan_.completed(item_index, now);
-  Reply reply = co_await upload(n, info.object, config_.timing.retries, now);
-  now = n.finished_at;
-  if (reply.status != Reply::Status::ok) co_return;
-  auto& img = *n.image;
-  for (const auto& t : targets) {
-    const auto p = static_cast<std::size_t>(t.point);
-    const auto& src = *n.sources[p];
-    std::string error;
-    std::optional<int64_t> v;
-    if (is_integer(info.object.type)) {
-      v = reply.values.at(0);
-    } else {
-      std::vector<uint8_t> bytes(reply.values.begin(), reply.values.end());
-      v = decode_point_value(src, n.config->model->points[p].type, bytes, error);
-    }
-    if (!v) continue;
-    img.points[p] = {*v, now, true};
-  }
-  notify(n);
+  // upload() stores the value in every point of the object, the targets among them.
+  co_await upload(n, info.object, config_.timing.retries, now);
 }
 
 asio::awaitable<void> CanBus::probe(NodeRuntime& n, SteadyTime now) {
   n.next_probe = now + config_.timing.probe_interval;
   co_await upload(n, kProbeObject, 0, now);
+}
+
+asio::awaitable<void> CanBus::configure_heartbeat(NodeRuntime& n, SteadyTime now) {
+  Operation op;
+  op.kind = Operation::Kind::write;
+  op.object = kHeartbeatObject;
+  op.value = heartbeat_producer_ms();
+  const Reply r = co_await download(n, op, now);
+  const auto consumer_ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.heartbeat_timeout)
+          .count();
+  switch (r.status) {
+    case Reply::Status::ok:  // download() armed the consumer
+      n.configure_pending = false;
+      log::info("bus {}: node {} ({}) heartbeat producer time 0x1017 set to {} ms (consumer {} ms)",
+                config_.name, n.config->name, n.id, op.value, consumer_ms);
+      break;
+    case Reply::Status::device_error:
+    case Reply::Status::garbled:
+      n.configure_pending = false;
+      watch_by_sdo(n, n.finished_at);
+      log::warning(
+          "bus {}: node {} ({}) did not take heartbeat producer time 0x1017 = {} ms: {}; liveness "
+          "by SDO (offline after {} SDO timeouts)",
+          config_.name, n.config->name, n.id, op.value, r.text, config_.timing.offline_after);
+      break;
+    default:
+      // No answer: tried again while the node is online; after its timeouts it is offline,
+      // and configured when it answers a probe.
+      break;
+  }
+}
+
+asio::awaitable<void> CanBus::report_pre_operational(NodeRuntime& n, SteadyTime now) {
+  n.pre_operational_check = false;
+  // upload() puts it into the error register point, so the map shows it with the NMT state.
+  const Reply r = co_await upload(n, kErrorRegisterObject, config_.timing.retries, now);
+  if (n.status.nmt_state != nmt_state::pre_operational) co_return;  // it moved meanwhile
+  n.status.stays_pre_operational = true;
+  std::string text;
+  if (r.status == Reply::Status::ok && !r.values.empty()) {
+    const auto reg = static_cast<uint8_t>(r.values[0]);
+    n.stuck_error_register = reg;
+    text = fmt::format("stays pre-operational after NMT start; error register 0x{:02X} ({})", reg,
+                       error_register_text(reg));
+  } else {
+    text = fmt::format("stays pre-operational after NMT start; error register unread: {}",
+                       r.text.empty() ? std::string(to_string(r.status)) : r.text);
+  }
+  n.image->counters.last_error_text = text;
+  log::warning(
+      "bus {}: node {} ({}) {}; not started again until its error register clears or "
+      "it boots",
+      config_.name, n.config->name, n.id, text);
+  notify(n);
 }
 
 asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
@@ -843,11 +1065,28 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
       co_await sleep_until(n.wake, SteadyTime::max());
       continue;
     }
-    if (n.start_pending) {
+    const bool reachable = n.image->state != NodeState::offline;
+    if (n.configure_pending && reachable) {
+      co_await configure_heartbeat(n, BusClock::now());
+      continue;
+    }
+    if (n.start_pending && !n.configure_pending) {
       n.start_pending = false;
       log::info("bus {}: NMT start node {} ({})", config_.name, n.config->name, n.id);
+      n.start_sent = BusClock::now();
       co_await send_frame(nmt_frame(NmtCommand::start, n.id));
       continue;
+    }
+    if (n.pre_operational_check && reachable) {
+      co_await report_pre_operational(n, BusClock::now());
+      continue;
+    }
+    if (n.next_guard != SteadyTime::max() && reachable) {
+      const auto guard_now = BusClock::now();
+      if (n.next_guard <= guard_now) {
+        co_await guard(n, guard_now);
+        continue;
+      }
     }
     if (!n.commands.empty()) {
       auto cmd = n.commands.front();
@@ -875,7 +1114,13 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
         due = d->item;
         when = d->when;
       }
-    } else if (!(heartbeat_consumer() && n.offline_by_heartbeat)) {
+      if (n.next_guard < when) {
+        const bool expired = co_await sleep_until(n.wake, n.next_guard);
+        if (expired) known_now = n.next_guard;
+        continue;
+      }
+    } else {
+      // Also after a heartbeat loss: a node whose producer time was reset unseen answers SDO.
       when = n.next_probe;
     }
     if (when <= now) {

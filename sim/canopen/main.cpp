@@ -12,6 +12,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <map>
 #include <string>
 #include <system_error>
 
@@ -41,8 +42,26 @@ int main(int argc, char** argv) {
   canopen::NodeConfig config;
   app.add_option("-i,--interface", interface, "SocketCAN interface")->capture_default_str();
   app.add_option("-n,--nodes", nodes_text, "node IDs, e.g. 2,3 or 1-32")->capture_default_str();
-  app.add_option("--heartbeat", config.heartbeat_ms, "default producer heartbeat time (ms)")
+  app.add_option("--heartbeat", config.heartbeat_ms,
+                 "producer heartbeat time 0x1017 at power-up (ms); 0, the CiA 301 default, sends "
+                 "none until a master sets it")
       ->capture_default_str();
+  const std::map<std::string, canopen::HeartbeatObject> heartbeat_objects{
+      {"normal", canopen::HeartbeatObject::normal},
+      {"absent", canopen::HeartbeatObject::absent},
+      {"silent", canopen::HeartbeatObject::silent}};
+  app.add_option("--heartbeat-object", config.heartbeat_object,
+                 "normal: 0x1017 read/write; absent: no 0x1017 (node guarding only); silent: "
+                 "0x1017 takes writes but no heartbeat is sent")
+      ->transform(CLI::CheckedTransformer(heartbeat_objects, CLI::ignore_case))
+      ->default_str("normal");
+  app.add_option("--power-up-error", config.power_up_error,
+                 "error code the nodes power up with (error register set, drive in Fault, EMCY "
+                 "after boot-up), e.g. 0x5000; cleared by a CiA 402 fault reset")
+      ->check(CLI::Range(0, 0xFFFF));
+  app.add_flag("--start-needs-no-error", config.start_needs_no_error,
+               "refuse NMT start while the error register is set (the node stays "
+               "pre-operational)");
   app.add_option("--tpdo-event", config.tpdo_event_ms, "default TPDO1 event timer (ms)")
       ->capture_default_str();
   unsigned sdo_timeout_ms = 1000;

@@ -113,12 +113,13 @@ void Node::build_od() {
   od_.add_string(0x1009, 0, "manufacturer hardware version", hardware_version_);
   od_.add_string(0x100A, 0, "manufacturer software version", software_version_);
   od_.add_const<std::uint32_t>(0x1014, 0, "COB-ID EMCY", cob::emcy + id_);
-  od_.add_value<std::uint16_t>(0x1017, 0, "producer heartbeat time", Access::rw, heartbeat_ms_,
-                               [this](std::uint16_t ms) {
-                                 heartbeat_ms_ = ms;
-                                 next_heartbeat_ = now_ + std::chrono::milliseconds(ms);
-                                 return SdoAbort::none;
-                               });
+  if (config_.heartbeat_object != HeartbeatObject::absent)
+    od_.add_value<std::uint16_t>(0x1017, 0, "producer heartbeat time", Access::rw, heartbeat_ms_,
+                                 [this](std::uint16_t ms) {
+                                   heartbeat_ms_ = ms;
+                                   next_heartbeat_ = now_ + std::chrono::milliseconds(ms);
+                                   return SdoAbort::none;
+                                 });
   od_.add_const<std::uint8_t>(0x1018, 0, "identity: highest sub-index", 4);
   od_.add_const<std::uint32_t>(0x1018, 1, "vendor-ID", config_.vendor_id);
   od_.add_const<std::uint32_t>(0x1018, 2, "product code", config_.product_code);
@@ -223,6 +224,7 @@ void Node::boot(TimePoint now, bool reset_application) {
   send(cob::nmt_error_control + id_, {0x00});
   set_nmt(NmtState::pre_operational);
   next_heartbeat_ = now + std::chrono::milliseconds(heartbeat_ms_);
+  if (reset_application && config_.power_up_error != 0) inject_fault(config_.power_up_error, now);
 }
 
 void Node::set_nmt(NmtState state) {
@@ -281,6 +283,10 @@ void Node::receive(const CanFrame& frame, TimePoint now) {
 void Node::on_nmt(std::uint8_t command, TimePoint now) {
   switch (command) {
     case nmt_cs::start:
+      if (config_.start_needs_no_error && error_register_ != 0 && nmt_ != NmtState::operational) {
+        log(fmt::format("NMT start refused: error register 0x{:02X}", error_register_));
+        break;
+      }
       set_nmt(NmtState::operational);
       break;
     case nmt_cs::stop:
@@ -354,7 +360,7 @@ void Node::advance(TimePoint now) {
     out.data = *reply;
     sink_(out);
   }
-  if (heartbeat_ms_ > 0 && now >= next_heartbeat_) {
+  if (produces_heartbeat() && now >= next_heartbeat_) {
     send(cob::nmt_error_control + id_, {static_cast<std::uint8_t>(nmt_)});
     const auto period = std::chrono::milliseconds(heartbeat_ms_);
     next_heartbeat_ += period;
@@ -366,7 +372,7 @@ void Node::advance(TimePoint now) {
 TimePoint Node::next_deadline() const {
   TimePoint t = TimePoint::max();
   if (!powered_) return t;
-  if (heartbeat_ms_ > 0) t = std::min(t, next_heartbeat_);
+  if (produces_heartbeat()) t = std::min(t, next_heartbeat_);
   if (auto d = sdo_.deadline()) t = std::min(t, *d);
   if (auto d = drive_.deadline()) t = std::min(t, *d);
   if (nmt_ == NmtState::operational) {

@@ -41,8 +41,22 @@ constexpr std::uint8_t reset_node = 0x81;
 constexpr std::uint8_t reset_communication = 0x82;
 }  // namespace nmt_cs
 
+// How the node's heartbeat producer behaves.
+enum class HeartbeatObject {
+  normal,  // 0x1017 read/write, heartbeat every 0x1017 ms (none while 0)
+  absent,  // no 0x1017 (abort 0x06020000): a node-guarding-only device
+  silent,  // 0x1017 takes writes, yet no heartbeat is ever sent
+};
+
 struct NodeConfig {
-  std::uint16_t heartbeat_ms = 1000;       // 0x1017 default
+  // 0x1017 at power-up: 0 is the CiA 301 default, heartbeat off until a master sets it.
+  std::uint16_t heartbeat_ms = 0;
+  HeartbeatObject heartbeat_object = HeartbeatObject::normal;
+  // NMT start is refused while the error register is set: the node stays pre-operational.
+  bool start_needs_no_error = false;
+  // An error the node powers up with (error register, 0x603F, 0x1003, EMCY after boot-up,
+  // drive in Fault); 0 = none. Cleared by a CiA 402 fault reset.
+  std::uint16_t power_up_error = 0;
   std::uint16_t tpdo_event_ms = 100;       // 0x1800:5 default
   std::uint16_t tpdo_inhibit_100us = 100;  // 0x1800:3 default (10 ms)
   std::chrono::milliseconds sdo_timeout{1000};
@@ -89,6 +103,12 @@ class Node {
   // Sets the error register and 0x603F, sends EMCY, puts the drive into Fault.
   void inject_fault(std::uint16_t code, TimePoint now);
 
+ private:
+  bool produces_heartbeat() const {
+    return heartbeat_ms_ > 0 && config_.heartbeat_object == HeartbeatObject::normal;
+  }
+
+ public:
  private:
   void build_od();
   void boot(TimePoint now, bool reset_application);

@@ -1,7 +1,8 @@
 // The CAN bus runtime on the io_context against the simulator's CiA 301/402 nodes on an
 // in-memory channel (sim_channel.hpp): overlap across nodes, one SDO per node, heartbeat
 // consumer, EMCY, TPDOs without SDO traffic, aborts, commands, link loss. Real time, short
-// timeouts; the same paths run on a kernel vcan in the vcan tests.
+// timeouts; the same paths run on a kernel vcan in the vcan tests. The simulated nodes power up
+// as CiA 301 devices ship: 0x1017 = 0, no heartbeat until the bus configures it.
 #include <gtest/gtest.h>
 
 #include <boost/asio/co_spawn.hpp>
@@ -34,11 +35,12 @@ class CanBusTest : public ::testing::Test {
       bus_->stop();
       io_.run_for(100ms);
     }
+    if (capturing_) ::testing::internal::GetCapturedStderr();
     fs::remove_all(dir_);
   }
 
   void start(const std::string& sim_nodes, const std::string& nodes_yaml,
-             const std::string& timing = kTiming, int heartbeat_ms = 50) {
+             const std::string& timing = kTiming, sim::canopen::NodeConfig nc = {}) {
     dir_ = fs::temp_directory_path() /
            ("fieldgate-canbus-" + std::to_string(::getpid()) + "-" +
             ::testing::UnitTest::GetInstance()->current_test_info()->name());
@@ -53,8 +55,6 @@ class CanBusTest : public ::testing::Test {
     auto loaded = load_gateway_config((dir_ / "gw.yaml").string(), d);
     ASSERT_TRUE(loaded) << d.to_text();
     config_ = std::make_shared<LoadedConfig>(std::move(*loaded));
-    sim::canopen::NodeConfig nc;
-    nc.heartbeat_ms = static_cast<uint16_t>(heartbeat_ms);
     auto channel = std::make_unique<SimChannel>(io_.get_executor(), wire_, sim_nodes, nc);
     sim_ = channel.get();
     bus_ = std::make_shared<CanBus>(
@@ -101,6 +101,17 @@ class CanBusTest : public ::testing::Test {
     return std::nullopt;
   }
   bool online(int node) { return image(node).state == NodeState::online; }
+  // Runs the io_context for `span`; false as soon as the node is seen not online.
+  bool stays_online(int node, std::chrono::milliseconds span) {
+    bool left = false;
+    run_until(
+        [&] {
+          left = left || !online(node);
+          return false;
+        },
+        span);
+    return !left && online(node);
+  }
   bool offline(int node) { return image(node).state == NodeState::offline; }
   std::size_t wire_count(const std::string& pattern, std::size_t from = 0) {
     const std::regex re(pattern);
@@ -108,6 +119,22 @@ class CanBusTest : public ::testing::Test {
     for (std::size_t i = from; i < wire_->wire.size(); ++i)
       n += std::regex_match(wire_->wire[i], re) ? 1 : 0;
     return n;
+  }
+  // The bus's log lines (stderr) from now until captured_log().
+  void capture_log() {
+    ::testing::internal::CaptureStderr();
+    capturing_ = true;
+  }
+  std::string captured_log() {
+    capturing_ = false;
+    return ::testing::internal::GetCapturedStderr();
+  }
+  // Position of the first frame matching pattern on the wire, or npos.
+  std::size_t wire_find(const std::string& pattern) {
+    const std::regex re(pattern);
+    for (std::size_t i = 0; i < wire_->wire.size(); ++i)
+      if (std::regex_match(wire_->wire[i], re)) return i;
+    return std::string::npos;
   }
   std::string wire_text() {
     std::string s;
@@ -122,6 +149,7 @@ class CanBusTest : public ::testing::Test {
   SimChannel* sim_ = nullptr;
   std::shared_ptr<CanBus> bus_;
   int updates_ = 0;
+  bool capturing_ = false;
 };
 
 const std::string kTwoDrives =
@@ -301,6 +329,10 @@ TEST_F(CanBusTest, HeartbeatLossAndReturn) {
       << "no NMT start after boot-up";
   EXPECT_TRUE(run_until([&] { return point(1, "nmt_state") == 5; }));
   EXPECT_GE(wire_count("703#00", from), 1u);
+  // Its 0x1017 is back at 0 after the power cycle: configured again before the start.
+  const auto write = wire_count("603#2B17100032000000", from);
+  EXPECT_GE(write, 1u) << wire_text();
+  EXPECT_TRUE(stays_online(1, 600ms));
 }
 
 TEST_F(CanBusTest, EmergencyReachesDiagnostics) {
@@ -371,6 +403,160 @@ TEST_F(CanBusTest, BusWideNmtReachesEveryNode) {
   EXPECT_GE(wire_count("000#8000"), 1u);
   EXPECT_TRUE(
       run_until([&] { return point(0, "nmt_state") == 127 && point(1, "nmt_state") == 127; }));
+}
+
+// --- devices as they ship: 0x1017 = 0 --------------------------------------------------------
+
+const std::string kCia301Node =
+    "      - {name: dev, address: 2, model: canopen-cia301, unit_id: 1}\n";
+// Expedited download of 0x1017:0 = 100 ms (a third of the 300 ms consumer time).
+const std::string kHeartbeatWrite = "602#2B17100064000000";
+
+TEST_F(CanBusTest, ConfiguresTheHeartbeatProducerBeforeNmtStart) {
+  start("2", kCia301Node);
+  ASSERT_TRUE(run_until([&] { return point(0, "nmt_state") == 5; })) << wire_text();
+  const auto write = wire_find(kHeartbeatWrite);
+  const auto nmt_start = wire_find("000#0102");
+  ASSERT_NE(write, std::string::npos) << wire_text();
+  ASSERT_NE(nmt_start, std::string::npos) << wire_text();
+  EXPECT_LT(write, nmt_start);
+  EXPECT_GT(wire_find("702#(05|7F)"), wire_find("582#60171000.*")) << "heartbeat before the write";
+  // Three consumer times and more: never offline, the heartbeat keeps it alive.
+  EXPECT_TRUE(stays_online(0, 1500ms)) << image(0).counters.last_error_text;
+  EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::heartbeat);
+  EXPECT_GE(wire_count("702#05"), 10u);
+  // The bus's own confirmed write is the point's value, before any poll of 0x1017.
+  EXPECT_EQ(point(0, "heartbeat_time"), 100);
+  EXPECT_EQ(wire_count("000#0102"), 1u);
+}
+
+TEST_F(CanBusTest, NodeWithoutHeartbeatObjectIsWatchedBySdo) {
+  sim::canopen::NodeConfig nc;
+  nc.heartbeat_object = sim::canopen::HeartbeatObject::absent;
+  capture_log();
+  start("2", kCia301Node, kTiming, nc);
+  // The write is refused with 0x06020000 (object does not exist).
+  ASSERT_TRUE(run_until([&] { return wire_count("582#8017100000000206") == 1; })) << wire_text();
+  EXPECT_TRUE(stays_online(0, 1500ms)) << image(0).counters.last_error_text;
+  EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::sdo);
+  EXPECT_EQ(wire_count("000#0102"), 1u);
+  // No heartbeat: node guarding tells the NMT state.
+  EXPECT_GE(wire_count("702#R"), 3u) << wire_text();
+  EXPECT_EQ(point(0, "nmt_state"), 5);
+  // Its SDO answers are its liveness: powered off, it goes offline by timeouts, and returns.
+  sim_->execute("power-off 2");
+  ASSERT_TRUE(run_until([&] { return offline(0); }, 3s));
+  EXPECT_EQ(image(0).counters.last_error_text, "no SDO response");
+  sim_->execute("power-on 2");
+  ASSERT_TRUE(run_until([&] { return online(0); }, 3s));
+  EXPECT_TRUE(stays_online(0, 1s));
+  const auto log = captured_log();
+  EXPECT_NE(log.find("node dev (2) did not take heartbeat producer time 0x1017 = 100 ms: SDO "
+                     "abort 0x06020000 from node 2 for 0x1017:0: object does not exist"),
+            std::string::npos)
+      << log;
+}
+
+TEST_F(CanBusTest, NodeThatSendsNoHeartbeatIsWatchedBySdo) {
+  sim::canopen::NodeConfig nc;
+  nc.heartbeat_object = sim::canopen::HeartbeatObject::silent;  // takes 0x1017, sends nothing
+  capture_log();
+  start("2", kCia301Node, kTiming, nc);
+  ASSERT_TRUE(run_until([&] { return wire_count("582#60171000.*") == 1; })) << wire_text();
+  EXPECT_TRUE(stays_online(0, 1500ms)) << image(0).counters.last_error_text;
+  EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::sdo);
+  EXPECT_EQ(wire_count("702#.*"), wire_count("702#R") * 2 + 1);  // boot-up, then guarding only
+  EXPECT_EQ(point(0, "nmt_state"), 5);
+  sim_->execute("power-off 2");
+  ASSERT_TRUE(run_until([&] { return offline(0); }, 3s));
+  EXPECT_EQ(image(0).counters.last_error_text, "no SDO response");
+  const auto log = captured_log();
+  EXPECT_NE(log.find("node dev (2) sent no heartbeat within 300 ms of its producer time 0x1017 "
+                     "being set to 100 ms; liveness by SDO"),
+            std::string::npos)
+      << log;
+}
+
+TEST_F(CanBusTest, ConfirmedWriteIsThePointsValue) {
+  start("2", kCia301Node);
+  ASSERT_TRUE(run_until([&] { return point(0, "nmt_state") == 5; }));
+  const auto polls = wire_count("602#4017100000000000");
+  EXPECT_EQ(submit(0, "write heartbeat_time 250").status, Reply::Status::ok);
+  EXPECT_EQ(point(0, "heartbeat_time"), 250);
+  EXPECT_TRUE(stays_online(0, 800ms));
+  EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::heartbeat);
+  // The object form updates the point too. A PLC that turns the heartbeat off does not make the
+  // node flap: its SDO answers keep it online.
+  EXPECT_EQ(submit(0, "write 0x1017:0 UNSIGNED16 0").status, Reply::Status::ok);
+  EXPECT_EQ(point(0, "heartbeat_time"), 0);
+  EXPECT_TRUE(stays_online(0, 1s)) << image(0).counters.last_error_text;
+  EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::sdo);
+  EXPECT_EQ(wire_count("602#4017100000000000"), polls);  // no poll of it meanwhile (10 s class)
+}
+
+TEST_F(CanBusTest, EveryPollClassRunsAcrossOnlineTransitions) {
+  // Seven identity objects spread over 1 s; the node is online only ~100 ms at a time.
+  start("2",
+        "      - {name: dev, address: 2, model: canopen-cia301, unit_id: 1, "
+        "poll: {identity: 1s}}\n");
+  for (int cycle = 0; cycle < 5; ++cycle) {
+    ASSERT_TRUE(run_until([&] { return online(0); }, 3s)) << "cycle " << cycle;
+    run_until([] { return false; }, 100ms);
+    sim_->execute("power-off 2");
+    ASSERT_TRUE(run_until([&] { return offline(0); }, 3s)) << "cycle " << cycle;
+    sim_->execute("power-on 2");
+  }
+  ASSERT_TRUE(run_until([&] { return online(0); }, 3s));
+  run_until([] { return false; }, 100ms);
+  for (const char* object : {"001000", "181001", "181002", "181003", "181004", "081000", "171000"})
+    EXPECT_GE(wire_count(std::string("602#40") + object + "00000000"), 1u)
+        << "never read: " << object << "\n"
+        << wire_text();
+}
+
+TEST_F(CanBusTest, NodeStayingPreOperationalWithAnErrorIsReported) {
+  sim::canopen::NodeConfig nc;
+  nc.start_needs_no_error = true;
+  nc.power_up_error = 0x5000;  // device hardware: error register 0x01 (generic)
+  capture_log();
+  start("2", "      - {name: axis2, address: 2, model: canopen-cia402, unit_id: 1}\n", kTiming, nc);
+  ASSERT_TRUE(run_until([&] { return bus_->node_status(0).stays_pre_operational; })) << wire_text();
+  EXPECT_EQ(point(0, "nmt_state"), 127);
+  EXPECT_EQ(point(0, "error_register"), 0x01);
+  EXPECT_NE(image(0).counters.last_error_text.find(
+                "stays pre-operational after NMT start; error register 0x01 (generic)"),
+            std::string::npos)
+      << image(0).counters.last_error_text;
+  // Not started again and again: it stays online, and one NMT start was sent.
+  EXPECT_TRUE(stays_online(0, 1500ms));
+  EXPECT_EQ(wire_count("000#0102"), 1u) << wire_text();
+  // A fault reset clears its error register (EMCY error reset): the bus starts it once more.
+  for (const char* step : {"write controlword 0x00", "write controlword 0x80"})
+    EXPECT_EQ(submit(0, step).status, Reply::Status::ok) << step;
+  ASSERT_TRUE(run_until([&] { return point(0, "nmt_state") == 5; })) << wire_text();
+  EXPECT_EQ(wire_count("000#0102"), 2u);
+  EXPECT_FALSE(bus_->node_status(0).stays_pre_operational);
+  const auto log = captured_log();
+  EXPECT_NE(log.find("node axis2 (2) stays pre-operational after NMT start; error register 0x01 "
+                     "(generic); not started again until its error register clears or it boots"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("node axis2 (2) error register cleared: NMT start again"), std::string::npos)
+      << log;
+}
+
+TEST_F(CanBusTest, NodeStayingPreOperationalWithoutAnErrorIsReportedOnce) {
+  // Error register clear after the reset, but the node still refuses: reported, not looped.
+  sim::canopen::NodeConfig nc;
+  nc.start_needs_no_error = true;
+  nc.power_up_error = 0x5000;
+  start("2", "      - {name: axis2, address: 2, model: canopen-cia402, unit_id: 1}\n", kTiming, nc);
+  ASSERT_TRUE(run_until([&] { return bus_->node_status(0).stays_pre_operational; }));
+  // Another master stops the node's start: an error that never clears.
+  sim_->execute("fault 2 0x2310");
+  EXPECT_TRUE(stays_online(0, 1s));
+  EXPECT_EQ(wire_count("000#0102"), 1u);
+  EXPECT_EQ(point(0, "error_register"), 0x03);
 }
 
 }  // namespace
