@@ -40,6 +40,7 @@ int main(int argc, char** argv) {
   std::string nodes_text = "1";
   bool verbose = false;
   canopen::NodeConfig config;
+  config.heartbeat_ms = 0;  // as a CiA 301 device ships: heartbeat off until a master sets 0x1017
   app.add_option("-i,--interface", interface, "SocketCAN interface")->capture_default_str();
   app.add_option("-n,--nodes", nodes_text, "node IDs, e.g. 2,3 or 1-32")->capture_default_str();
   app.add_option("--heartbeat", config.heartbeat_ms,

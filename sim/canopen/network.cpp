@@ -115,10 +115,11 @@ Network::CommandResult Network::execute(std::string_view line, TimePoint now) {
       for (const auto& [id, n] : nodes_) {
         if (w.size() > 1 && id != node_id(w[1])) continue;
         if (out.tellp() > 0) out << "\n";
-        out << fmt::format("node {} {} nmt={} 402={} sw=0x{:04X} pos={} vel={}", id,
-                           n->powered() ? "on" : "off", to_string(n->nmt_state()),
+        out << fmt::format("node {} {} nmt={} 402={} sw=0x{:04X} pos={} vel={} err=0x{:02X} hb={}",
+                           id, n->powered() ? "on" : "off", to_string(n->nmt_state()),
                            to_string(n->drive().state()), n->drive().statusword(),
-                           n->drive().position_actual(), n->drive().velocity_actual());
+                           n->drive().position_actual(), n->drive().velocity_actual(),
+                           n->error_register(), n->heartbeat_ms());
       }
       return {true, false, out.str()};
     }

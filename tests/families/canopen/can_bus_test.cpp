@@ -39,8 +39,15 @@ class CanBusTest : public ::testing::Test {
     fs::remove_all(dir_);
   }
 
+  // Nodes power up as they ship: 0x1017 = 0, no heartbeat until the bus sets it.
+  static sim::canopen::NodeConfig as_shipped() {
+    sim::canopen::NodeConfig nc;
+    nc.heartbeat_ms = 0;
+    return nc;
+  }
+
   void start(const std::string& sim_nodes, const std::string& nodes_yaml,
-             const std::string& timing = kTiming, sim::canopen::NodeConfig nc = {}) {
+             const std::string& timing = kTiming, sim::canopen::NodeConfig nc = as_shipped()) {
     dir_ = fs::temp_directory_path() /
            ("fieldgate-canbus-" + std::to_string(::getpid()) + "-" +
             ::testing::UnitTest::GetInstance()->current_test_info()->name());
@@ -430,8 +437,18 @@ TEST_F(CanBusTest, ConfiguresTheHeartbeatProducerBeforeNmtStart) {
   EXPECT_EQ(wire_count("000#0102"), 1u);
 }
 
+TEST_F(CanBusTest, SlowerHeartbeatOfTheDeviceIsOverwritten) {
+  auto nc = as_shipped();
+  nc.heartbeat_ms = 1000;  // longer than the 300 ms consumer time
+  start("2", kCia301Node, kTiming, nc);
+  ASSERT_TRUE(run_until([&] { return point(0, "nmt_state") == 5; })) << wire_text();
+  EXPECT_EQ(wire_count(kHeartbeatWrite), 1u);
+  EXPECT_TRUE(stays_online(0, 1500ms)) << image(0).counters.last_error_text;
+  EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::heartbeat);
+}
+
 TEST_F(CanBusTest, NodeWithoutHeartbeatObjectIsWatchedBySdo) {
-  sim::canopen::NodeConfig nc;
+  auto nc = as_shipped();
   nc.heartbeat_object = sim::canopen::HeartbeatObject::absent;
   capture_log();
   start("2", kCia301Node, kTiming, nc);
@@ -458,7 +475,7 @@ TEST_F(CanBusTest, NodeWithoutHeartbeatObjectIsWatchedBySdo) {
 }
 
 TEST_F(CanBusTest, NodeThatSendsNoHeartbeatIsWatchedBySdo) {
-  sim::canopen::NodeConfig nc;
+  auto nc = as_shipped();
   nc.heartbeat_object = sim::canopen::HeartbeatObject::silent;  // takes 0x1017, sends nothing
   capture_log();
   start("2", kCia301Node, kTiming, nc);
@@ -515,7 +532,7 @@ TEST_F(CanBusTest, EveryPollClassRunsAcrossOnlineTransitions) {
 }
 
 TEST_F(CanBusTest, NodeStayingPreOperationalWithAnErrorIsReported) {
-  sim::canopen::NodeConfig nc;
+  auto nc = as_shipped();
   nc.start_needs_no_error = true;
   nc.power_up_error = 0x5000;  // device hardware: error register 0x01 (generic)
   capture_log();
@@ -547,7 +564,7 @@ TEST_F(CanBusTest, NodeStayingPreOperationalWithAnErrorIsReported) {
 
 TEST_F(CanBusTest, NodeStayingPreOperationalWithoutAnErrorIsReportedOnce) {
   // Error register clear after the reset, but the node still refuses: reported, not looped.
-  sim::canopen::NodeConfig nc;
+  auto nc = as_shipped();
   nc.start_needs_no_error = true;
   nc.power_up_error = 0x5000;
   start("2", "      - {name: axis2, address: 2, model: canopen-cia402, unit_id: 1}\n", kTiming, nc);
