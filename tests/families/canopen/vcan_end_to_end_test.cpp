@@ -1,9 +1,12 @@
 // End to end on a kernel vcan0: the fieldgate daemon with a CAN bus, fieldgate-sim-canopen with
-// two CiA 402 drives, a libmodbus client as the PLC and candump as the foreign observer. Runs
-// inside scripts/vcan-run; the tests share one plant (one User-Mode Linux boot) and run in order.
+// two CiA 402 drives as they ship (0x1017 = 0) and a second simulator with a device that powers
+// up with an error and refuses NMT start while it lasts, a libmodbus client as the PLC and
+// candump as the foreign observer. Runs inside scripts/vcan-run; the tests share one plant (one
+// virtual machine boot) and run in order.
 #include <gtest/gtest.h>
 
 #include <regex>
+#include <thread>
 
 #include "gateway/config_loader.hpp"
 #include "vcan_fixture.hpp"
@@ -34,6 +37,13 @@ class VcanEndToEnd : public ::testing::Test {
       p->error = "simulator did not start: " + p->sim->log();
       return;
     }
+    p->faulted_sim = std::make_unique<test::CanopenSim>(
+        p->dir, "4", "faulted-sim",
+        std::vector<std::string>{"--power-up-error", "0x5000", "--start-needs-no-error"});
+    if (!p->faulted_sim->wait_ready()) {
+      p->error = "second simulator did not start: " + p->faulted_sim->log();
+      return;
+    }
     const auto config = p->dir / "gw.yaml";
     std::ofstream(config) << "modbus:\n  listen: 127.0.0.1:0\n"
                           << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
@@ -45,7 +55,9 @@ class VcanEndToEnd : public ::testing::Test {
                           << "      - {name: axis2, address: 2, model: canopen-cia402, unit_id: 1, "
                              "poll: {fast: 50ms, identity: 1s}}\n"
                           << "      - {name: axis3, address: 3, model: canopen-cia402, unit_id: 2, "
-                             "poll: {fast: 50ms, identity: 1s}}\n";
+                             "poll: {fast: 50ms, identity: 1s}}\n"
+                          << "      - {name: dev4, address: 4, model: canopen-cia301, unit_id: 3, "
+                             "poll: {identity: 1s}}\n";
     Diagnostics d;
     auto loaded = load_gateway_config(config.string(), d);
     if (!loaded) {
@@ -124,6 +136,7 @@ class VcanEndToEnd : public ::testing::Test {
     test::ScratchDir dir;
     std::unique_ptr<test::Candump> candump;
     std::unique_ptr<test::CanopenSim> sim;
+    std::unique_ptr<test::CanopenSim> faulted_sim;
     std::unique_ptr<RegisterMap> map;
     std::unique_ptr<test::ChildProcess> daemon;
     std::unique_ptr<ModbusClient> client;
@@ -146,6 +159,60 @@ TEST_F(VcanEndToEnd, NodesOnlineAndStarted) {
   EXPECT_GE(p->candump->count("000#0103"), 1u);
   EXPECT_TRUE(wait_until([] { return input_u32(1, "vendor_id") == 0x00F1E1D6u; }));
   EXPECT_TRUE(wait_until([] { return input_u32(2, "serial_number") == 0x51000003u; }));
+}
+
+TEST_F(VcanEndToEnd, HeartbeatProducerConfiguredBeforeStartNoFlapping) {
+  ASSERT_TRUE(wait_until([] { return online(1) && online(2); }, 30s));
+  // heartbeat_timeout 1s: 333 ms (0x014D) written to 0x1017 of each node, before its NMT start.
+  for (const char* node : {"2", "3"}) {
+    const auto frames = p->candump->frames();
+    const auto first = [&](const std::string& pattern) {
+      const std::regex re(pattern);
+      for (std::size_t i = 0; i < frames.size(); ++i)
+        if (std::regex_match(frames[i], re)) return i;
+      return frames.size();
+    };
+    const auto write = first(std::string("60") + node + "#2B1710004D010000");
+    EXPECT_LT(write, frames.size()) << node << "\n" << p->candump->text();
+    EXPECT_LT(write, first(std::string("000#010") + node)) << node;
+  }
+  const auto mark = p->candump->size();
+  std::this_thread::sleep_for(3s);
+  EXPECT_GE(p->candump->count("702#05", mark), 6u) << p->candump->text(mark);
+  EXPECT_TRUE(online(1) && online(2));
+  const auto log = p->daemon->log();
+  EXPECT_EQ(log.find("node axis2 (2) offline"), std::string::npos) << log;
+  EXPECT_EQ(log.find("node axis3 (3) offline"), std::string::npos) << log;
+  EXPECT_NE(log.find("node axis2 (2) heartbeat producer time 0x1017 set to 333 ms (consumer "
+                     "1000 ms)"),
+            std::string::npos)
+      << log;
+}
+
+TEST_F(VcanEndToEnd, EveryIdentityPointIsRead) {
+  // The identity class (1 s here) runs in full: nothing keeps answering 0x0B.
+  for (int unit : {1, 2})
+    for (const char* name : {"vendor_id", "product_code", "serial_number"})
+      EXPECT_TRUE(wait_until([&] { return input(unit, name, true).has_value(); }, 5s))
+          << "unit " << unit << " " << name;
+  const auto heartbeat = address(1, Table::holding_registers, "heartbeat_time");
+  EXPECT_EQ(p->client->read_holding(1, heartbeat, 1).values.at(0), 333);
+}
+
+TEST_F(VcanEndToEnd, NodeStayingPreOperationalIsReported) {
+  ASSERT_TRUE(wait_until([] { return online(3); }, 30s));
+  EXPECT_TRUE(wait_until([] { return input(3, "nmt_state") == 127; }, 10s));
+  EXPECT_TRUE(wait_until([] { return input(3, "error_register") == 0x01; }, 10s));
+  EXPECT_TRUE(wait_until(
+      [] {
+        return p->daemon->log().find("node dev4 (4) stays pre-operational after NMT start; error "
+                                     "register 0x01 (generic)") != std::string::npos;
+      },
+      10s))
+      << p->daemon->log();
+  std::this_thread::sleep_for(3s);
+  EXPECT_EQ(p->candump->count("000#0104"), 1u) << "started again and again";
+  EXPECT_TRUE(online(3));
 }
 
 TEST_F(VcanEndToEnd, ExpeditedWriteOfAPointExactFrames) {

@@ -109,11 +109,12 @@ class Candump {
   ChildProcess process_;
 };
 
-// fieldgate-sim-canopen with line commands on its stdin (power-off ID, fault ID CODE, ...).
+// fieldgate-sim-canopen with line commands on its stdin (power-off ID, fault ID CODE, ...). Its
+// nodes power up as CiA 301 devices ship (0x1017 = 0, no heartbeat) unless extra says otherwise.
 class CanopenSim {
  public:
   CanopenSim(const ScratchDir& dir, const std::string& nodes, const std::string& name = "sim",
-             std::vector<std::string> extra = {"--heartbeat", "100"}) {
+             std::vector<std::string> extra = {}) {
     std::vector<std::string> argv{FIELDGATE_SIM_CANOPEN, "--interface", can_interface(), "--nodes",
                                   nodes};
     argv.insert(argv.end(), extra.begin(), extra.end());
