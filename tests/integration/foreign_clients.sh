@@ -21,6 +21,9 @@ buses:
       - {name: a3, address: 3, model: copley-amplifier, unit_id: 2}
       - {name: a9, address: 9, model: copley-amplifier, unit_id: 3}
 YAML
+# The log is created here, not by the job's redirection: the job may not have run yet when
+# the loop below first reads it.
+: >"$dir/daemon.log"
 "$fieldgate" --config "$dir/gw.yaml" >"$dir/daemon.log" 2>&1 &
 port=""
 for _ in $(seq 100); do

@@ -23,6 +23,9 @@ YAML
 "$fieldgate" map "$dir/gw.yaml" --format csv >"$dir/map.csv"
 "$fieldgate" map "$dir/gw.yaml" --format md >"$dir/map.md"
 grep -q '^| holding registers | 100 | 40101 | action.command |' "$dir/map.md" || { echo "FAIL: markdown lacks the action register"; exit 1; }
+# The log is created here, not by the job's redirection: the job may not have run yet when
+# the loop below first reads it.
+: >"$dir/daemon.log"
 "$fieldgate" --config "$dir/gw.yaml" >"$dir/daemon.log" 2>&1 &
 port=""
 for _ in $(seq 100); do

@@ -1,7 +1,7 @@
 #!/bin/bash
 # Checks scripts/vcan-run itself: where it ran, vcan0 up, working directory, environment,
 # arguments, stdout/stderr, exit status, clean-up, and a loud failure when no vcan can be had.
-# One vcan-run (one UML boot where the host has no vcan).
+# One vcan-run with the default backend, then one per forced backend where it must explain itself.
 #   vcan_run_selftest.sh PATH/TO/vcan-run
 set -u
 vcan_run=${1:?usage: vcan_run_selftest.sh PATH/TO/vcan-run}
@@ -33,6 +33,7 @@ TMPDIR=$work/tmp "$vcan_run" bash -c '
   ip -details link show vcan0 | grep -q -w vcan && echo "vcan0 is vcan"
   ip link show vcan0 | grep -q "[<,]UP[,>]" && echo "vcan0 is up"
   [ -t 0 ] || echo "stdin is not a terminal"
+  echo "backend=$FIELDGATE_VCAN_BACKEND"
   echo to-stderr >&2
   exit 7' _ arg1 'arg 2' >"$work/out" 2>"$work/err"
 rc=$?
@@ -47,7 +48,10 @@ echo "vcan-run took ${elapsed_ms} ms"
 
 check "exit status 7 passed back (got $rc)" test "$rc" -eq 7
 check "first line says where it ran" \
-  grep -q -x -E 'vcan: (host|user-mode-linux [0-9][0-9A-Za-z.+~-]*)' <(head -n 1 "$work/out")
+  grep -q -x -E 'vcan: (host|user-mode-linux [0-9][0-9A-Za-z.+~-]*|qemu-(kvm|tcg) [0-9][0-9A-Za-z.+~-]*)' \
+  <(head -n 1 "$work/out")
+check "CMD is told the backend of the first line" \
+  has_line "$work/out" "backend=$(head -n 1 "$work/out" | sed 's/^vcan: //')"
 check "vcan0 is a vcan device" has_line "$work/out" "vcan0 is vcan"
 check "vcan0 is up" has_line "$work/out" "vcan0 is up"
 check "runs in the caller's directory" has_line "$work/out" "cwd=$work/cwd"
@@ -64,7 +68,30 @@ FIELDGATE_VCAN=uml FIELDGATE_UML_KERNEL=/nonexistent/linux.uml \
 rc=$?
 check "no vcan: non-zero exit (got $rc)" test "$rc" -ne 0
 check "no vcan: command not run" test ! -e "$work/ran"
-check "no vcan: says why" grep -q 'vcan-run: error: .*User-Mode Linux is unavailable' "$work/err2"
+check "no vcan: says why" grep -q "User-Mode Linux: '/nonexistent/linux.uml' not found" "$work/err2"
+check "no vcan: names the command" grep -q "vcan-run: error: cannot run 'touch' with vcan0" "$work/err2"
+
+FIELDGATE_VCAN=nonsense "$vcan_run" touch "$work/ran" >/dev/null 2>"$work/err3"
+rc=$?
+check "unknown backend: exit 125 (got $rc)" test "$rc" -eq 125
+check "unknown backend: command not run" test ! -e "$work/ran"
+check "unknown backend: lists the valid ones" grep -q 'auto, host, uml, qemu' "$work/err3"
+
+# Forced User-Mode Linux: it runs where UML runs user space on this CPU, and where it does not
+# (UML 6.1 on AMX/AVX-512 CPUs), vcan-run says so instead of running the command.
+FIELDGATE_VCAN=uml "$vcan_run" bash -c 'touch "$1"; ip link show vcan0 >/dev/null' _ "$work/ran-uml" \
+  >"$work/out4" 2>"$work/err4"
+rc=$?
+echo "--- FIELDGATE_VCAN=uml: status $rc"
+cat "$work/out4" "$work/err4"
+if [[ $rc -eq 0 ]]; then
+  check "uml: says it ran in UML" grep -q -x -E 'vcan: user-mode-linux .+' <(head -n 1 "$work/out4")
+  check "uml: command ran" test -e "$work/ran-uml"
+else
+  check "uml unusable: exit 125 (got $rc)" test "$rc" -eq 125
+  check "uml unusable: command not run" test ! -e "$work/ran-uml"
+  check "uml unusable: says why" grep -q -E 'User-Mode Linux: .*(ran no user space|not found|missing)' "$work/err4"
+fi
 
 "$vcan_run" >/dev/null 2>&1
 rc=$?
