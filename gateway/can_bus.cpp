@@ -1066,11 +1066,13 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
       continue;
     }
     const bool reachable = n.image->state != NodeState::offline;
-    if (n.configure_pending && reachable) {
+    // A stopped node answers no SDO: where it is to be started, the start goes first.
+    const bool stopped = n.status.nmt_state == nmt_state::stopped;
+    if (n.configure_pending && reachable && !(stopped && n.start_pending)) {
       co_await configure_heartbeat(n, BusClock::now());
       continue;
     }
-    if (n.start_pending && !n.configure_pending) {
+    if (n.start_pending && (!n.configure_pending || stopped)) {
       n.start_pending = false;
       log::info("bus {}: NMT start node {} ({})", config_.name, n.config->name, n.id);
       n.start_sent = BusClock::now();

@@ -56,6 +56,9 @@ int main(int argc, char** argv) {
                  "0x1017 takes writes but no heartbeat is sent")
       ->transform(CLI::CheckedTransformer(heartbeat_objects, CLI::ignore_case))
       ->default_str("normal");
+  bool no_guarding = false;
+  app.add_flag("--no-node-guarding", no_guarding,
+               "ignore node guarding requests (RTR on 0x700+id)");
   app.add_option("--power-up-error", config.power_up_error,
                  "error code the nodes power up with (error register set, drive in Fault, EMCY "
                  "after boot-up), e.g. 0x5000; cleared by a CiA 402 fault reset")
@@ -75,6 +78,7 @@ int main(int argc, char** argv) {
       "stdin commands: power-off ID | power-on ID | fault ID CODE | status [ID] | help | quit");
   CLI11_PARSE(app, argc, argv);
   config.sdo_timeout = std::chrono::milliseconds(sdo_timeout_ms);
+  config.node_guarding = !no_guarding;
 
   std::vector<std::uint8_t> ids;
   try {

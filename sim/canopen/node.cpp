@@ -264,7 +264,7 @@ void Node::receive(const CanFrame& frame, TimePoint now) {
   advance(now);
   if (frame.rtr) {
     // Node guarding: state with a toggle bit that alternates per reply.
-    if (frame.id == cob::nmt_error_control + id_) {
+    if (frame.id == cob::nmt_error_control + id_ && config_.node_guarding) {
       send(cob::nmt_error_control + id_,
            {static_cast<std::uint8_t>((guard_toggle_ ? 0x80 : 0) |
                                       static_cast<std::uint8_t>(nmt_))});

@@ -54,6 +54,7 @@ struct NodeConfig {
   // unit tests (tests/vcan/sim_canopen_device_test.cpp) were written against.
   std::uint16_t heartbeat_ms = 1000;
   HeartbeatObject heartbeat_object = HeartbeatObject::normal;
+  bool node_guarding = true;  // answers an RTR on 0x700+id with its state and the toggle bit
   // NMT start is refused while the error register is set: the node stays pre-operational.
   bool start_needs_no_error = false;
   // An error the node powers up with (error register, 0x603F, 0x1003, EMCY after boot-up,

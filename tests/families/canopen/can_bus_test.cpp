@@ -447,6 +447,22 @@ TEST_F(CanBusTest, SlowerHeartbeatOfTheDeviceIsOverwritten) {
   EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::heartbeat);
 }
 
+TEST_F(CanBusTest, StoppedNodeIsStartedBeforeItsConfiguration) {
+  start("2", kCia301Node);
+  ASSERT_TRUE(run_until([&] { return point(0, "nmt_state") == 5; }));
+  EXPECT_EQ(submit(0, "nmt stop").status, Reply::Status::ok);
+  ASSERT_TRUE(run_until([&] { return point(0, "nmt_state") == 4; }));
+  // The link goes and comes back: the node, stopped, would answer no 0x1017 write.
+  wire_->down = true;
+  ASSERT_TRUE(run_until([&] { return offline(0); }, 2s));
+  const auto from = wire_->wire.size();
+  wire_->down = false;
+  ASSERT_TRUE(run_until([&] { return point(0, "nmt_state") == 5 && online(0); }, 3s))
+      << wire_text();
+  EXPECT_GE(wire_count(kHeartbeatWrite, from), 1u);
+  EXPECT_TRUE(stays_online(0, 1s)) << image(0).counters.last_error_text;
+}
+
 TEST_F(CanBusTest, NodeWithoutHeartbeatObjectIsWatchedBySdo) {
   auto nc = as_shipped();
   nc.heartbeat_object = sim::canopen::HeartbeatObject::absent;
@@ -470,6 +486,27 @@ TEST_F(CanBusTest, NodeWithoutHeartbeatObjectIsWatchedBySdo) {
   const auto log = captured_log();
   EXPECT_NE(log.find("node dev (2) did not take heartbeat producer time 0x1017 = 100 ms: SDO "
                      "abort 0x06020000 from node 2 for 0x1017:0: object does not exist"),
+            std::string::npos)
+      << log;
+}
+
+TEST_F(CanBusTest, NodeWithoutHeartbeatOrGuardingHasNoNmtState) {
+  auto nc = as_shipped();
+  nc.heartbeat_object = sim::canopen::HeartbeatObject::absent;
+  nc.node_guarding = false;
+  capture_log();
+  start("2", kCia301Node, kTiming, nc);
+  ASSERT_TRUE(run_until([&] { return wire_count("582#8017100000000206") == 1; })) << wire_text();
+  // After one consumer time without a guarding answer, the state is unknown, not "boot-up".
+  ASSERT_TRUE(run_until([&] { return !bus_->node_status(0).nmt_state.has_value(); }, 2s));
+  EXPECT_FALSE(point(0, "nmt_state").has_value());
+  EXPECT_TRUE(stays_online(0, 1s)) << image(0).counters.last_error_text;
+  const auto guards = wire_count("702#R");
+  EXPECT_GE(guards, 2u);
+  run_until([] { return false; }, 500ms);
+  EXPECT_EQ(wire_count("702#R"), guards);  // given up on
+  const auto log = captured_log();
+  EXPECT_NE(log.find("node dev (2) answers no node guarding either: its NMT state is unknown"),
             std::string::npos)
       << log;
 }
