@@ -49,10 +49,8 @@ enum class HeartbeatObject {
 };
 
 struct NodeConfig {
-  // 0x1017 at power-up. The simulator (main.cpp) and the gateway's in-process tests start with
-  // 0, the CiA 301 default: no heartbeat until a master sets it. 1000 here is what the device
-  // unit tests (tests/vcan/sim_canopen_device_test.cpp) were written against.
-  std::uint16_t heartbeat_ms = 1000;
+  // 0x1017 at power-up: 0, the CiA 301 default, sends no heartbeat until a master sets it.
+  std::uint16_t heartbeat_ms = 0;
   HeartbeatObject heartbeat_object = HeartbeatObject::normal;
   bool node_guarding = true;  // answers an RTR on 0x700+id with its state and the toggle bit
   // NMT start is refused while the error register is set: the node stays pre-operational.

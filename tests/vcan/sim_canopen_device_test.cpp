@@ -15,9 +15,17 @@ namespace {
 
 using namespace std::chrono_literals;
 
+// These device tests were written against a node producing a 1000 ms heartbeat from power-up,
+// not the CiA 301 default of none.
+NodeConfig with_heartbeat() {
+  NodeConfig config;
+  config.heartbeat_ms = 1000;
+  return config;
+}
+
 class Bus {
  public:
-  explicit Bus(std::vector<std::uint8_t> ids = {2}, NodeConfig config = {})
+  explicit Bus(std::vector<std::uint8_t> ids = {2}, NodeConfig config = with_heartbeat())
       : net_(config, [this](const CanFrame& f) { out_.push_back(to_string(f)); }) {
     for (auto id : ids) net_.add_node(id, now_);
   }
