@@ -217,9 +217,9 @@ class ConfigParser {
   void parse_timing(const YAML::Node& node, BusTiming& t, const std::string& where, bool can) {
     if (!r_.expect_map(node, where)) return;
     r_.reject_unknown_keys(node,
-                           {"reply_timeout", "byte_timeout", "inter_frame_gap", "turnaround",
-                            "retries", "offline_after", "probe_interval", "reconnect_min",
-                            "reconnect_max", "heartbeat_timeout", "start_nodes"},
+                           {"reply_timeout", "byte_timeout", "guard_time", "inter_frame_gap",
+                            "turnaround", "retries", "offline_after", "probe_interval",
+                            "reconnect_min", "reconnect_max", "heartbeat_timeout", "start_nodes"},
                            where);
     for (const char* key : {"heartbeat_timeout", "start_nodes"})
       if (node[key] && !can)
@@ -232,6 +232,9 @@ class ConfigParser {
     };
     dur("reply_timeout", t.link.reply_timeout);
     dur("byte_timeout", t.link.byte_timeout);
+    dur("guard_time", t.link.guard_time);
+    if (t.link.guard_time.count() < 0)
+      r_.error(node["guard_time"], where + " guard_time: must not be negative");
     dur("inter_frame_gap", t.inter_frame_gap);
     dur("turnaround", t.turnaround);
     dur("probe_interval", t.probe_interval);

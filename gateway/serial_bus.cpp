@@ -16,6 +16,24 @@ namespace {
 constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
 using Clock = std::chrono::steady_clock;
 
+// Bytes for a log line: control characters and non-ASCII as escapes, long input shortened.
+std::string printable(std::string_view bytes) {
+  std::string out;
+  for (const char c : bytes.substr(0, 80)) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '\r')
+      out += "\\r";
+    else if (c == '\n')
+      out += "\\n";
+    else if (u < 0x20 || u >= 0x7f)
+      out += fmt::format("\\x{:02x}", u);
+    else
+      out += c;
+  }
+  if (bytes.size() > 80) out += "...";
+  return out;
+}
+
 std::unique_ptr<ByteTransport> make_transport(asio::any_io_executor ex, const TransportConfig& t) {
   if (t.kind == TransportConfig::Kind::tcp)
     return std::make_unique<TcpTransport>(ex, t.host, t.port, serial_char_time_us(t.serial));
@@ -210,6 +228,9 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     record_latency(std::chrono::duration<double>(Clock::now() - started).count());
     ++counters_.transactions;
     ++(*n.image).counters.transactions;
+    if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled ||
+        link_.buffered() > 0)
+      co_await resync(n, reply);
     if (accept_no_reply && reply.status == Reply::Status::timeout) {
       reply.status = Reply::Status::ok;
       break;
@@ -225,6 +246,29 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
   }
   co_await link_.pause(config_.timing.inter_frame_gap);
   co_return reply;
+}
+
+asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
+  if (!transport_->is_open()) co_return;
+  const auto found = co_await config_.family->resync_after_failure(link_, config_.timing.link);
+  ++counters_.resyncs;
+  counters_.resync_bytes += found.drained.size();
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(found.waited).count();
+  const char* after = failed.status == Reply::Status::ok ? "stray bytes after a reply"
+                                                         : to_string(failed.status).data();
+  if (!found.drained.empty())
+    log::warning("bus {}: resync after {} from node {} ({}): drained {} byte(s) '{}' in {} ms",
+                 config_.name, after, n.config->name, n.config->address.text, found.drained.size(),
+                 printable(found.drained), ms);
+  else
+    log::debug("bus {}: resync after {} from node {} ({}): line quiet after {} ms", config_.name,
+               after, n.config->name, n.config->address.text, ms);
+  if (!found.quiet) {
+    // A line that never goes quiet cannot carry an untagged exchange: reopen it.
+    log::error("bus {}: line still busy {} ms after the {} from node {}; reopening the link",
+               config_.name, ms, after, n.config->name);
+    transport_->close();
+  }
 }
 
 void SerialBus::record_latency(double seconds) {

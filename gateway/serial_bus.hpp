@@ -59,6 +59,8 @@ class SerialBus final : public Bus {
   asio::awaitable<void> open_link();
   asio::awaitable<Reply> transact(NodeRuntime& node, const Request& request, int retries,
                                   bool accept_no_reply);
+  // After a timeout, a garbled reply or stray bytes: the family drains the line until quiet.
+  asio::awaitable<void> resync(NodeRuntime& node, const Reply& failed);
   asio::awaitable<void> run_poll(std::size_t item_index);
   void record(NodeRuntime& node, const Reply& reply);
   void record_latency(double seconds);
