@@ -100,25 +100,44 @@ asio::awaitable<void> CopleyFamily::on_link_open(Link& link, const LinkTiming& t
 
 Reply interpret_copley_reply(const NodeAddress& node, const Request& request,
                              std::string_view line) {
+  // Replies carry no address: a reply is this request's only if nothing else could have
+  // produced it. What the command code allows decides; the request's own expectation is the
+  // fallback for codes the digest does not list.
+  auto expected = copley::expected_reply(request.command);
+  if (expected.kind == copley::ExpectedReply::Kind::unknown)
+    expected.kind = request.expect == Request::Expect::ack ? copley::ExpectedReply::Kind::ok
+                                                           : copley::ExpectedReply::Kind::values;
   Reply reply;
   const auto parsed = copley::parse_reply(line);
+  const auto garbled = [&](std::string why) {
+    reply.status = Reply::Status::garbled;
+    reply.text = fmt::format("{} to '{}'", why, request.command);
+  };
   switch (parsed.kind) {
     case copley::ParsedReply::Kind::ok:
-      if (request.expect == Request::Expect::ack) {
+      if (expected.kind == copley::ExpectedReply::Kind::ok)
         reply.status = Reply::Status::ok;
-      } else {
-        reply.status = Reply::Status::garbled;
-        reply.text = "'ok' where a value was expected";
-      }
+      else
+        garbled("'ok' where a value was expected");
       break;
     case copley::ParsedReply::Kind::values:
+      if (expected.kind != copley::ExpectedReply::Kind::values) {
+        garbled("a value where 'ok' was expected");
+      } else if (expected.count != 0 && parsed.values.size() != expected.count) {
+        garbled(fmt::format("{} value(s) where {} were expected", parsed.values.size(),
+                            expected.count));
+      } else {
+        reply.status = Reply::Status::ok;
+        reply.values = parsed.values;
+      }
+      break;
     case copley::ParsedReply::Kind::register_value:
-      if (request.expect == Request::Expect::values) {
+      if (expected.kind == copley::ExpectedReply::Kind::register_value ||
+          (expected.kind == copley::ExpectedReply::Kind::values && request.command[0] != 'g')) {
         reply.status = Reply::Status::ok;
         reply.values = parsed.values;
       } else {
-        reply.status = Reply::Status::garbled;
-        reply.text = "a value where 'ok' was expected";
+        garbled("a CVM register value ('r n')");
       }
       break;
     case copley::ParsedReply::Kind::error: {
