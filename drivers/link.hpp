@@ -24,6 +24,9 @@ struct LinkTiming {
   // Quiet time the line must show before it carries anything after a timeout, a garbled or a
   // partial reply; 0 derives it (guard_time()).
   std::chrono::microseconds guard_time{0};
+  // A forwarding device's own timeout on the network behind it (a Copley gateway amplifier
+  // answers e 32 for an absent CAN node only after it); 0 = the family's default.
+  std::chrono::microseconds forward_timeout{0};
 };
 
 // The resynchronisation guard: the configured one, or reply_timeout (a reply that was late by

@@ -74,6 +74,15 @@ class ProtocolFamily {
   // refuses: a family without such commands reports it instead of corrupting a transaction.
   virtual asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,
                                              const Request& request);
+  // The least reply timeout a node needs, and why (e.g. a node reached through a forwarding
+  // device must outwait that device's own timeout, or its "not reachable" reply arrives late).
+  // The bus uses it where no reply_timeout is configured; a configured value below it is
+  // warned about. The default: nothing beyond the bus's timing.
+  struct NodeTimingNeed {
+    std::chrono::microseconds reply_timeout{0};
+    std::string why;
+  };
+  virtual NodeTimingNeed node_timing_need(const NodeAddress& node, const LinkTiming& bus) const;
   // Characters on the wire for a request and its typical reply (poll budget estimate).
   virtual std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const;
 };

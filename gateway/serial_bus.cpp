@@ -64,6 +64,7 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
     NodeRuntime rt;
     rt.index = index;
     rt.config = &n;
+    rt.timing = node_link_timing(config, n);
     rt.image = std::make_shared<NodeImage>();
     nodes_.push_back(rt);
     auto& img = *rt.image;
@@ -264,8 +265,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
       ++(*n.image).counters.retries;
     }
     const auto started = Clock::now();
-    reply =
-        co_await config_.family->transact(link_, n.config->address, request, config_.timing.link);
+    reply = co_await config_.family->transact(link_, n.config->address, request, n.timing);
     record_latency(std::chrono::duration<double>(Clock::now() - started).count());
     ++counters_.transactions;
     ++(*n.image).counters.transactions;
@@ -291,7 +291,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
 
 asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
   if (!transport_->is_open()) co_return;
-  const auto found = co_await config_.family->resync_after_failure(link_, config_.timing.link);
+  const auto found = co_await config_.family->resync_after_failure(link_, n.timing);
   ++counters_.resyncs;
   counters_.resync_bytes += found.drained.size();
   const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(found.waited).count();

@@ -54,6 +54,7 @@ class SerialBus final : public Bus {
     const NodeConfig* config = nullptr;
     std::shared_ptr<NodeImage> image;
     SteadyTime next_probe{};
+    LinkTiming timing;      // the bus's, with the node's reply timeout
     int poll_items = 0;     // distinct poll requests of the node
     int refused_polls = 0;  // polls in a row the node answered with a device error
   };

@@ -191,6 +191,23 @@ asio::awaitable<Reply> CopleyFamily::transact(Link& link, const NodeAddress& nod
   co_return r;
 }
 
+ProtocolFamily::NodeTimingNeed CopleyFamily::node_timing_need(const NodeAddress& node,
+                                                              const LinkTiming& bus) const {
+  if (node.number == 0) return {};
+  const auto can =
+      bus.forward_timeout.count() > 0
+          ? bus.forward_timeout
+          : std::chrono::duration_cast<std::chrono::microseconds>(kCopleyDefaultCanTimeout);
+  NodeTimingNeed need;
+  need.reply_timeout = can + kCopleyForwardMargin;
+  need.why = fmt::format(
+      "node {} is reached over CAN: the gateway amplifier answers e 32 for an absent node only "
+      "after its CAN timeout ({} ms{}), which a shorter reply timeout would not wait for",
+      node.text, std::chrono::duration_cast<std::chrono::milliseconds>(can).count(),
+      bus.forward_timeout.count() > 0 ? ", forward_timeout" : ", assumed: set forward_timeout");
+  return need;
+}
+
 std::size_t CopleyFamily::estimate_wire_chars(const NodeAddress& node,
                                               const Request& request) const {
   const std::size_t request_chars =
