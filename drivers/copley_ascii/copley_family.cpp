@@ -56,12 +56,45 @@ namespace {
 
 constexpr unsigned kPowerUpBaud = 9600;
 
-asio::awaitable<bool> answers_at_current_rate(Link& link, const LinkTiming& timing) {
+// What a rate probe found. Any well-formed reply, an error included, proves the amplifier hears
+// us at this rate: a multi-axis amplifier that wants an axis letter answers `g r0x90` with
+// e 33, and that is still an answer.
+struct Probe {
+  bool answered = false;
+  bool wants_axis = false;  // e 33 to the plain form, a value to `.a g r0x90`
+  std::string heard;        // for the log: what came back, if anything
+};
+
+asio::awaitable<copley::ParsedReply::Kind> probe_once(Link& link, const LinkTiming& timing,
+                                                      std::string_view command,
+                                                      std::string& heard) {
   link.discard_input();
-  if (co_await link.send(copley::encode_command(0, 0, "g r0x90"))) co_return false;
+  if (co_await link.send(std::string(command) + "\r"))
+    co_return copley::ParsedReply::Kind::malformed;
   const auto read = co_await link.read_frame(copley::frame_length, timing);
-  co_return read.status == LinkRead::Status::frame&& copley::parse_reply(read.frame).kind ==
-      copley::ParsedReply::Kind::values;
+  if (read.status != LinkRead::Status::frame) {
+    heard = read.partial.empty() ? "no reply" : "'" + read.partial + "'";
+    // A late or partial reply must not answer the next probe.
+    const auto guard = guard_time(timing, link.char_time_us());
+    co_await link.resync(guard, 10 * guard);
+    co_return copley::ParsedReply::Kind::malformed;
+  }
+  heard = "'" + read.frame.substr(0, read.frame.size() - 1) + "'";
+  co_return copley::parse_reply(read.frame).kind;
+}
+
+asio::awaitable<Probe> probe_rate(Link& link, const LinkTiming& timing) {
+  Probe p;
+  const auto plain = co_await probe_once(link, timing, "g r0x90", p.heard);
+  if (plain == copley::ParsedReply::Kind::malformed) co_return p;
+  p.answered = true;
+  if (plain == copley::ParsedReply::Kind::error) {
+    // Perhaps the amplifier wants an axis letter (e 33): does the axis form work?
+    std::string heard;
+    const auto axis = co_await probe_once(link, timing, ".a g r0x90", heard);
+    p.wants_axis = axis == copley::ParsedReply::Kind::values;
+  }
+  co_return p;
 }
 
 }  // namespace
@@ -70,21 +103,23 @@ asio::awaitable<void> CopleyFamily::on_link_open(Link& link, const LinkTiming& t
   auto& transport = link.transport();
   const unsigned configured = transport.baud();
   if (configured == 0 || configured == kPowerUpBaud) co_return;
-  const bool already = co_await answers_at_current_rate(link, timing);
-  if (already) co_return;
+  const Probe at_configured = co_await probe_rate(link, timing);
+  if (at_configured.answered) co_return;            // already at the configured rate
   if (transport.set_baud(kPowerUpBaud)) co_return;  // not a real UART: nothing to switch
-  const bool at_power_up_rate = co_await answers_at_current_rate(link, timing);
-  if (!at_power_up_rate) {
+  const Probe at_power_up = co_await probe_rate(link, timing);
+  if (!at_power_up.answered) {
     transport.set_baud(configured);
-    link.note(fmt::format("Copley gateway amplifier answers neither at {} nor at {} baud",
-                          configured, kPowerUpBaud));
+    link.note(
+        fmt::format("Copley gateway amplifier does not answer at {} baud ({}) nor at its "
+                    "power-up rate {} ({}); staying at {}",
+                    configured, at_configured.heard, kPowerUpBaud, at_power_up.heard, configured));
     co_return;
   }
   // §4.1: send the new rate, switch the host as soon as the CR has left, expect ok at the new
-  // rate, then wait 100 ms before anything else.
+  // rate, then wait 100 ms before anything else. A multi-axis amplifier gets the axis form.
   link.discard_input();
-  const auto ec =
-      co_await link.send(copley::encode_command(0, 0, fmt::format("s r0x90 {}", configured)));
+  const std::string prefix = at_power_up.wants_axis ? ".a " : "";
+  const auto ec = co_await link.send(prefix + fmt::format("s r0x90 {}\r", configured));
   transport.drain();
   transport.set_baud(configured);
   if (ec) co_return;
@@ -92,8 +127,8 @@ asio::awaitable<void> CopleyFamily::on_link_open(Link& link, const LinkTiming& t
   co_await link.pause(std::chrono::milliseconds(100));
   const bool ok = read.status == LinkRead::Status::frame &&
                   copley::parse_reply(read.frame).kind == copley::ParsedReply::Kind::ok;
-  link.note(ok ? fmt::format("Copley gateway amplifier switched from {} to {} baud", kPowerUpBaud,
-                             configured)
+  link.note(ok ? fmt::format("Copley gateway amplifier switched from {} to {} baud{}", kPowerUpBaud,
+                             configured, at_power_up.wants_axis ? " (it wants an axis letter)" : "")
                : fmt::format("Copley gateway amplifier did not confirm the switch to {} baud",
                              configured));
 }
