@@ -86,14 +86,16 @@ asio::awaitable<copley::ParsedReply::Kind> probe_once(Link& link, const LinkTimi
 asio::awaitable<Probe> probe_rate(Link& link, const LinkTiming& timing) {
   Probe p;
   const auto plain = co_await probe_once(link, timing, "g r0x90", p.heard);
-  if (plain == copley::ParsedReply::Kind::malformed) co_return p;
-  p.answered = true;
-  if (plain == copley::ParsedReply::Kind::error) {
-    // Perhaps the amplifier wants an axis letter (e 33): does the axis form work?
-    std::string heard;
-    const auto axis = co_await probe_once(link, timing, ".a g r0x90", heard);
-    p.wants_axis = axis == copley::ParsedReply::Kind::values;
+  if (plain == copley::ParsedReply::Kind::values) {
+    p.answered = true;
+    co_return p;
   }
+  // A multi-axis amplifier may answer a command without axis letter with e 33, or not at all
+  // (the manual only says the letter is necessary): does the axis form work?
+  std::string heard;
+  const auto axis = co_await probe_once(link, timing, ".a g r0x90", heard);
+  p.wants_axis = axis == copley::ParsedReply::Kind::values;
+  p.answered = p.wants_axis || plain != copley::ParsedReply::Kind::malformed;
   co_return p;
 }
 
