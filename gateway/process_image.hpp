@@ -49,11 +49,14 @@ struct ActionState {
 };
 
 // Action errors that are not device codes.
+// No reply to a step within the reply timeout (outcome unknown: it may have run; never
+// retried), or no completion within the action's timeout.
 inline constexpr uint16_t kActionErrorTimeout = 0xffff;
 inline constexpr uint16_t kActionErrorFailedCondition = 0xfffe;
 inline constexpr uint16_t kActionErrorUnreachable = 0xfffd;
-// A step got no valid reply (timeout, garbled): it may have run; never retried.
-inline constexpr uint16_t kActionErrorNoReply = 0xfffc;
+// A step's reply was unreadable (garbled): it may have run; never retried. (A step with no
+// reply at all is kActionErrorTimeout.)
+inline constexpr uint16_t kActionErrorGarbled = 0xfffc;
 
 struct NodeImage {
   std::vector<PointValue> points;  // by model point index

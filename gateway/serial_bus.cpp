@@ -423,11 +423,20 @@ asio::awaitable<void> SerialBus::run() {
       when = probe_when;
     }
     // Commands go first, but back-to-back commands leave every other transaction to a due
-    // poll: clients flooding one unit cannot freeze the polling of the others.
+    // poll, and a poll running late (by a tenth of its period) gets up to kPollsPerCommand
+    // transactions per command: clients flooding one unit cannot slow the polling of the
+    // others, and commands still get through when polls overload the line.
     const bool poll_due = chosen && when <= now;
-    if (!commands_.empty() && !(poll_due && commands_in_row_ >= kCommandsPerPoll)) {
+    bool command_first = !commands_.empty();
+    if (command_first && poll_due) {
+      const bool late = now - when > plan_.item(*chosen).period / 10;
+      command_first =
+          late ? polls_in_row_ >= kPollsPerCommand : commands_in_row_ < kCommandsPerPoll;
+    }
+    if (command_first) {
       auto cmd = take_command();
       ++commands_in_row_;
+      polls_in_row_ = 0;
       ++counters_.commands;
       auto& n = nodes_[static_cast<std::size_t>(cmd->node)];
       Reply reply;
@@ -452,6 +461,7 @@ asio::awaitable<void> SerialBus::run() {
     }
     commands_in_row_ = 0;
     if (chosen && when <= now) {
+      ++polls_in_row_;
       // Nothing on the link answers (a power-cycled controller back at its power-up rate, a
       // re-plugged adapter): reopen it, so the family's link-open procedure runs again.
       if (chosen == probe && all_nodes_offline_now() &&

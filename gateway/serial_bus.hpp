@@ -60,6 +60,8 @@ class SerialBus final : public Bus {
   };
   // Back-to-back commands before a due poll gets the line.
   static constexpr int kCommandsPerPoll = 1;
+  // Polls running late before a waiting command gets the line.
+  static constexpr int kPollsPerCommand = 3;
 
   asio::awaitable<void> open_link();
   asio::awaitable<Reply> transact(NodeRuntime& node, const Request& request, int retries,
@@ -89,6 +91,7 @@ class SerialBus final : public Bus {
   BusCounters counters_;
   bool stopping_ = false;
   int commands_in_row_ = 0;
+  int polls_in_row_ = 0;
   int last_command_node_ = -1;
   bool link_error_logged_ = false;
   SteadyTime opened_at_{};
