@@ -45,8 +45,10 @@ uint16_t action_error_of(const Reply& r) {
     case Reply::Status::unreachable:
     case Reply::Status::link_down:
       return kActionErrorUnreachable;
+    case Reply::Status::garbled:
+      return kActionErrorGarbled;  // sent, answered unreadably: it may have run
     default:
-      return kActionErrorTimeout;
+      return kActionErrorTimeout;  // sent, no reply: it may have run
   }
 }
 }  // namespace

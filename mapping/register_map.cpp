@@ -56,10 +56,14 @@ constexpr DiagnosticLayout kDiagnostics[] = {
      "0 idle, 1 busy, 2 done, 3 error"},
     {DiagnosticField::action_code, "diag.action_code", ValueType::uint16, "last action started"},
     {DiagnosticField::action_error, "diag.action_error", ValueType::uint16,
-     "device error code of the last failed action (0xffff: timeout, 0xfffe: ended by failed "
-     "condition)"},
+     "device error code of the last failed action (0xffff: no reply or not completed in time, "
+     "0xfffe: ended by failed condition, 0xfffd: unreachable, 0xfffc: garbled reply)"},
     {DiagnosticField::node_state, "diag.node_state", ValueType::uint16,
-     "0 starting, 1 online, 2 offline"},
+     "0 starting, 1 online, 2 offline, 3 faulted (answers, refuses every poll)"},
+    {DiagnosticField::unknown_writes, "diag.unknown_writes", ValueType::uint32,
+     "commands sent without a valid reply: outcome unknown, answered 0x0B, not retried"},
+    {DiagnosticField::data_age_ms, "diag.data_age", ValueType::uint32,
+     "ms since the oldest polled value was read (0xffffffff: one never was)"},
 };
 
 RegisterEntry make_entry(RegisterEntry::Kind kind, uint16_t address, ValueType type,

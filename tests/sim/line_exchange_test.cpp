@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <cstdlib>
+#include <string>
 #include <vector>
 
 #include "tests/sim/sim_time.hpp"
@@ -174,6 +177,58 @@ TEST(LineExchange, EchoesCharactersAsTheyArrive) {
 
 TEST(EscapeBytes, ShowsControlCharacters) {
   EXPECT_EQ(escape_bytes("g r0x32\r\n\x01\\"), "g r0x32\\r\\n\\x01\\\\");
+}
+
+}  // namespace
+}  // namespace fieldgate::sim
+
+namespace fieldgate::sim {
+namespace {
+
+// chaos: every request still runs; each reply is late, dropped, garbled or truncated at the
+// seeded rates, and the journal records what the device did and which fault was applied.
+TEST(LineExchange, ChaosFaultsRepliesButExecutesAndJournalsEveryRequest) {
+  EchoDevice device;
+  FaultInjection faults;
+  ControlChannel control(-1, -1, faults);
+  EXPECT_EQ(control.execute("chaos 7 25 25 25 25 80"), "ok chaos");
+  EXPECT_EQ(control.execute("chaos 7 50 50 10 0 80").rfind("error: usage", 0), 0u);
+  LineDeviceOptions options;
+  char* text = nullptr;
+  std::size_t size = 0;
+  std::FILE* journal = open_memstream(&text, &size);
+  options.journal = journal;
+  LineExchange exchange(device.hooks(), options, faults);
+  std::string out;
+  for (int i = 0; i < 200; ++i) {
+    const auto t = kT0 + std::chrono::milliseconds(i * 200);
+    exchange.receive(t, "r" + std::to_string(i) + "\r");
+    exchange.advance(t + 199ms, out);
+  }
+  std::fclose(journal);
+  const std::string lines(text, size);
+  std::free(text);
+  EXPECT_EQ(device.executed.size(), 200u);
+  int late = 0, dropped = 0, garbled = 0, truncated = 0, intact = 0;
+  for (int i = 0; i < 200; ++i) {
+    const std::string reply = "r" + std::to_string(i) + "=ok\r";
+    if (out.find(reply) != std::string::npos) ++intact;
+  }
+  for (std::size_t p = 0; (p = lines.find('\n', p)) != std::string::npos; ++p) {
+    const auto begin = lines.rfind('\n', p - 1);
+    const std::string line = lines.substr(begin == std::string::npos ? 0 : begin + 1,
+                                          p - (begin == std::string::npos ? 0 : begin + 1));
+    EXPECT_NE(line.find("=ok\\r"), std::string::npos) << line;
+    late += line.ends_with(" late");
+    dropped += line.ends_with(" dropped");
+    garbled += line.ends_with(" garbled");
+    truncated += line.ends_with(" truncated");
+  }
+  EXPECT_EQ(late + dropped + garbled + truncated, 200);  // 100 % faulted, every line journaled
+  for (int n : {late, dropped, garbled, truncated}) EXPECT_GT(n, 20);
+  // Late replies still arrive (80 ms late, inside the 199 ms window); the others never intact.
+  EXPECT_EQ(intact, late);
+  EXPECT_EQ(control.execute("chaos off"), "ok chaos off");
 }
 
 }  // namespace
