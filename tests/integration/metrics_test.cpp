@@ -88,8 +88,10 @@ TEST(Metrics, ScrapedAndParsed) {
 
   EXPECT_EQ(s.at("fieldgate_build_info{version=\"0.1.0\"}"), 1);
   EXPECT_EQ(s.at("fieldgate_bus_up{bus=\"copley\"}"), 1);
-  // One scrape is one consistent snapshot: the bus total is the sum over its nodes.
-  EXPECT_GT(s.at("fieldgate_bus_transactions_total{bus=\"copley\"}"), 5);
+  // One scrape is one consistent snapshot: the bus total is the sum over its nodes. The waits
+  // above guarantee amp9's three timeouts (offline_after) and one poll answered by amp0; how many
+  // more ran by now depends on how fast the machine is.
+  EXPECT_GE(s.at("fieldgate_bus_transactions_total{bus=\"copley\"}"), 4);
   EXPECT_EQ(s.at("fieldgate_bus_transactions_total{bus=\"copley\"}"),
             s.at("fieldgate_node_transactions_total{bus=\"copley\",node=\"amp0\",unit=\"1\"}") +
                 s.at("fieldgate_node_transactions_total{bus=\"copley\",node=\"amp9\",unit=\"2\"}"));
