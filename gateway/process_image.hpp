@@ -41,12 +41,17 @@ struct ActionState {
   uint16_t error = 0;
   uint16_t sequence = 0;
   uint64_t generation = 0;  // a newer action supersedes the completion watch of an older one
+  // A step confirmed early (confirm_after) is still waiting for its reply, so its bus is held
+  // until the motion ends: writes that need the bus answer 0x06 at once (register map).
+  bool holding_line = false;
 };
 
 // Action errors that are not device codes.
 inline constexpr uint16_t kActionErrorTimeout = 0xffff;
 inline constexpr uint16_t kActionErrorFailedCondition = 0xfffe;
 inline constexpr uint16_t kActionErrorUnreachable = 0xfffd;
+// The reply that should have ended a step arrived corrupted (not a valid reply to it).
+inline constexpr uint16_t kActionErrorGarbled = 0xfffc;
 
 struct NodeImage {
   std::vector<PointValue> points;  // by model point index

@@ -208,6 +208,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     reply =
         co_await config_.family->transact(link_, n.config->address, request, config_.timing.link);
     record_latency(std::chrono::duration<double>(Clock::now() - started).count());
+    for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
     ++counters_.transactions;
     ++(*n.image).counters.transactions;
     if (accept_no_reply && reply.status == Reply::Status::timeout) {

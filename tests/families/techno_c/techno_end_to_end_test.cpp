@@ -27,7 +27,7 @@ constexpr int kInitialise = 1, kHome = 2, kMoveAbsolute = 3, kMoveRelative = 4, 
 constexpr int kItPosition = 0, kItInMotion = 2, kItPositionIn = 3;
 constexpr int kItTarget = 110, kItSpeed = 114;
 
-constexpr int kIllegalValue = 0x03, kDeviceFailure = 0x04;
+constexpr int kIllegalValue = 0x03, kDeviceFailure = 0x04, kServerBusy = 0x06;
 constexpr int kDiagOnline = 1000;
 constexpr int kC142 = 1, kIt116g = 2;
 
@@ -40,14 +40,14 @@ class TechnoEndToEnd : public ::testing::Test {
     plant_ = std::make_unique<Plant>(std::vector<SimulatedBus>{
         {"techno-c142",
          "techno-c",
-         {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "c142", "--axes", "7",
-          "--verbose"},
+         // Power-up state (axes undefined): the family initialises at first contact.
+         {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "c142", "--verbose"},
          "baud: 19200",
          timing,
          "      - {name: c142, address: 0, model: techno-c142, unit_id: 1}\n"},
         {"techno-it116g",
          "techno-c",
-         {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "it116g", "--axes", "1"},
+         {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "it116g"},
          "baud: 9600",
          timing,
          "      - {name: it116g, address: 0, model: techno-it116g, unit_id: 2}\n"}});
@@ -129,6 +129,37 @@ TEST_F(TechnoEndToEnd, ThreeAxisMoveItsCompletionSeenByThePlc) {
   const std::string sim_log = plant_->sim(0).log();
   EXPECT_NE(sim_log.find("rx \"@0M4000,2000,3000,2000,1000,2000,1000,2000\\r\""), std::string::npos)
       << sim_log;
+}
+
+TEST_F(TechnoEndToEnd, PowerUpStateIsInitialisedAtFirstContactAndLogged) {
+  const std::string log = plant_->daemon().log();
+  EXPECT_NE(log.find("sent the axes definition '7'"), std::string::npos) << log;
+  EXPECT_NE(log.find("sent the axes definition '1'"), std::string::npos) << log;
+}
+
+// C142 against an independent implementation: a write during a capital move held its Modbus
+// reply until the move ended, and `moving` read 0. Now: 0x06 at once, `moving` 1, stop still
+// gets through.
+TEST_F(TechnoEndToEnd, WritesDuringACapitalMoveAnswerBusyAtOnce) {
+  ASSERT_TRUE(client_->write_single(kC142, kSpeedX, 2000).ok());
+  ASSERT_TRUE(client_->write_i32(kC142, kTargetX, 12000).ok());  // 6 s
+  ASSERT_TRUE(client_->write_single(kC142, kCommand, kMoveAbsolute).ok());
+  EXPECT_EQ(holding(kC142, kStatus), 1);
+  auto moving = client_->read_discrete(kC142, kMoving, 1);
+  ASSERT_TRUE(moving.ok());
+  EXPECT_EQ(moving.values[0], 1);
+  auto t0 = Clock::now();
+  EXPECT_EQ(client_->write_single(kC142, kPlane, 1).exception, kServerBusy);
+  EXPECT_LT(Clock::now() - t0, 1s);
+  t0 = Clock::now();
+  EXPECT_EQ(client_->write_single(kC142, kCommand, kMoveRelative).exception, kServerBusy);
+  EXPECT_LT(Clock::now() - t0, 1s);
+  // Setpoints touch no wire: stored at once.
+  EXPECT_TRUE(client_->write_i32(kC142, kDistanceX, 50).ok());
+  EXPECT_EQ(holding(kC142, kStatus), 1);
+  ASSERT_TRUE(client_->write_single(kC142, kCommand, kStop).ok());
+  ASSERT_TRUE(wait_until([&] { return holding(kC142, kStatus) == 2; }, 10s));
+  EXPECT_TRUE(client_->write_single(kC142, kPlane, 0).ok());
 }
 
 TEST_F(TechnoEndToEnd, StopDuringALongMove) {
@@ -220,13 +251,13 @@ TEST_F(TechnoEndToEnd, ErrorHandshakeAnswersTheWriteWith04) {
   EXPECT_EQ(client_->write_single(kC142, kCommand, kMoveAbsolute).exception, kDeviceFailure);
   EXPECT_EQ(holding(kC142, kStatus), 3);
   EXPECT_EQ(holding(kC142, kError), '2');
-  // Power-cycled controller: 4 (axis not defined) until the explicit initialisation.
+  // Power-cycled controller: the next poll answers 4 (axis not defined); the family sends the
+  // axes definition again and logs it.
   EXPECT_EQ(control(0, "power-cycle"), "ok power-cycle");
+  ASSERT_TRUE(wait_until([&] {
+    return plant_->daemon().log().find("lost its definition") != std::string::npos;
+  })) << plant_->daemon().log();
   ASSERT_TRUE(client_->write_i32(kC142, kTargetX, 10).ok());
-  EXPECT_EQ(client_->write_single(kC142, kCommand, kMoveAbsolute).exception, kDeviceFailure);
-  EXPECT_EQ(holding(kC142, kError), '4');
-  ASSERT_TRUE(client_->write_single(kC142, kCommand, kInitialise).ok());
-  EXPECT_EQ(holding(kC142, kStatus), 2);
   ASSERT_TRUE(client_->write_single(kC142, kCommand, kMoveAbsolute).ok());
   ASSERT_TRUE(wait_until([&] { return holding(kC142, kStatus) == 2; }, 10s));
   EXPECT_EQ(input32(kC142, kPositionX), 10);
