@@ -347,6 +347,8 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
   switch (waited.read.status) {
     case LinkRead::Status::frame:
       reply = interpret_techno_reply(request, waited.read.frame);
+      if (reply.status == Reply::Status::garbled && c.kind == CommandKind::position)
+        take_leading_motion_error(nodes_[node.number], request, waited.read.frame, reply);
       if (c.kind != CommandKind::position && c.kind != CommandKind::peek)
         co_await check_single_handshake(link, c, reply, timing);
       break;
@@ -393,6 +395,18 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
   if (c.kind == CommandKind::specify_axes && reply.status == Reply::Status::ok)
     defined_by_us_[node.number] = true;
   co_return reply;
+}
+
+void TechnoFamily::take_leading_motion_error(NodeState& state, const Request& request,
+                                             std::string_view frame, Reply& reply) {
+  // The error that ended a lower-case motion, sent just before this query's answer.
+  if (!state.motion_pending || frame.size() < 2) return;
+  const char first = frame.front();
+  if (first == techno::kAck || first == '\r' || !techno::is_error_code(first)) return;
+  Reply rest = interpret_techno_reply(request, frame.substr(1));
+  if (rest.status != Reply::Status::ok) return;
+  state.motion_error = static_cast<unsigned char>(first);
+  reply = std::move(rest);
 }
 
 asio::awaitable<void> TechnoFamily::check_single_handshake(Link& link, const Command& c,

@@ -80,6 +80,8 @@ class TechnoFamily final : public ProtocolFamily {
                                              const LinkTiming& timing);
   int64_t in_motion(NodeState& state, const std::array<int64_t, 3>& xyz);
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
+  void take_leading_motion_error(NodeState& state, const Request& request, std::string_view frame,
+                                 Reply& reply);
   asio::awaitable<void> check_single_handshake(Link& link, const techno::Command& c, Reply& reply,
                                                const LinkTiming& timing);
 

@@ -263,6 +263,30 @@ TEST_F(TechnoEndToEnd, ErrorHandshakeAnswersTheWriteWith04) {
   EXPECT_EQ(input32(kC142, kPositionX), 10);
 }
 
+// IT116G against an independent implementation: the limit stops the axis at 3424 of 4424 and
+// the controller sends `2` after the `0` of the start. The action fails with that code.
+TEST_F(TechnoEndToEnd, LimitDuringALowerCaseMoveFailsTheActionWithItsCode) {
+  // Machine coordinates: the axis starts 5000 steps from its home switch, where P reads 0.
+  EXPECT_EQ(control(1, "limit 8424"), "ok limit 8424");
+  ASSERT_TRUE(client_->write_i32(kIt116g, kItTarget, 4424).ok());
+  ASSERT_TRUE(client_->write_single(kIt116g, kItSpeed, 2000).ok());
+  ASSERT_TRUE(client_->write_single(kIt116g, kCommand, kMoveAbsolute).ok());
+  ASSERT_TRUE(wait_until([&] { return holding(kIt116g, kStatus) != 1; }, 15s));
+  EXPECT_EQ(holding(kIt116g, kStatus), 3);
+  EXPECT_EQ(holding(kIt116g, kError), '2');
+  EXPECT_EQ(input32(kIt116g, kItPosition), 3424);
+}
+
+// A corrupted end-of-move handshake is not a timeout: its own action error code.
+TEST_F(TechnoEndToEnd, CorruptedEndOfMoveReplyHasItsOwnErrorCode) {
+  ASSERT_TRUE(client_->write_i32(kC142, kTargetX, 3000).ok());
+  ASSERT_TRUE(client_->write_single(kC142, kCommand, kMoveAbsolute).ok());
+  EXPECT_EQ(control(0, "garbage 1"), "ok garbage 1");
+  ASSERT_TRUE(wait_until([&] { return holding(kC142, kStatus) != 1; }, 15s));
+  EXPECT_EQ(holding(kC142, kStatus), 3);
+  EXPECT_EQ(holding(kC142, kError), 0xfffc);
+}
+
 TEST_F(TechnoEndToEnd, LowerCaseMoveOnTheIt116gCompletesFromPolls) {
   ASSERT_TRUE(client_->write_i32(kIt116g, kItTarget, 3000).ok());
   ASSERT_TRUE(client_->write_single(kIt116g, kItSpeed, 2000).ok());
