@@ -353,11 +353,12 @@ TEST_F(TechnoBench, HomeEndsWhenTheAxisRestsAtTheSwitch) {
 // Issue 12: a controller slower than reply_timeout. Its late `0` must never confirm the next
 // command, which the controller refuses (`7`).
 TEST_F(TechnoBench, LateHandshakeNeverAnswersTheNextCommand) {
-  for (const bool wire : {false, true}) {
+  for (const uint32_t baud : {0u, 9600u, 115200u}) {
+    const bool wire = baud != 0;
     sim::techno::ExchangeOptions x;
     if (wire) {
       x.wire.enabled = true;
-      x.wire.timing = sim::WireTiming(9600);
+      x.wire.timing = sim::WireTiming(baud);
       x.wire.turnaround = 1ms;
     }
     start(defined(), model_text(), x);
@@ -372,7 +373,7 @@ TEST_F(TechnoBench, LateHandshakeNeverAnswersTheNextCommand) {
         EXPECT_EQ(p.values[0], 0);
       }
     }
-    EXPECT_EQ(confirmed_refusals, 0) << (wire ? "9600 baud" : "no wire time");
+    EXPECT_EQ(confirmed_refusals, 0) << baud << " baud (0: no wire time)";
     faults_.reply_delay = 0ms;
     EXPECT_EQ(transact(ack("e3")).device_code, '7');
     EXPECT_EQ(transact(ack("n7")).status, Reply::Status::ok);
@@ -503,6 +504,54 @@ TEST_F(TechnoBench, GarbledAndTruncatedReplies) {
   faults_.silence = true;
   EXPECT_EQ(transact(ack("n7")).status, Reply::Status::timeout);
 }
+
+// The manual leaves open whether `@0P` answers with the `0` handshake first, whether a CR ends
+// it, and whether a capital command ended by STOP still answers. The core scenario (power-up,
+// positions, a capital move, a lower-case move, a stop) runs under every combination.
+class TechnoReadings : public TechnoBench,
+                       public ::testing::WithParamInterface<std::tuple<bool, bool, bool>> {};
+
+TEST_P(TechnoReadings, CoreScenario) {
+  const auto [position_ack, reply_cr, stop_acknowledges] = GetParam();
+  auto o = defined();
+  o.axes = 0;  // power-up state
+  o.position_ack = position_ack;
+  o.reply_cr = reply_cr;
+  o.stop_acknowledges = stop_acknowledges;
+  start(o);
+  const auto first = transact(query("P"));
+  ASSERT_EQ(first.status, Reply::Status::ok) << first.text;
+  EXPECT_EQ(first.values[0], 0);
+  ASSERT_EQ(transact(ack("M800,5000,300,5000,0,30,0,30")).status, Reply::Status::ok);
+  auto p = transact(query("P"));
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+  EXPECT_EQ(p.values[0], 800);
+  EXPECT_EQ(p.values[1], 300);
+  EXPECT_EQ(p.values[3], 0);
+  ASSERT_EQ(transact(ack("a200,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
+  for (int i = 0; i < 40; ++i) {
+    std::this_thread::sleep_for(50ms);
+    p = transact(query("P"));
+    ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+    if (p.values[3] == 0) break;
+  }
+  EXPECT_EQ(p.values[0], 1000);
+  EXPECT_EQ(p.values[3], 0);
+  EXPECT_EQ(p.values[8], 0);
+  // A long capital move ended by STOP: reported as stopped (255) whether or not it answers.
+  std::optional<Reply> stop;
+  asio::co_spawn(io_, urgent_after(family_, *link_, 200ms, "<stop>"),
+                 [&](std::exception_ptr, Reply r) { stop = r; });
+  const auto stopped = transact(ack("A5000,1000,0,30,0,30,0,30"));
+  EXPECT_EQ(stopped.device_code, 0xff) << stopped.text;
+  // The line is clean afterwards.
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(transact(query("P")).status, Reply::Status::ok);
+  EXPECT_EQ(transact(ack("n7")).status, Reply::Status::ok);
+}
+
+INSTANTIATE_TEST_SUITE_P(Techno, TechnoReadings,
+                         ::testing::Combine(::testing::Bool(), ::testing::Bool(),
+                                            ::testing::Bool()));
 
 TEST(TechnoFamilyBasics, AddressesAndWireEstimate) {
   TechnoFamily f;
