@@ -51,7 +51,7 @@ inline constexpr uint16_t kActionErrorTimeout = 0xffff;
 inline constexpr uint16_t kActionErrorFailedCondition = 0xfffe;
 inline constexpr uint16_t kActionErrorUnreachable = 0xfffd;
 // The reply that should have ended a step arrived corrupted (not a valid reply to it).
-inline constexpr uint16_t kActionErrorGarbled = 0xfffc;
+inline constexpr uint16_t kActionErrorGarbled = 0xfffb;
 
 struct NodeImage {
   std::vector<PointValue> points;  // by model point index

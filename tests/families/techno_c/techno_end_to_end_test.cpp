@@ -284,7 +284,7 @@ TEST_F(TechnoEndToEnd, CorruptedEndOfMoveReplyHasItsOwnErrorCode) {
   EXPECT_EQ(control(0, "garbage 1"), "ok garbage 1");
   ASSERT_TRUE(wait_until([&] { return holding(kC142, kStatus) != 1; }, 15s));
   EXPECT_EQ(holding(kC142, kStatus), 3);
-  EXPECT_EQ(holding(kC142, kError), 0xfffc);
+  EXPECT_EQ(holding(kC142, kError), 0xfffb);
 }
 
 TEST_F(TechnoEndToEnd, LowerCaseMoveOnTheIt116gCompletesFromPolls) {
