@@ -53,8 +53,10 @@ uint16_t action_error_of(const Reply& r) {
     case Reply::Status::unreachable:
     case Reply::Status::link_down:
       return kActionErrorUnreachable;
+    case Reply::Status::timeout:
+      return kActionErrorNoReply;  // sent: it may have run
     case Reply::Status::garbled:
-      return kActionErrorGarbled;
+      return kActionErrorGarbled;  // sent, and what came back was corrupted: it may have run
     default:
       return kActionErrorTimeout;
   }
