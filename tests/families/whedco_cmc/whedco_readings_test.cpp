@@ -45,6 +45,7 @@ class Reading {
   }
   sim::whedco::CmcUnit& unit() { return *line_.unit(4); }
   std::vector<std::string> notes() { return link_.take_notes(); }
+  test::LineTransport& transport() { return transport_; }
   const std::vector<std::string>& writes() const { return transport_.writes(); }
 
   // The core scenario: read positions and status, move X and Y, see the move end.
@@ -279,6 +280,35 @@ TEST(WhedcoReadings, CoreScenarioWithEveryReplyStyle) {
       });
       r.core_scenario();
     }
+  }
+}
+
+// --- Transaction integrity (issue 12) ---------------------------------------------------------
+
+// A unit slower than the reply timeout. In non-echo format nothing in a reply names its request,
+// so a late value must never be served as the answer to the next query, and a late prompt never
+// confirm the next command.
+TEST(WhedcoIntegrity, LateRepliesNeverAnswerAnotherRequest) {
+  for (const bool echo : {false, true}) {
+    SCOPED_TRACE(echo ? "echo" : "non-echo");
+    Reading r([&](sim::whedco::UnitOptions& u, sim::whedco::LineOptions&) { u.echo = echo; },
+              echo ? "4/echo" : "4/non-echo");
+    ASSERT_EQ(r.transact(write("V1=1111")).status, Status::ok);
+    ASSERT_EQ(r.transact(write("V2=2222")).status, Status::ok);
+    r.transport().set_reply_delay(45ms);  // reply timeout 30 ms
+    int wrong = 0, confirmed_refusals = 0;
+    for (int i = 0; i < 10; ++i) {
+      const auto v1 = r.transact(read("V1=?"));
+      if (v1.status == Status::ok && v1.values != std::vector<int64_t>{1111}) ++wrong;
+      const auto v2 = r.transact(read("V2=?"));
+      if (v2.status == Status::ok && v2.values != std::vector<int64_t>{2222}) ++wrong;
+      // The unit lacks axis W and refuses this line ('?'): a late prompt must not confirm it.
+      if (r.transact(write("RA[4]")).status == Status::ok) ++confirmed_refusals;
+    }
+    EXPECT_EQ(wrong, 0);
+    EXPECT_EQ(confirmed_refusals, 0);
+    r.transport().set_reply_delay(0ms);
+    EXPECT_EQ(r.transact(read("V2=?")).values, std::vector<int64_t>{2222});
   }
 }
 
