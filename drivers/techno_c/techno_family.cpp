@@ -201,6 +201,7 @@ void TechnoFamily::after_interrupt(CommandKind kind) {
     state.expects_target = false;
     state.moved = false;
     state.last_change = now;
+    state.motion_error = 0;  // the stop's ramp is what the next polls report on
   }
 }
 

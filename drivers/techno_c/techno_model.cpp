@@ -118,10 +118,9 @@ class ModelChecker {
       if (p.read->format != NumberFormat::hex24)
         error(p.mark, what + ": the P reply is 24-bit hex; give format: hex24");
       if (p.read->field >= kPositionFields)
-        error(p.mark,
-              fmt::format(
-                  "{}: P has fields 0..{} (X Y Z steps, in_motion, X Y Z units, motion_fault, motion_error)",
-                  what, kPositionFields - 1));
+        error(p.mark, fmt::format("{}: P has fields 0..{} (X Y Z steps, in_motion, X Y Z units, "
+                                  "motion_fault, motion_error)",
+                                  what, kPositionFields - 1));
       if (p.read->field >= kFieldUnitsX && p.read->field < kFieldMotionFault &&
           !profile_.steps_per_unit)
         error(p.mark, what +

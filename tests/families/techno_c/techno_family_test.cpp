@@ -296,7 +296,9 @@ TEST_F(TechnoBench, LimitAfterTheAcknowledgeIsReportedAsTheMotionsError) {
   EXPECT_EQ(p.values[0], 600);
   EXPECT_EQ(p.values[7], 1);
   EXPECT_EQ(p.values[8], '2');
-  // The next motion starts clean.
+  // A stop after it (the PLC's reaction) does not inherit the error; nor does the next motion.
+  ASSERT_EQ(run(family_.send_urgent(*link_, device(0), ack("<stop>"))).status, Reply::Status::ok);
+  EXPECT_EQ(transact(query("P")).values[8], 0);
   controller_->control("limit", std::vector<std::string>{"off"}, sim::SimClock::now());
   ASSERT_EQ(transact(ack("a100,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
   EXPECT_EQ(transact(query("P")).values[8], 0);
