@@ -462,20 +462,20 @@ asio::awaitable<void> WhedcoFamily::first_contact(Link& link, const NodeAddress&
     for (std::size_t i = 0; i < kByteAxes.size() && power_up; ++i) {
       if (!(code & (int64_t{0x11} << i))) continue;
       const std::string axis_command = std::string("FC") + kByteAxes[i];
-      const Reply axis = co_await exchange(link, node, axis_command,
-                                           Request::Expect::values, NumberFormat::decimal,
-                                           QueryKind::axis_fault, 1, timing);
+      const Reply axis = co_await exchange(link, node, axis_command, Request::Expect::values,
+                                           NumberFormat::decimal, QueryKind::axis_fault, 1, timing);
       power_up = axis.status == Reply::Status::ok && !axis.values.empty() && axis.values[0] == 0;
     }
   }
   if (!power_up) {
-    link.note(fmt::format("whedco-cmc unit {}: faulted at first contact (FC {}); not cleared: "
-                          "clear_faults sends WB",
-                          node.number, code));
+    link.note(
+        fmt::format("whedco-cmc unit {}: faulted at first contact (FC {}); not cleared: "
+                    "clear_faults sends WB",
+                    node.number, code));
     co_return;
   }
-  const Reply wb = co_await exchange(link, node, wb_command, Request::Expect::ack, NumberFormat::decimal,
-                                     QueryKind::plain, 1, timing);
+  const Reply wb = co_await exchange(link, node, wb_command, Request::Expect::ack,
+                                     NumberFormat::decimal, QueryKind::plain, 1, timing);
   if (wb.status != Reply::Status::ok) {
     link.note(fmt::format("whedco-cmc unit {}: power-up state (FC {}); WB failed: {}", node.number,
                           code, wb.text.empty() ? to_string(wb.status) : wb.text));

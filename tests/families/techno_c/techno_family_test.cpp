@@ -30,11 +30,12 @@ Request query(std::string c, NumberFormat f = NumberFormat::hex24) {
 }
 
 // A C142-like model whose options make motions short and timeouts tight.
-std::string model_text(const std::string& extra_options = "", int travel = 1000) {
+std::string model_text(const std::string& extra_options = "", int travel = 1000,
+                       const std::string& margin = "150ms") {
   return "model: bench\nfamily: techno-c\noptions: {variant: c142, axes: 7, acceleration: 100, "
          "travel: " +
-         std::to_string(travel) +
-         ", timeout_factor: 1.25, timeout_margin: 150ms, stop_settle: 300ms, "
+         std::to_string(travel) + ", timeout_factor: 1.25, timeout_margin: " + margin +
+         ", stop_settle: 300ms, "
          "steps_per_unit: 100, unit_resolution: 0.01" +
          extra_options +
          "}\npoll_classes: {fast: 100ms}\npoints:\n"
@@ -520,11 +521,12 @@ TEST_P(TechnoReadings, CoreScenario) {
   o.position_ack = position_ack;
   o.reply_cr = reply_cr;
   o.stop_acknowledges = stop_acknowledges;
-  start(o);
+  start(o, model_text("", 1000, "2s"));  // a margin a loaded machine cannot exceed
   const auto first = transact(query("P"));
   ASSERT_EQ(first.status, Reply::Status::ok) << first.text;
   EXPECT_EQ(first.values[0], 0);
-  ASSERT_EQ(transact(ack("M800,5000,300,5000,0,30,0,30")).status, Reply::Status::ok);
+  const auto moved = transact(ack("M800,5000,300,5000,0,30,0,30"));
+  ASSERT_EQ(moved.status, Reply::Status::ok) << moved.text;
   auto p = transact(query("P"));
   ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
   EXPECT_EQ(p.values[0], 800);
