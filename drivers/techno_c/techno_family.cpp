@@ -320,6 +320,13 @@ asio::awaitable<void> TechnoFamily::resync(Link& link, const LinkTiming& timing)
   resync_ = false;
 }
 
+asio::awaitable<LinkResync> TechnoFamily::resync_after_failure(Link& link,
+                                                               const LinkTiming& timing) {
+  LinkResync done = co_await ProtocolFamily::resync_after_failure(link, timing);
+  if (done.quiet) resync_ = false;
+  co_return done;
+}
+
 asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& node,
                                               const Request& request, const LinkTiming& timing) {
   const Command c = techno::classify(request.command);

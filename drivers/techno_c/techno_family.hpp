@@ -28,6 +28,8 @@ class TechnoFamily final : public ProtocolFamily {
                                   const LinkTiming& timing) override;
   asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,
                                      const Request& request) override;
+  // The bus's guard after a failure is the family's own resync: it is not waited twice.
+  asio::awaitable<LinkResync> resync_after_failure(Link& link, const LinkTiming& timing) override;
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
 
   // How long transact() waits for the handshake of `command` at this moment (for tests).
