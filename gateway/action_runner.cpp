@@ -38,6 +38,14 @@ Reply reply_of(std::tuple<boost::system::error_code, Reply> received) {
   return reply;
 }
 
+std::optional<int64_t> point_value(const NodeImage& node, const Model& model,
+                                   const std::string& name) {
+  if (name.empty()) return std::nullopt;
+  for (std::size_t i = 0; i < model.points.size(); ++i)
+    if (model.points[i].name == name && node.points[i].valid) return node.points[i].value;
+  return std::nullopt;
+}
+
 uint16_t action_error_of(const Reply& r) {
   switch (r.status) {
     case Reply::Status::device_error:
@@ -45,10 +53,12 @@ uint16_t action_error_of(const Reply& r) {
     case Reply::Status::unreachable:
     case Reply::Status::link_down:
       return kActionErrorUnreachable;
+    case Reply::Status::timeout:
+      return kActionErrorNoReply;  // sent: it may have run
     case Reply::Status::garbled:
-      return kActionErrorGarbled;  // sent, answered unreadably: it may have run
+      return kActionErrorGarbled;  // sent, and what came back was corrupted: it may have run
     default:
-      return kActionErrorTimeout;  // sent, no reply: it may have run
+      return kActionErrorTimeout;
   }
 }
 }  // namespace
@@ -132,7 +142,10 @@ asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index,
   Reply accepted;
   accepted.status = Reply::Status::ok;
   confirmation.give(accepted);
+  auto& action = image_.node(node_index).action;
+  action.holding_line = true;
   auto late = co_await pending->async_receive(use_tuple);
+  action.holding_line = false;
   co_return reply_of(std::move(late));
 }
 
@@ -233,6 +246,8 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
     if (action.failed && evaluate(node, model, *action.failed, acknowledged).value_or(false)) {
       node.action.status = ActionStatus::error;
       node.action.error = kActionErrorFailedCondition;
+      if (const auto code = point_value(node, model, action.failed->error_from); code && *code > 0)
+        node.action.error = static_cast<uint16_t>(*code);
       break;
     }
     if (action.done && !settled_since &&

@@ -46,17 +46,21 @@ struct ActionState {
   uint16_t error = 0;
   uint16_t sequence = 0;
   uint64_t generation = 0;  // a newer action supersedes the completion watch of an older one
+  // A step confirmed early (confirm_after) is still waiting for its reply, so its bus is held
+  // until the motion ends: writes that need the bus answer 0x06 at once (register map).
+  bool holding_line = false;
 };
 
 // Action errors that are not device codes.
-// No reply to a step within the reply timeout (outcome unknown: it may have run; never
-// retried), or no completion within the action's timeout.
+// No completion within the action's timeout.
 inline constexpr uint16_t kActionErrorTimeout = 0xffff;
 inline constexpr uint16_t kActionErrorFailedCondition = 0xfffe;
 inline constexpr uint16_t kActionErrorUnreachable = 0xfffd;
-// A step's reply was unreadable (garbled): it may have run; never retried. (A step with no
-// reply at all is kActionErrorTimeout.)
-inline constexpr uint16_t kActionErrorGarbled = 0xfffc;
+// A step got no reply: it may have run; never retried.
+inline constexpr uint16_t kActionErrorNoReply = 0xfffc;
+// The reply that should have ended a step arrived corrupted (not a valid reply to it): it may
+// have run; never retried. Told apart from no reply at all.
+inline constexpr uint16_t kActionErrorGarbled = 0xfffb;
 
 struct NodeImage {
   std::vector<PointValue> points;  // by model point index

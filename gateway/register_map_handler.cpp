@@ -1,5 +1,7 @@
 #include "gateway/register_map_handler.hpp"
 
+#include <algorithm>
+
 #include "gateway/bus.hpp"
 #include "gateway/log.hpp"
 
@@ -16,6 +18,31 @@ Table to_table(modbus::RegisterTable t) {
 }
 Table to_table(modbus::BitTable t) {
   return t == modbus::BitTable::coils ? Table::coils : Table::discrete_inputs;
+}
+// While an action's step holds the line (a motion that answers at its end), nothing is polled,
+// but the axes are known to move: the bit its done condition watches reads "not done".
+int64_t held_line_view(const UnitMap& unit, const NodeImage& node, const RegisterEntry& e,
+                       int64_t value) {
+  if (!node.action.holding_line) return value;
+  const ActionDef* action = unit.model->find_action(node.action.code);
+  if (!action || !action->done || !action->done->bit) return value;
+  if (unit.model->points[static_cast<std::size_t>(e.index)].name != action->done->point)
+    return value;
+  const int64_t mask = int64_t{1} << *action->done->bit;
+  return action->done->equals ? (value & ~mask) : (value | mask);
+}
+
+// Whether a write needs the bus of a node whose line an action holds: every point write and
+// every action but one made only of urgent steps (a stop byte gets past a held line).
+bool needs_held_line(const NodeImage& node, const UnitMap& unit, const RegisterEntry& e,
+                     int64_t value) {
+  if (!node.action.holding_line) return false;
+  if (e.kind == RegisterEntry::Kind::point) return true;
+  if (e.kind != RegisterEntry::Kind::action_command) return false;
+  const ActionDef* action = unit.model->find_action(static_cast<uint16_t>(value));
+  if (!action) return false;
+  return !std::all_of(action->steps.begin(), action->steps.end(),
+                      [](const ActionStep& s) { return s.urgent; });
 }
 }  // namespace
 
@@ -53,7 +80,8 @@ std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit
       if (!pv.valid) return ExceptionCode::gateway_target_failed;
       if (offline && config_->gateway.modbus.offline_reads == OfflineReads::exception)
         return ExceptionCode::gateway_target_failed;
-      value = e.kind == RegisterEntry::Kind::point ? pv.value : ((pv.value >> e.bit) & 1);
+      value = held_line_view(unit, node, e, pv.value);
+      value = e.kind == RegisterEntry::Kind::point ? value : ((value >> e.bit) & 1);
       return std::nullopt;
     }
     case RegisterEntry::Kind::setpoint:
@@ -167,6 +195,9 @@ asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
   }
 
   auto& node = image_.node(unit->node_index);
+  // Answered at once rather than after the motion: a PLC would time out and repeat the write.
+  for (const auto& [e, value] : plan)
+    if (needs_held_line(node, *unit, *e, value)) co_return ExceptionCode::server_busy;
   for (const auto& [e, value] : plan) {
     switch (e->kind) {
       case RegisterEntry::Kind::setpoint:

@@ -267,6 +267,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     const auto started = Clock::now();
     reply = co_await config_.family->transact(link_, n.config->address, request, n.timing);
     record_latency(std::chrono::duration<double>(Clock::now() - started).count());
+    for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
     ++counters_.transactions;
     ++(*n.image).counters.transactions;
     if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled ||

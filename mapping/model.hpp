@@ -79,6 +79,9 @@ struct Condition {
   std::string point;
   std::optional<int> bit;
   int64_t equals = 0;
+  // For a failed condition: the point whose value becomes the action's error code (a device
+  // code the family reports), instead of the generic failed-condition code.
+  std::string error_from;
 };
 
 struct ActionStep {

@@ -284,7 +284,7 @@ class ModelParser {
   std::optional<Condition> parse_condition(const YAML::Node& node, const Model& model,
                                            const std::string& where) {
     if (!r_.expect_map(node, where)) return std::nullopt;
-    r_.reject_unknown_keys(node, {"point", "bit", "equals"}, where);
+    r_.reject_unknown_keys(node, {"point", "bit", "equals", "error_from"}, where);
     Condition c;
     const PointDef* point = nullptr;
     if (auto p = r_.require(node, "point", where)) {
@@ -313,6 +313,16 @@ class ModelParser {
     }
     if (auto e = r_.require(node, "equals", where))
       c.equals = r_.integer(*e, where + " equals", INT64_MIN, INT64_MAX).value_or(0);
+    if (const auto e = node["error_from"]) {
+      if (auto s = r_.string(e, where + " error_from")) {
+        const PointDef* source = model.find_point(*s);
+        if (!source || !source->readable() || source->poll_class.empty())
+          r_.error(e,
+                   fmt::format("{}: error_from names '{}', which is no polled point", where, *s));
+        else
+          c.error_from = *s;
+      }
+    }
     return c;
   }
 

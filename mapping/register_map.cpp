@@ -56,8 +56,9 @@ constexpr DiagnosticLayout kDiagnostics[] = {
      "0 idle, 1 busy, 2 done, 3 error"},
     {DiagnosticField::action_code, "diag.action_code", ValueType::uint16, "last action started"},
     {DiagnosticField::action_error, "diag.action_error", ValueType::uint16,
-     "device error code of the last failed action (0xffff: no reply or not completed in time, "
-     "0xfffe: ended by failed condition, 0xfffd: unreachable, 0xfffc: garbled reply)"},
+     "device error code of the last failed action (0xffff: not completed in time, 0xfffe: ended "
+     "by failed condition, 0xfffd: unreachable, 0xfffc: no reply to a step, 0xfffb: garbled "
+     "reply to a step)"},
     {DiagnosticField::node_state, "diag.node_state", ValueType::uint16,
      "0 starting, 1 online, 2 offline, 3 faulted (answers, refuses every poll)"},
     {DiagnosticField::unknown_writes, "diag.unknown_writes", ValueType::uint32,

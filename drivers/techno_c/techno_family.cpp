@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <mutex>
+#include <utility>
 
 namespace fieldgate {
 
@@ -129,6 +130,7 @@ techno::MotionContext TechnoFamily::motion_context(const NodeState& state) {
 asio::awaitable<void> TechnoFamily::on_link_open(Link&, const LinkTiming&) {
   // The controller may have been power-cycled or moved by hand while the port was closed.
   nodes_.clear();
+  defined_by_us_.clear();
   co_return;
 }
 
@@ -195,6 +197,11 @@ void TechnoFamily::after_interrupt(CommandKind kind) {
     state.motion_pending = true;
     state.motion_estimated_end = now + ramp;
     state.motion_deadline = now + ramp + p.stop_settle;
+    state.expected_end = {};
+    state.expects_target = false;
+    state.moved = false;
+    state.last_change = now;
+    state.motion_error = 0;  // the stop's ramp is what the next polls report on
   }
 }
 
@@ -248,7 +255,76 @@ asio::awaitable<Reply> TechnoFamily::transact(Link& link, const NodeAddress& nod
       co_return r;
     }
   }
+  Reply reply = co_await exchange(link, node, request, timing);
+  if (!(p.init_when_undefined && reply.status == Reply::Status::device_error &&
+        reply.device_code == '4' && c.kind != CommandKind::specify_axes))
+    co_return reply;
+  // The controller powered up (p.69: the axes definition comes before any other operation).
+  const bool lost_definition = defined_by_us_[node.number];
+  const Request init{std::to_string(p.axes), Request::Expect::ack, NumberFormat::decimal};
+  const Reply defined = co_await exchange(link, node, init, timing);
+  if (defined.status != Reply::Status::ok) {
+    reply.text += fmt::format("; sending the axes definition '{}' failed: {}", init.command,
+                              defined.text.empty() ? to_string(defined.status) : defined.text);
+    co_return reply;
+  }
+  link.note(fmt::format(
+      "techno-c device {}: '{}' answered 4 (axes not defined){}; sent the axes "
+      "definition '{}' (this clears the controller's program memory)",
+      node.number, request.command,
+      lost_definition ? ", the controller lost its definition (power cycle?)" : " at first contact",
+      init.command));
+  if (lost_definition && techno::is_motion(c.kind)) {
+    // Its positions restarted from 0 with the power: a motion would go somewhere else.
+    reply.text += "; the axes are defined again, but positions were lost: home before moving";
+    co_return reply;
+  }
   co_return co_await exchange(link, node, request, timing);
+}
+
+asio::awaitable<void> TechnoFamily::collect_motion_error(Link& link, NodeState& state,
+                                                         const LinkTiming& timing) {
+  const LinkTiming quick{microseconds(std::llround(link.char_time_us() * 2)) + microseconds(500),
+                         timing.byte_timeout};
+  for (int i = 0; i < 8; ++i) {
+    const LinkRead read = co_await link.read_frame(techno::handshake_frame, quick);
+    if (read.status != LinkRead::Status::frame) co_return;
+    const char ch = read.frame.front();
+    if (ch != techno::kAck && techno::is_error_code(ch) && ch != '\r') {
+      state.motion_error = static_cast<unsigned char>(ch);
+      link.note(
+          fmt::format("techno-c: the controller reported {} during a motion it had "
+                      "acknowledged",
+                      techno::describe_error(ch)));
+    }
+  }
+}
+
+asio::awaitable<void> TechnoFamily::resync(Link& link, const LinkTiming& timing) {
+  // No reply carries an address: a late answer to a timed-out request would be taken as the
+  // answer to the next one. Wait until the line has been quiet for a whole reply timeout.
+  const auto guard = timing.reply_timeout + microseconds(std::llround(link.char_time_us() * 10));
+  const auto any = [](std::string_view buf) { return buf.size(); };
+  std::size_t drained = 0;
+  for (int i = 0; i < 20; ++i) {
+    const LinkRead read = co_await link.read_frame(any, LinkTiming{guard, guard});
+    if (read.status != LinkRead::Status::frame) {
+      drained += read.partial.size();
+      if (read.partial.empty()) break;
+      continue;
+    }
+    drained += read.frame.size();
+  }
+  if (drained > 0)
+    link.note(fmt::format("techno-c: {} late byte(s) drained after a failed exchange", drained));
+  resync_ = false;
+}
+
+asio::awaitable<LinkResync> TechnoFamily::resync_after_failure(Link& link,
+                                                               const LinkTiming& timing) {
+  LinkResync done = co_await ProtocolFamily::resync_after_failure(link, timing);
+  if (done.quiet) resync_ = false;
+  co_return done;
 }
 
 asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& node,
@@ -256,6 +332,9 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
   const Command c = techno::classify(request.command);
   const auto values = techno::parse_values(c.values).value_or(std::vector<int64_t>{});
   const microseconds budget = reply_budget(node, request.command, timing);
+  if (resync_) co_await resync(link, timing);
+  if (nodes_[node.number].motion_pending)
+    co_await collect_motion_error(link, nodes_[node.number], timing);
   // Replies carry no address: anything left from an earlier exchange would be taken for this one.
   link.discard_input();
   for (int i = 0; urgent_writing_ && i < 2000; ++i) co_await link.pause(microseconds(100));
@@ -276,6 +355,10 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
   switch (waited.read.status) {
     case LinkRead::Status::frame:
       reply = interpret_techno_reply(request, waited.read.frame);
+      if (reply.status == Reply::Status::garbled && c.kind == CommandKind::position)
+        take_leading_motion_error(nodes_[node.number], request, waited.read.frame, reply);
+      if (c.kind != CommandKind::position && c.kind != CommandKind::peek)
+        co_await check_single_handshake(link, c, reply, timing);
       break;
     case LinkRead::Status::timeout:
       if (!waited.read.partial.empty()) {
@@ -314,8 +397,53 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
                              reply.device_code == static_cast<unsigned char>(techno::kStopByte)
                                  ? "stop (0xFF)"
                                  : "reset (0xFE)");
+  if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled)
+    resync_ = true;
   after_reply(nodes_[node.number], c, values, reply);
+  if (c.kind == CommandKind::specify_axes && reply.status == Reply::Status::ok)
+    defined_by_us_[node.number] = true;
   co_return reply;
+}
+
+void TechnoFamily::take_leading_motion_error(NodeState& state, const Request& request,
+                                             std::string_view frame, Reply& reply) {
+  // The error that ended a lower-case motion, sent just before this query's answer.
+  if (!state.motion_pending || frame.size() < 2) return;
+  const char first = frame.front();
+  if (first == techno::kAck || first == '\r' || !techno::is_error_code(first)) return;
+  Reply rest = interpret_techno_reply(request, frame.substr(1));
+  if (rest.status != Reply::Status::ok) return;
+  state.motion_error = static_cast<unsigned char>(first);
+  reply = std::move(rest);
+}
+
+asio::awaitable<void> TechnoFamily::check_single_handshake(Link& link, const Command& c,
+                                                           Reply& reply, const LinkTiming& timing) {
+  // One character answers a command. More after it means the line carried something else (a
+  // late position reply, another request's answer): the character cannot be trusted.
+  const LinkRead more = co_await link.read_frame(
+      techno::handshake_frame, LinkTiming{timing.byte_timeout, timing.byte_timeout});
+  if (more.status != LinkRead::Status::frame) co_return;
+  std::string extra = more.frame;
+  for (;;) {
+    const LinkRead next = co_await link.read_frame(
+        techno::handshake_frame, LinkTiming{timing.byte_timeout, timing.byte_timeout});
+    if (next.status != LinkRead::Status::frame) break;
+    extra += next.frame;
+  }
+  if (extra.find_first_not_of("\r\n") == std::string::npos) co_return;  // a CR/LF after it
+  const bool acked_motion = reply.status == Reply::Status::ok && c.handshake == Handshake::at_start;
+  if (acked_motion && extra.size() == 1 && techno::is_error_code(extra.front())) {
+    // `0` at the start, then the error that stopped the motion at once.
+    pending_error_ = static_cast<unsigned char>(extra.front());
+    co_return;
+  }
+  reply.status = Reply::Status::garbled;
+  reply.device_code = 0;
+  reply.text = fmt::format(
+      "one handshake character expected, more followed ({} bytes): a late "
+      "or foreign reply",
+      extra.size() + 1);
 }
 
 void TechnoFamily::after_reply(NodeState& state, const Command& c,
@@ -335,22 +463,18 @@ void TechnoFamily::after_reply(NodeState& state, const Command& c,
       return;
     case CommandKind::position: {
       const std::array<int64_t, 3> xyz{reply.values[0], reply.values[1], reply.values[2]};
-      int64_t moving = 0;
-      if (state.motion_pending) {
-        const bool changed = state.last_reported && *state.last_reported != xyz;
-        if (now < state.motion_estimated_end || changed)
-          moving = 1;
-        else
-          state.motion_pending = false;
-      }
+      const int64_t moving = in_motion(state, xyz);
       state.last_reported = xyz;
       for (std::size_t i = 0; i < 3; ++i) state.position[i] = xyz[i];
       reply.values.resize(3);
       reply.values.push_back(moving);
-      if (p.steps_per_unit)
-        for (std::size_t i = 0; i < 3; ++i)
-          reply.values.push_back(std::llround(static_cast<double>(xyz[i]) / (*p.steps_per_unit)[i] /
-                                              p.unit_resolution));
+      for (std::size_t i = 0; i < 3; ++i)
+        reply.values.push_back(p.steps_per_unit
+                                   ? std::llround(static_cast<double>(xyz[i]) /
+                                                  (*p.steps_per_unit)[i] / p.unit_resolution)
+                                   : 0);
+      reply.values.push_back(state.motion_error != 0 ? 1 : 0);
+      reply.values.push_back(state.motion_error);
       return;
     }
     case CommandKind::zero:
@@ -371,6 +495,8 @@ void TechnoFamily::after_reply(NodeState& state, const Command& c,
       break;
   }
   if (!techno::is_motion(c.kind)) return;
+  // A new motion: an error reported with its acknowledge (check_single_handshake) is its own.
+  state.motion_error = std::exchange(pending_error_, 0);
   const auto estimate = techno::estimate_motion(c, values, motion_context(state));
   state.position = estimate ? estimate->end_position : std::array<std::optional<int64_t>, 3>{};
   if (c.handshake == Handshake::at_end) {
@@ -388,6 +514,44 @@ void TechnoFamily::after_reply(NodeState& state, const Command& c,
   state.motion_pending = true;
   state.motion_estimated_end = now + seconds_to_us(seconds);
   state.motion_deadline = now + limit;
+  state.expected_end = estimate ? estimate->end_position : std::array<std::optional<int64_t>, 3>{};
+  state.expects_target =
+      c.kind == CommandKind::move_absolute || c.kind == CommandKind::move_relative;
+  state.moved = false;
+  state.last_change = now;
+}
+
+// 1 while a lower-case motion (or a stop's ramp) may still move axes. The motion is over when
+// the polled positions stand still: at the commanded end (once they moved, or once the estimated
+// time is up), or anywhere after moving for motion_settle. The estimate is only an upper bound,
+// so a motion is not reported running for the worst case of an unknown start or a full travel.
+int64_t TechnoFamily::in_motion(NodeState& state, const std::array<int64_t, 3>& xyz) {
+  if (!state.motion_pending) return 0;
+  const auto now = Clock::now();
+  const bool changed = state.last_reported && *state.last_reported != xyz;
+  if (changed) {
+    state.moved = true;
+    state.last_change = now;
+  }
+  const bool end_known = std::any_of(state.expected_end.begin(), state.expected_end.end(),
+                                     [](const auto& e) { return e.has_value(); });
+  bool at_end = end_known;
+  for (std::size_t i = 0; i < 3; ++i)
+    if (state.expected_end[i] && *state.expected_end[i] != xyz[i]) at_end = false;
+  const bool still = state.last_reported && !changed;
+  const bool estimate_passed = now >= state.motion_estimated_end;
+  const bool settled = state.moved && now - state.last_change >= profile().motion_settle;
+  bool over = state.motion_error != 0 || now >= state.motion_deadline;
+  if (still && at_end && (state.moved || estimate_passed)) over = true;
+  if (still && (settled || estimate_passed)) {
+    over = true;
+    // A move that rests elsewhere than it was sent to did not reach its target.
+    if (state.expects_target && end_known && !at_end && state.motion_error == 0)
+      state.motion_error = techno::kShortOfTarget;
+  }
+  if (!over) return 1;
+  state.motion_pending = false;
+  return 0;
 }
 
 std::size_t TechnoFamily::estimate_wire_chars(const NodeAddress& node,

@@ -28,6 +28,8 @@ class TechnoFamily final : public ProtocolFamily {
                                   const LinkTiming& timing) override;
   asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,
                                      const Request& request) override;
+  // The bus's guard after a failure is the family's own resync: it is not waited twice.
+  asio::awaitable<LinkResync> resync_after_failure(Link& link, const LinkTiming& timing) override;
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
 
   // How long transact() waits for the handshake of `command` at this moment (for tests).
@@ -48,6 +50,13 @@ class TechnoFamily final : public ProtocolFamily {
     Clock::time_point motion_estimated_end{};
     Clock::time_point motion_deadline{};  // by when the controller answers again at the latest
     std::optional<std::array<int64_t, 3>> last_reported;
+    // Where the running lower-case motion ends, where known, and whether that is a commanded
+    // target (a move) rather than a guess (homing, a stop's ramp).
+    std::array<std::optional<int64_t>, 3> expected_end;
+    bool expects_target = false;
+    bool moved = false;  // the polled positions changed since the acknowledge
+    Clock::time_point last_change{};
+    int64_t motion_error = 0;  // field kFieldMotionError
     bool initialised = false;  // init_on_connect has run since the link opened
   };
 
@@ -66,13 +75,29 @@ class TechnoFamily final : public ProtocolFamily {
   void after_interrupt(techno::CommandKind kind);
   void after_reply(NodeState& state, const techno::Command& command,
                    const std::vector<int64_t>& values, Reply& reply);
+  // An error character the controller sent on its own after acknowledging a lower-case motion
+  // (`2`: limit or E-stop): read before the next request so it is neither lost nor taken for
+  // that request's answer.
+  asio::awaitable<void> collect_motion_error(Link& link, NodeState& state,
+                                             const LinkTiming& timing);
+  int64_t in_motion(NodeState& state, const std::array<int64_t, 3>& xyz);
+  asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
+  void take_leading_motion_error(NodeState& state, const Request& request, std::string_view frame,
+                                 Reply& reply);
+  asio::awaitable<void> check_single_handshake(Link& link, const techno::Command& c, Reply& reply,
+                                               const LinkTiming& timing);
 
   // validate_model() is the only way a model reaches the family, and it is const.
   mutable std::vector<techno::Profile> validated_;
   mutable std::optional<techno::Profile> profile_;
   std::map<int, NodeState> nodes_;
+  // Devices this family sent the axes definition to since the link opened: a later `4` means the
+  // controller lost it (power cycle) and its positions with it.
+  std::map<int, bool> defined_by_us_;
   uint64_t interrupts_ = 0;  // stop and reset bytes sent on this line
   char last_interrupt_ = 0;
+  int64_t pending_error_ = 0;    // an error character that followed a motion's acknowledge
+  bool resync_ = false;          // a timeout or garbled reply: wait for a quiet line first
   bool writing_ = false;         // transact() is sending a command
   bool urgent_writing_ = false;  // send_urgent() is sending a raw byte
 };

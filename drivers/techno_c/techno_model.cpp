@@ -15,9 +15,15 @@ namespace fieldgate::techno {
 namespace {
 
 constexpr std::string_view kOptionKeys[] = {
-    "variant",         "axes",           "acceleration",    "home_speed",      "travel",
-    "timeout_factor",  "timeout_margin", "program_timeout", "stop_settle",     "steps_per_unit",
-    "unit_resolution", "position_reply", "stop_bytes",      "stop_on_timeout", "init_on_connect",
+    "variant",         "axes",
+    "acceleration",    "home_speed",
+    "travel",          "timeout_factor",
+    "timeout_margin",  "program_timeout",
+    "stop_settle",     "steps_per_unit",
+    "unit_resolution", "position_reply",
+    "stop_bytes",      "stop_on_timeout",
+    "init_on_connect", "init_when_undefined",
+    "motion_settle",
 };
 
 std::optional<double> parse_number(std::string_view text) {
@@ -112,9 +118,11 @@ class ModelChecker {
       if (p.read->format != NumberFormat::hex24)
         error(p.mark, what + ": the P reply is 24-bit hex; give format: hex24");
       if (p.read->field >= kPositionFields)
-        error(p.mark, fmt::format("{}: P has fields 0..{} (X Y Z steps, in_motion, X Y Z units)",
+        error(p.mark, fmt::format("{}: P has fields 0..{} (X Y Z steps, in_motion, X Y Z units, "
+                                  "motion_fault, motion_error)",
                                   what, kPositionFields - 1));
-      if (p.read->field >= kFieldUnitsX && !profile_.steps_per_unit)
+      if (p.read->field >= kFieldUnitsX && p.read->field < kFieldMotionFault &&
+          !profile_.steps_per_unit)
         error(p.mark, what +
                           ": fields 4..6 are user units; the model needs the steps_per_unit "
                           "option");
@@ -461,6 +469,7 @@ Profile read_profile(const Model& model, Diagnostics& diagnostics) {
   duration("timeout_margin", p.timeout_margin);
   duration("program_timeout", p.program_timeout);
   duration("stop_settle", p.stop_settle);
+  duration("motion_settle", p.motion_settle);
   if (const auto* v = option("steps_per_unit")) {
     if (auto s = parse_per_axis(*v))
       p.steps_per_unit = *s;
@@ -503,6 +512,7 @@ Profile read_profile(const Model& model, Diagnostics& diagnostics) {
   };
   flag("stop_on_timeout", p.stop_on_timeout);
   flag("init_on_connect", p.init_on_connect);
+  flag("init_when_undefined", p.init_when_undefined);
   return p;
 }
 
@@ -535,6 +545,8 @@ Profile merge_profiles(const std::vector<Profile>& profiles) {
       merged.axes = 7;
     }
     merged.init_on_connect = merged.init_on_connect && p.init_on_connect;
+    merged.init_when_undefined = merged.init_when_undefined && p.init_when_undefined;
+    merged.motion_settle = std::max(merged.motion_settle, p.motion_settle);
   }
   return merged;
 }

@@ -21,7 +21,13 @@ enum class Variant { it116g, c10, c116, c142 };
 inline constexpr int kFieldX = 0;
 inline constexpr int kFieldInMotion = 3;  // 1 while a lower-case motion may still be running
 inline constexpr int kFieldUnitsX = 4;    // 4..6: X Y Z in user units (needs steps_per_unit)
-inline constexpr int kPositionFields = 7;
+// The code of an error the controller reported after acknowledging a lower-case motion (ASCII of
+// the character, e.g. 50 for `2`), or kShortOfTarget; 0 while none. Cleared by the next motion.
+inline constexpr int kFieldMotionFault = 7;  // 1 while kFieldMotionError is not 0
+inline constexpr int kFieldMotionError = 8;
+inline constexpr int kPositionFields = 9;
+// The axes came to rest away from the position the move commanded, with no error character.
+inline constexpr int64_t kShortOfTarget = 1;
 
 struct Profile {
   std::string model;
@@ -40,6 +46,11 @@ struct Profile {
   int stop_bytes = 2;
   bool stop_on_timeout = true;
   bool init_on_connect = false;
+  // A `4` (axes not defined: the controller powered up) is answered by sending the axes
+  // definition and the request again; a motion only on first contact (see README).
+  bool init_when_undefined = true;
+  // A lower-case motion is over once the polled positions stood still this long.
+  std::chrono::microseconds motion_settle{std::chrono::milliseconds(300)};
 
   bool operator==(const Profile&) const = default;
 };

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 #include <cctype>
 #include <charconv>
@@ -292,6 +293,8 @@ std::optional<PreparedCommand> prepare_command(std::string_view command, std::st
     p.kind = QueryKind::axis_fault;
   else if (t == "RDI" || t == "RDB")
     p.kind = QueryKind::bit_list;
+  else if (t == "RS" || (t.size() == 3 && t.starts_with("RS") && is_axis(t[2])))
+    p.kind = QueryKind::status_word;
 
   if (t.size() >= 3 && t.starts_with("UR") && is_axis(t[2])) {
     const std::string_view arg = std::string_view(t).substr(3);
@@ -550,6 +553,52 @@ std::optional<int64_t> parse_bit_string(std::string_view body) {
       return std::nullopt;
   }
   return bits;
+}
+
+std::string_view to_string(StatusForm form) {
+  switch (form) {
+    case StatusForm::decimal:
+      return "decimal";
+    case StatusForm::hex:
+      return "hex";
+    case StatusForm::binary:
+      return "binary";
+  }
+  return "?";
+}
+
+std::optional<StatusWord> parse_status_word(std::string_view body, std::optional<StatusForm> known,
+                                            std::string& problem) {
+  body = trim(body);
+  const auto all = [&](auto pred) {
+    return !body.empty() && std::all_of(body.begin(), body.end(), pred);
+  };
+  StatusWord w;
+  if ((body.size() == 8 || body.size() == 16) && all([](char c) { return c == '0' || c == '1'; })) {
+    for (const char c : body) w.value = (w.value << 1) | (c == '1' ? 1 : 0);
+    w.evidence = StatusForm::binary;
+    return w;
+  }
+  if (!all([](char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; })) {
+    problem = fmt::format("'{}' is no status word (decimal, hex or 8/16 binary digits)", body);
+    return std::nullopt;
+  }
+  const bool letters = !all([](char c) { return c >= '0' && c <= '9'; });
+  const bool padded = body.size() == 4 && body.front() == '0';
+  const bool hex = letters || padded || known == StatusForm::hex;
+  if (letters || padded) w.evidence = StatusForm::hex;
+  if (body.size() > (hex ? 4u : 5u)) {
+    problem = fmt::format("status word '{}' does not fit 16 bits", body);
+    return std::nullopt;
+  }
+  uint32_t v = 0;
+  std::from_chars(body.data(), body.data() + body.size(), v, hex ? 16 : 10);
+  if (v > 0xffff) {
+    problem = fmt::format("status word '{}' does not fit 16 bits", body);
+    return std::nullopt;
+  }
+  w.value = v;
+  return w;
 }
 
 }  // namespace fieldgate::whedco

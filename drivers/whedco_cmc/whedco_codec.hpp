@@ -58,10 +58,11 @@ std::optional<std::string> axis_letters(int64_t mask);
 enum class Quantity { none, length, velocity, acceleration };
 
 enum class QueryKind {
-  plain,       // numbers
-  axis_fault,  // FCa: a hex code (non-echo) or the §6.2 text (echo)
-  unit_fault,  // FC: a number (non-echo) or the §6.1.2 texts (echo)
-  bit_list,    // RDI, RDB: a number, or a string of 0/1 digits (first = I/O 1)
+  plain,        // numbers
+  axis_fault,   // FCa: a hex code (non-echo) or the §6.2 text (echo)
+  unit_fault,   // FC: a number (non-echo) or the §6.1.2 texts (echo)
+  bit_list,     // RDI, RDB: a number, or a string of 0/1 digits (first = I/O 1)
+  status_word,  // RS, RSa: a 16-bit word printed in decimal, hex or binary (§4.3.1 missing)
 };
 
 struct PreparedCommand {
@@ -131,6 +132,23 @@ int unit_fault_axis_bit(char axis, bool faulted);
 // RDI/RDB as a string of 0/1 digits, first digit I/O 1 (bit 0). Only strings of 8 or more
 // digits are taken as bit strings: shorter ones are ordinary numbers.
 std::optional<int64_t> parse_bit_string(std::string_view body);
+
+// How a unit prints its status words; the excerpt lacks §4.3.1, so each is plausible.
+enum class StatusForm { decimal, hex, binary };
+std::string_view to_string(StatusForm form);
+
+struct StatusWord {
+  int64_t value = 0;
+  // The form the text proves (binary digits, hex letters, four digits with a leading zero);
+  // nullopt when decimal and unpadded hex would read it alike.
+  std::optional<StatusForm> evidence;
+};
+
+// A status word: 8 or 16 binary digits (most significant first); hex when it has hex letters,
+// is four digits with a leading zero, or the unit is known to print hex; else decimal. Anything
+// that does not fit 16 bits is refused (problem says why).
+std::optional<StatusWord> parse_status_word(std::string_view body, std::optional<StatusForm> known,
+                                            std::string& problem);
 
 // Device codes this family reports (Reply::device_code, the action error register).
 inline constexpr int64_t kRejected = 1;  // the unit answered text, not the prompt or a value

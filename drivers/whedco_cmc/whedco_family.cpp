@@ -183,7 +183,11 @@ void WhedcoFamily::validate_model(const Model& model, Diagnostics& diagnostics) 
   }
 }
 
-Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame) {
+Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
+                             WhedcoFindings* findings) {
+  WhedcoFindings ignored;
+  WhedcoFindings& found = findings ? *findings : ignored;
+  found = {};
   bool echoed = false;
   std::string_view body = whedco::strip_echo(frame, x.line, echoed);
   const auto prompt = body.rfind(whedco::kPrompt);
@@ -229,14 +233,35 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame) {
     case QueryKind::unit_fault: {
       std::optional<int64_t> code;
       const bool hex = x.format == NumberFormat::hex;
+      bool number = false;
       if (const auto numbers = whedco::parse_numbers(body, hex);
-          numbers && numbers->size() == 1 && numbers->front().decimals == 0)
+          numbers && numbers->size() == 1 && numbers->front().decimals == 0) {
         code = numbers->front().mantissa;
-      else
+        number = true;
+      } else {
         code = whedco::unit_fault_from_text(body);
+      }
       if (!code) return has_text(body) ? rejected(body, x.line) : garbled(printable(frame));
+      found.unit_fault_number = number;
+      bool functional = *code == whedco::kUnitFunctional;
+      // Non-echo numbers: the excerpt gives no base numbers. 0 (base x 256 + axis byte) and 8
+      // (the FCa table's Unit Functional) are both read as functional until a WB shows which.
+      if (number)
+        functional = x.unit_functional
+                         ? *code == *x.unit_functional
+                         : (*code == whedco::kUnitFunctional || *code == whedco::kAxisFunctional);
       r.status = Reply::Status::ok;
-      r.values = {*code, *code != whedco::kUnitFunctional ? 1 : 0};
+      r.values = {*code, functional ? 0 : 1};
+      return r;
+    }
+    case QueryKind::status_word: {
+      std::string problem;
+      const auto word = whedco::parse_status_word(
+          body, x.format == NumberFormat::hex ? whedco::StatusForm::hex : x.status_form, problem);
+      if (!word) return garbled(problem);
+      found.status_form = word->evidence;
+      r.status = Reply::Status::ok;
+      r.values = {word->value};
       return r;
     }
     case QueryKind::bit_list:
@@ -285,6 +310,8 @@ asio::awaitable<void> WhedcoFamily::on_link_open(Link& link, const LinkTiming& t
   // The port may have been closed for a while: unit ratios may have changed, and a unit may hold
   // part of a line from before.
   unit_ratios_.clear();
+  contacted_.clear();
+  unit_functional_.clear();
   resync_ = Resync::void_and_drain;
   co_await resync(link, timing);
 }
@@ -299,6 +326,10 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const NodeAddress& nod
   link.discard_input();
   WhedcoExchange x;
   x.line = whedco::sent_line(node.number, command);
+  if (const auto f = status_forms_.find(node.number); f != status_forms_.end())
+    x.status_form = f->second;
+  if (const auto u = unit_functional_.find(node.number); u != unit_functional_.end())
+    x.unit_functional = u->second;
   x.mode = echo_mode(node);
   x.expect = expect;
   x.format = format;
@@ -324,14 +355,20 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const NodeAddress& nod
   const LinkRead read = co_await link.read_frame(splitter, read_timing);
   switch (read.status) {
     case LinkRead::Status::frame:
-      r = interpret_whedco_reply(x, read.frame);
+      r = interpret_whedco_reply(x, read.frame, &findings_);
       if (r.status == Reply::Status::garbled) resync_ = Resync::void_and_drain;
+      if (findings_.status_form && findings_.status_form != x.status_form) {
+        status_forms_[node.number] = *findings_.status_form;
+        link.note(fmt::format("whedco-cmc unit {}: status words are printed in {} (reply to '{}')",
+                              node.number, whedco::to_string(*findings_.status_form), x.line));
+      }
       co_return r;
     case LinkRead::Status::timeout:
       if (read.partial.empty()) {
         r.status = Reply::Status::timeout;
         r.text = "no reply";
-        resync_ = Resync::void_line;
+        // A slow unit's late reply must not pass for the next one: wait it out too.
+        resync_ = Resync::void_and_drain;
       } else {
         r.status = Reply::Status::garbled;
         r.text = "incomplete reply '" + printable(read.partial) + "'";
@@ -361,6 +398,7 @@ asio::awaitable<Reply> WhedcoFamily::transact(Link& link, const NodeAddress& nod
   std::string error;
   const auto prepared = whedco::prepare_command(request.command, error);
   if (!prepared) co_return refused(error);
+  if (!contacted_[node.number]) co_await first_contact(link, node, timing);
 
   int ratio = 1;
   if (prepared->quantity != whedco::Quantity::none) {
@@ -396,6 +434,66 @@ asio::awaitable<Reply> WhedcoFamily::transact(Link& link, const NodeAddress& nod
     }
   }
   co_return r;
+}
+
+asio::awaitable<void> WhedcoFamily::first_contact(Link& link, const NodeAddress& node,
+                                                  const LinkTiming& timing) {
+  // Named commands: exchange() keeps a reference to its command across suspensions.
+  const std::string fc_command = "FC";
+  const std::string wb_command = "WB";
+  const auto read_fc = [&]() {
+    return exchange(link, node, fc_command, Request::Expect::values, NumberFormat::decimal,
+                    QueryKind::unit_fault, 1, timing);
+  };
+  const Reply fc = co_await read_fc();
+  if (fc.status != Reply::Status::ok || fc.values.size() != 2) co_return;  // try again later
+  contacted_[node.number] = true;
+  if (fc.values[1] == 0) co_return;
+  const int64_t code = fc.values[0];
+  const bool number = findings_.unit_fault_number;
+  // Power-up: "Power Failure" (echo text, or base 1 in the high byte). A non-echo number of
+  // another reading (an axis byte without that base) counts only if every axis it names reports
+  // code 0, Power Failure (FCa codes are the same in every reading): a real fault is left alone.
+  const int64_t base = code >> 8;
+  bool power_up = base == 1;
+  if (number && base == 0 && (code & 0xff) != 0) {
+    power_up = true;
+    constexpr std::string_view kByteAxes = "XYWZ";  // bits 0-3 (and 4-7) of the axis byte
+    for (std::size_t i = 0; i < kByteAxes.size() && power_up; ++i) {
+      if (!(code & (int64_t{0x11} << i))) continue;
+      const std::string axis_command = std::string("FC") + kByteAxes[i];
+      const Reply axis = co_await exchange(link, node, axis_command, Request::Expect::values,
+                                           NumberFormat::decimal, QueryKind::axis_fault, 1, timing);
+      power_up = axis.status == Reply::Status::ok && !axis.values.empty() && axis.values[0] == 0;
+    }
+  }
+  if (!power_up) {
+    link.note(
+        fmt::format("whedco-cmc unit {}: faulted at first contact (FC {}); not cleared: "
+                    "clear_faults sends WB",
+                    node.number, code));
+    co_return;
+  }
+  const Reply wb = co_await exchange(link, node, wb_command, Request::Expect::ack,
+                                     NumberFormat::decimal, QueryKind::plain, 1, timing);
+  if (wb.status != Reply::Status::ok) {
+    link.note(fmt::format("whedco-cmc unit {}: power-up state (FC {}); WB failed: {}", node.number,
+                          code, wb.text.empty() ? to_string(wb.status) : wb.text));
+    co_return;
+  }
+  const Reply after = co_await read_fc();
+  std::string learned;
+  if (after.status == Reply::Status::ok && !after.values.empty() && findings_.unit_fault_number &&
+      (after.values[0] == whedco::kUnitFunctional || after.values[0] == whedco::kAxisFunctional)) {
+    unit_functional_[node.number] = after.values[0];
+    learned = fmt::format("; non-echo FC reads Unit Functional as {}", after.values[0]);
+  }
+  link.note(fmt::format(
+      "whedco-cmc unit {}: power-up state at first contact (FC {}): sent WB{}{}", node.number, code,
+      after.status == Reply::Status::ok && after.values.size() == 2 && after.values[1] != 0
+          ? fmt::format(", still faulted (FC {})", after.values[0])
+          : std::string(),
+      learned));
 }
 
 std::size_t WhedcoFamily::estimate_wire_chars(const NodeAddress& node,

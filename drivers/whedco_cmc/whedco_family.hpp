@@ -1,6 +1,7 @@
 #pragma once
 
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -8,6 +9,12 @@
 #include "drivers/whedco_cmc/whedco_codec.hpp"
 
 namespace fieldgate {
+
+// What a reply showed about its unit beyond its values.
+struct WhedcoFindings {
+  std::optional<whedco::StatusForm> status_form;  // a status word proved its form
+  bool unit_fault_number = false;                 // FC answered a number (non-echo)
+};
 
 // Whedco CMC coordinated motion controllers: one CMC-0 per address digit, several on one
 // RS-422/485 line, each with up to four axes W, X, Y, Z named in the commands.
@@ -37,14 +44,26 @@ class WhedcoFamily final : public ProtocolFamily {
                                   Request::Expect expect, NumberFormat format,
                                   whedco::QueryKind kind, int unit_ratio, const LinkTiming& timing);
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
+  // The first exchange with a unit since the port opened: reads FC, and clears the power-up
+  // state (Power Failure, every axis faulted) with WB, as the manual asks after power-up.
+  asio::awaitable<void> first_contact(Link& link, const NodeAddress& node,
+                                      const LinkTiming& timing);
 
   std::map<std::pair<int, char>, int> unit_ratios_;  // (unit, axis) -> pulses per user unit
+  std::map<int, bool> contacted_;
+  std::map<int, whedco::StatusForm> status_forms_;
+  std::map<int, int64_t> unit_functional_;
+  WhedcoFindings findings_;  // of the last exchange
   Resync resync_ = Resync::none;
 };
 
 // One exchange as interpret_whedco_reply() needs to know it.
 struct WhedcoExchange {
   std::string line;  // address and command as sent, without CR: what an echo repeats
+  // What the family learned of this unit: how it prints status words, and the non-echo FC
+  // number that means Unit Functional (0 or 8, learned after a WB; both taken until then).
+  std::optional<whedco::StatusForm> status_form;
+  std::optional<int64_t> unit_functional;
   whedco::EchoMode mode = whedco::EchoMode::automatic;
   Request::Expect expect = Request::Expect::ack;
   NumberFormat format = NumberFormat::decimal;
@@ -53,7 +72,9 @@ struct WhedcoExchange {
 };
 
 // The decision part of transact(): what a complete frame (up to the `*` prompt) means.
-// Fault queries give two values: the code and a faulted flag (axis: code != 8, unit: != 0).
-Reply interpret_whedco_reply(const WhedcoExchange& exchange, std::string_view frame);
+// Fault queries give two values: the code and a faulted flag (axis: code != 8; unit: the echo
+// texts != Unit Functional, a non-echo number != the learned functional number, 0 or 8).
+Reply interpret_whedco_reply(const WhedcoExchange& exchange, std::string_view frame,
+                             WhedcoFindings* findings = nullptr);
 
 }  // namespace fieldgate

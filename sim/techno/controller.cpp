@@ -5,6 +5,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 #include "sim/common/control_channel.hpp"
 #include "sim/common/line_device_loop.hpp"
@@ -622,7 +623,13 @@ void Controller::start_leg(SimTime now) {
         if (!leg.value[i]) continue;
         MotionAxis& axis = axes_motion_[i];
         const double from = axis.position(now);
-        const double target = leg.relative ? from + *leg.value[i] : origin_[i] + *leg.value[i];
+        double target = leg.relative ? from + *leg.value[i] : origin_[i] + *leg.value[i];
+        if (i == 0 && limit_x_ &&
+            ((from < *limit_x_ && target >= *limit_x_) ||
+             (from > *limit_x_ && target <= *limit_x_))) {
+          target = *limit_x_;  // the switch stops the axis there
+          job_->limit_hit = true;
+        }
         const double distance = std::abs(target - from);
         if (distance < 0.5) continue;
         axis.start_move(now, target, {leg.speed[i], a, a});
@@ -669,7 +676,10 @@ void Controller::finish_leg(SimTime at) {
 }
 
 void Controller::finish_job(SimTime at) {
-  if (busy_ == Busy::stopping) {
+  if (job_->limit_hit && busy_ != Busy::stopping) {
+    // Capital: `2` instead of the acknowledge; lower case: `2` after the `0` of the start.
+    reply(at, '2');
+  } else if (busy_ == Busy::stopping) {
     if (stopped_capital_ && options_.stop_acknowledges) reply(at, '0');
   } else if (job_->capital) {
     reply(at, '0');  // capital: acknowledged at the end of the motion
@@ -691,7 +701,7 @@ void Controller::advance(SimTime now) {
   while (job_ && !job_->endless_home && job_->leg_end <= now) {
     const SimTime at = job_->leg_end;
     if (busy_ != Busy::stopping) finish_leg(at);
-    if (busy_ != Busy::stopping && !job_->legs.empty()) {
+    if (busy_ != Busy::stopping && !job_->legs.empty() && !job_->limit_hit) {
       start_leg(at);
       continue;
     }
@@ -753,6 +763,18 @@ std::optional<std::string> Controller::control(std::string_view verb,
   };
   if (verb == "mechanics") return on_off(options_.mechanics, false);
   if (verb == "estop") return on_off(estop_, false);
+  if (verb == "limit") {
+    if (arguments.size() != 1) return std::string("error: limit POSITION|off");
+    if (arguments[0] == "off") {
+      limit_x_.reset();
+      return std::string("ok limit off");
+    }
+    char* end = nullptr;
+    const double at = std::strtod(arguments[0].c_str(), &end);
+    if (end == arguments[0].c_str() || *end) return std::string("error: limit POSITION|off");
+    limit_x_ = at;
+    return "ok limit " + arguments[0];
+  }
   if (verb == "inputs") {
     const auto mask = arguments.size() == 1 ? parse_control_integer(arguments[0]) : std::nullopt;
     if (!mask || *mask < 0 || *mask > 255) return "error: usage: inputs MASK (0-255, 1 = open)";

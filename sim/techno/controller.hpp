@@ -93,6 +93,7 @@ class Controller {
     bool endless_home = false;  // the current leg is a homing run that never ends
     std::optional<int> homing_axis;
     SimTime leg_end{};
+    bool limit_hit = false;  // the current leg runs into the limit switch
   };
 
   void execute(std::string_view text, SimTime now);
@@ -127,6 +128,7 @@ class Controller {
   std::array<int, 2> outputs_{};
   int inputs_ = 0xff;  // open inputs read 1
   bool estop_ = false;
+  std::optional<double> limit_x_;  // a limit switch on X at this position (control `limit`)
   Busy busy_ = Busy::idle;
   std::optional<Job> job_;
   bool stopped_capital_ = false;  // the ramp being run ended a capital command

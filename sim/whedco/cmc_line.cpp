@@ -111,7 +111,7 @@ std::string CmcLine::echo(std::string_view received) {
       CmcUnit* u = (c >= '0' && c <= '7') ? unit(c - '0') : nullptr;
       echoing_ = u && u->online() && u->echo();
     }
-    if (echoing_) {
+    if (echoing_ && !(c == '\r' && options_.style == ReplyStyle::inline_echo)) {
       out += c;
       if (c == '\r') out += '\n';
     }
@@ -134,6 +134,8 @@ DeviceReply CmcLine::handle(std::string_view request, SimTime now) {
   if (options_.style == ReplyStyle::terminal) {
     reply.bytes = "\r\n";
     if (!text.empty()) reply.bytes += (text[0] == '-' ? "" : " ") + text + "\r\n";
+  } else if (options_.style == ReplyStyle::inline_echo && u->echo()) {
+    reply.bytes = text.empty() ? "\r\n" : " " + text + "\r\n";
   } else if (!text.empty()) {
     reply.bytes = text + "\r\n";
   }

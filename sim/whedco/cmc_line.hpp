@@ -18,6 +18,9 @@ namespace fieldgate::sim::whedco {
 enum class ReplyStyle {
   compact,   // "1250\r\n*", "*"
   terminal,  // "\r\n 1250\r\n*", "\r\n*": every reply on a fresh line, numbers with a sign column
+  // The reply on the echo's line: the CR that ends the request is not echoed, the value follows
+  // after a space ("4RPX 1250\r\n*"); an acknowledge ends the line ("4AMX10\r\n*").
+  inline_echo,
 };
 
 struct LineOptions {

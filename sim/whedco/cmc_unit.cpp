@@ -171,7 +171,30 @@ int CmcUnit::fault_number() const {
     const auto it = axes_.find(kAxisOrder[i]);
     if (it != axes_.end() && it->second.fault != kAxisFunctional) byte |= (1 << i) | (1 << (i + 4));
   }
+  if (options_.fc_table_codes) {
+    const int base = unit_fault_ == UnitFault::functional      ? 8
+                     : unit_fault_ == UnitFault::power_failure ? 0
+                                                               : static_cast<int>(unit_fault_);
+    return base + byte;
+  }
   return static_cast<int>(unit_fault_) * 256 + byte;
+}
+
+std::string CmcUnit::status_text(int word) const {
+  char buffer[24];
+  switch (options_.status_format) {
+    case StatusFormat::hex:
+      std::snprintf(buffer, sizeof buffer, "%04X", word & 0xffff);
+      return buffer;
+    case StatusFormat::binary: {
+      std::string bits;
+      for (int b = 15; b >= 0; --b) bits += ((word >> b) & 1) ? '1' : '0';
+      return bits;
+    }
+    case StatusFormat::decimal:
+      break;
+  }
+  return std::to_string(word);
 }
 
 std::string CmcUnit::fault_text() const {
@@ -209,7 +232,10 @@ int CmcUnit::unit_status(SimTime now) {
   for (auto& [letter, a] : axes_)
     if (busy(a, now)) s |= status::busy;
   if (!stack_.empty()) s |= status::busy | status::profile_running;
-  if (fault_number() != 0) s |= status::faulted;
+  const bool axis_faulted = std::any_of(axes_.begin(), axes_.end(), [](const auto& entry) {
+    return entry.second.fault != kAxisFunctional;
+  });
+  if (unit_fault_ != UnitFault::functional || axis_faulted) s |= status::faulted;
   if (defining_) s |= status::defining;
   if (memory_lost_) s |= status::memory_lost;
   return s;
@@ -563,7 +589,7 @@ std::string CmcUnit::run(const Command& c, SimTime t, bool from_profile) {
       edit_line_ = 0;
       if (const auto it = profiles_.find(c.index); it != profiles_.end() && !it->second.empty())
         return it->second.front();  // §5.17: an existing profile opens in edit mode
-      return {};
+      return options_.de_answers_ed && c.op == Op::define ? "ED" : std::string{};
     case Op::end_definition:
     case Op::edit_next:
     case Op::edit_delete:
@@ -747,9 +773,9 @@ std::string CmcUnit::run(const Command& c, SimTime t, bool from_profile) {
       return {};
     }
     case Op::unit_status:
-      return std::to_string(unit_status(t));
+      return status_text(unit_status(t));
     case Op::axis_status:
-      return std::to_string(axis_status(c.axis, t));
+      return status_text(axis_status(c.axis, t));
     case Op::command_position:
       return format_user_value(a->motion.position(t) / a->unit_ratio);
     case Op::actual_position:

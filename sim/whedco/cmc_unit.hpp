@@ -38,12 +38,22 @@ inline constexpr int homing = 1 << 3;           // RSa: SHZ/SIZ/SBZ search under
 inline constexpr int home_input = 1 << 4;       // RSa: the axis stands on its home input
 }  // namespace status
 
+// How RS/RSa print the status word (§4.3.1 is missing from the excerpt).
+enum class StatusFormat { decimal, hex, binary };
+
 struct UnitOptions {
   int address = 4;
   std::string axes = "WXYZ";   // axes present (CMC-1/CMC-2 modules on the link)
   std::string steppers;        // of those, CMC-1 steppers (no following error); others servo
   bool echo = true;            // SW2-5, factory setting echo
   bool power_failure = false;  // start with the power-up fault ("Power Failure")
+  StatusFormat status_format = StatusFormat::decimal;  // "1538", "0602", "0000011000000010"
+  // Non-echo FC: the base numbers are not in the excerpt. false: base x 256 + axis byte (base 0
+  // Unit Functional, 1 Power Failure, 2 Axis Initialize, 3 Arithmetic Overflow); true: the FCa
+  // code table read for FC too: 8 Unit Functional, 0 Power Failure, plus the axis byte.
+  bool fc_table_codes = false;
+  // `DEn` on an empty profile: only the prompt (every example) or `ED` (§5.17's text).
+  bool de_answers_ed = false;
   // Servo lag between commanded and actual position.
   std::chrono::microseconds servo_lag{2000};
 };
@@ -130,6 +140,7 @@ class CmcUnit {
   double multiplier_of(const Axis& a) const;
   void start_profile(int number, SimTime t);
   std::string fault_text() const;
+  std::string status_text(int word) const;  // RS/RSa as --status-format prints them
   std::string definition_line(std::string_view body);
   void reset_parameters();
 

@@ -29,6 +29,10 @@ int main(int argc, char** argv) {
   std::uint32_t baud = 9600;
   bool emulate_wire = false;
   bool power_failure = false;
+  bool initialised = false;
+  std::string status_format = "decimal";
+  bool fc_table_codes = false;
+  bool de_answers_ed = false;
   long turnaround_us = -1;
   long position_read_us = 0;
   bool verbose = false;
@@ -40,8 +44,21 @@ int main(int argc, char** argv) {
                  "units in non-echo format (SW2-5): all, or addresses e.g. 5 (default: echo)");
   app.add_option("--steppers", steppers,
                  "CMC-1 stepper axes (no following error): e.g. X or 4:X; others are servos");
-  app.add_option("--reply-style", style, "compact (1250\\r\\n*) or terminal (\\r\\n 1250\\r\\n*)")
-      ->check(CLI::IsMember({"compact", "terminal"}));
+  app.add_option("--reply-style", style,
+                 "compact (1250\\r\\n*), terminal (\\r\\n 1250\\r\\n*) or inline (the value on "
+                 "the echo's line: 4RPX 1250\\r\\n*)")
+      ->check(CLI::IsMember({"compact", "terminal", "inline"}));
+  app.add_option("--status-format", status_format,
+                 "how RS/RSa print the status word: decimal (1538), hex (0602) or binary "
+                 "(0000011000000010)")
+      ->check(CLI::IsMember({"decimal", "hex", "binary"}));
+  app.add_flag("--fc-table-codes", fc_table_codes,
+               "non-echo FC uses the FCa code table: 8 Unit Functional, 0 Power Failure, plus the "
+               "axis byte (default: base x 256 + axis byte, 0 Unit Functional)");
+  app.add_flag("--de-answers-ed", de_answers_ed,
+               "DEn on an empty profile answers ED before the prompt (default: only the prompt)");
+  app.add_flag("--initialised", initialised,
+               "start already initialised: no Power Failure (default: the power-up state)");
   app.add_option("--baud", baud, "line rate for wire emulation (1200, 4800, 9600, 38400)")
       ->check(CLI::IsMember({1200u, 4800u, 9600u, 38400u, 115200u}));
   app.add_flag("--emulate-wire", emulate_wire,
@@ -53,7 +70,7 @@ int main(int argc, char** argv) {
                  "extra time of RPa/RCa/FEa (the manual: 5-10 ms)")
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--power-failure", power_failure,
-               "start as after power-up: every fault reads Power Failure until WB");
+               "start as after power-up: every fault reads Power Failure until WB (the default)");
   app.add_option("--seed", seed, "seed for garbage replies");
   app.add_flag("--verbose", verbose, "log every request and reply to stderr");
   CLI11_PARSE(app, argc, argv);
@@ -62,9 +79,17 @@ int main(int argc, char** argv) {
     const sim::SimTime now = sim::SimClock::now();
     whedco::LineOptions options;
     options.units = whedco::parse_units(units, axes, non_echo, steppers);
-    for (auto& u : options.units) u.power_failure = power_failure;
-    options.style =
-        style == "terminal" ? whedco::ReplyStyle::terminal : whedco::ReplyStyle::compact;
+    for (auto& u : options.units) {
+      u.power_failure = power_failure || !initialised;
+      u.status_format = status_format == "hex"      ? whedco::StatusFormat::hex
+                        : status_format == "binary" ? whedco::StatusFormat::binary
+                                                    : whedco::StatusFormat::decimal;
+      u.fc_table_codes = fc_table_codes;
+      u.de_answers_ed = de_answers_ed;
+    }
+    options.style = style == "terminal" ? whedco::ReplyStyle::terminal
+                    : style == "inline" ? whedco::ReplyStyle::inline_echo
+                                        : whedco::ReplyStyle::compact;
     options.position_read_delay = std::chrono::microseconds(position_read_us);
     whedco::CmcLine line(options, now);
 

@@ -27,7 +27,7 @@ constexpr int kInitialise = 1, kHome = 2, kMoveAbsolute = 3, kMoveRelative = 4, 
 constexpr int kItPosition = 0, kItInMotion = 2, kItPositionIn = 3;
 constexpr int kItTarget = 110, kItSpeed = 114;
 
-constexpr int kIllegalValue = 0x03, kDeviceFailure = 0x04;
+constexpr int kIllegalValue = 0x03, kDeviceFailure = 0x04, kServerBusy = 0x06;
 constexpr int kDiagOnline = 1000;
 constexpr int kC142 = 1, kIt116g = 2;
 
@@ -40,14 +40,14 @@ class TechnoEndToEnd : public ::testing::Test {
     plant_ = std::make_unique<Plant>(std::vector<SimulatedBus>{
         {"techno-c142",
          "techno-c",
-         {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "c142", "--axes", "7",
-          "--verbose"},
+         // Power-up state (axes undefined): the family initialises at first contact.
+         {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "c142", "--verbose"},
          "baud: 19200",
          timing,
          "      - {name: c142, address: 0, model: techno-c142, unit_id: 1}\n"},
         {"techno-it116g",
          "techno-c",
-         {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "it116g", "--axes", "1"},
+         {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "it116g"},
          "baud: 9600",
          timing,
          "      - {name: it116g, address: 0, model: techno-it116g, unit_id: 2}\n"}});
@@ -131,6 +131,37 @@ TEST_F(TechnoEndToEnd, ThreeAxisMoveItsCompletionSeenByThePlc) {
       << sim_log;
 }
 
+TEST_F(TechnoEndToEnd, PowerUpStateIsInitialisedAtFirstContactAndLogged) {
+  const std::string log = plant_->daemon().log();
+  EXPECT_NE(log.find("sent the axes definition '7'"), std::string::npos) << log;
+  EXPECT_NE(log.find("sent the axes definition '1'"), std::string::npos) << log;
+}
+
+// C142 against an independent implementation: a write during a capital move held its Modbus
+// reply until the move ended, and `moving` read 0. Now: 0x06 at once, `moving` 1, stop still
+// gets through.
+TEST_F(TechnoEndToEnd, WritesDuringACapitalMoveAnswerBusyAtOnce) {
+  ASSERT_TRUE(client_->write_single(kC142, kSpeedX, 2000).ok());
+  ASSERT_TRUE(client_->write_i32(kC142, kTargetX, 12000).ok());  // 6 s
+  ASSERT_TRUE(client_->write_single(kC142, kCommand, kMoveAbsolute).ok());
+  EXPECT_EQ(holding(kC142, kStatus), 1);
+  auto moving = client_->read_discrete(kC142, kMoving, 1);
+  ASSERT_TRUE(moving.ok());
+  EXPECT_EQ(moving.values[0], 1);
+  auto t0 = Clock::now();
+  EXPECT_EQ(client_->write_single(kC142, kPlane, 1).exception, kServerBusy);
+  EXPECT_LT(Clock::now() - t0, 1s);
+  t0 = Clock::now();
+  EXPECT_EQ(client_->write_single(kC142, kCommand, kMoveRelative).exception, kServerBusy);
+  EXPECT_LT(Clock::now() - t0, 1s);
+  // Setpoints touch no wire: stored at once.
+  EXPECT_TRUE(client_->write_i32(kC142, kDistanceX, 50).ok());
+  EXPECT_EQ(holding(kC142, kStatus), 1);
+  ASSERT_TRUE(client_->write_single(kC142, kCommand, kStop).ok());
+  ASSERT_TRUE(wait_until([&] { return holding(kC142, kStatus) == 2; }, 10s));
+  EXPECT_TRUE(client_->write_single(kC142, kPlane, 0).ok());
+}
+
 TEST_F(TechnoEndToEnd, StopDuringALongMove) {
   ASSERT_TRUE(client_->write_single(kC142, kSpeedX, 1000).ok());
   ASSERT_TRUE(client_->write_i32(kC142, kTargetX, 90000).ok());  // 90 s at 1000 steps/s
@@ -192,7 +223,7 @@ TEST_F(TechnoEndToEnd, HomingThatNeverAnswersBecomesATimeoutFaultThePlcCanReadAn
   // travel 20000 steps at 4999 steps/s, x1.25 + 1 s: about 6 s until the family gives up.
   ASSERT_TRUE(wait_until([&] { return holding(kC142, kStatus) == 3; }, 20s));
   EXPECT_GE(Clock::now() - t0, 5s);
-  EXPECT_EQ(holding(kC142, kError), 0xffff);  // timeout
+  EXPECT_EQ(holding(kC142, kError), 0xfffc);  // no reply: the outcome is unknown
   // The family sent STOP twice, which is what ends the homing loop (manual p.41).
   EXPECT_EQ(sim_counter(0, "stops"), 2);
   EXPECT_TRUE(
@@ -220,16 +251,40 @@ TEST_F(TechnoEndToEnd, ErrorHandshakeAnswersTheWriteWith04) {
   EXPECT_EQ(client_->write_single(kC142, kCommand, kMoveAbsolute).exception, kDeviceFailure);
   EXPECT_EQ(holding(kC142, kStatus), 3);
   EXPECT_EQ(holding(kC142, kError), '2');
-  // Power-cycled controller: 4 (axis not defined) until the explicit initialisation.
+  // Power-cycled controller: the next poll answers 4 (axis not defined); the family sends the
+  // axes definition again and logs it.
   EXPECT_EQ(control(0, "power-cycle"), "ok power-cycle");
+  ASSERT_TRUE(wait_until([&] {
+    return plant_->daemon().log().find("lost its definition") != std::string::npos;
+  })) << plant_->daemon().log();
   ASSERT_TRUE(client_->write_i32(kC142, kTargetX, 10).ok());
-  EXPECT_EQ(client_->write_single(kC142, kCommand, kMoveAbsolute).exception, kDeviceFailure);
-  EXPECT_EQ(holding(kC142, kError), '4');
-  ASSERT_TRUE(client_->write_single(kC142, kCommand, kInitialise).ok());
-  EXPECT_EQ(holding(kC142, kStatus), 2);
   ASSERT_TRUE(client_->write_single(kC142, kCommand, kMoveAbsolute).ok());
   ASSERT_TRUE(wait_until([&] { return holding(kC142, kStatus) == 2; }, 10s));
   EXPECT_EQ(input32(kC142, kPositionX), 10);
+}
+
+// IT116G against an independent implementation: the limit stops the axis at 3424 of 4424 and
+// the controller sends `2` after the `0` of the start. The action fails with that code.
+TEST_F(TechnoEndToEnd, LimitDuringALowerCaseMoveFailsTheActionWithItsCode) {
+  // Machine coordinates: the axis starts 5000 steps from its home switch, where P reads 0.
+  EXPECT_EQ(control(1, "limit 8424"), "ok limit 8424");
+  ASSERT_TRUE(client_->write_i32(kIt116g, kItTarget, 4424).ok());
+  ASSERT_TRUE(client_->write_single(kIt116g, kItSpeed, 2000).ok());
+  ASSERT_TRUE(client_->write_single(kIt116g, kCommand, kMoveAbsolute).ok());
+  ASSERT_TRUE(wait_until([&] { return holding(kIt116g, kStatus) != 1; }, 15s));
+  EXPECT_EQ(holding(kIt116g, kStatus), 3);
+  EXPECT_EQ(holding(kIt116g, kError), '2');
+  EXPECT_EQ(input32(kIt116g, kItPosition), 3424);
+}
+
+// A corrupted end-of-move handshake is not a timeout: its own action error code.
+TEST_F(TechnoEndToEnd, CorruptedEndOfMoveReplyHasItsOwnErrorCode) {
+  ASSERT_TRUE(client_->write_i32(kC142, kTargetX, 3000).ok());
+  ASSERT_TRUE(client_->write_single(kC142, kCommand, kMoveAbsolute).ok());
+  EXPECT_EQ(control(0, "garbage 1"), "ok garbage 1");
+  ASSERT_TRUE(wait_until([&] { return holding(kC142, kStatus) != 1; }, 15s));
+  EXPECT_EQ(holding(kC142, kStatus), 3);
+  EXPECT_EQ(holding(kC142, kError), 0xfffb);
 }
 
 TEST_F(TechnoEndToEnd, LowerCaseMoveOnTheIt116gCompletesFromPolls) {

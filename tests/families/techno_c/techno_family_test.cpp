@@ -30,9 +30,12 @@ Request query(std::string c, NumberFormat f = NumberFormat::hex24) {
 }
 
 // A C142-like model whose options make motions short and timeouts tight.
-std::string model_text(const std::string& extra_options = "") {
+std::string model_text(const std::string& extra_options = "", int travel = 1000,
+                       const std::string& margin = "150ms") {
   return "model: bench\nfamily: techno-c\noptions: {variant: c142, axes: 7, acceleration: 100, "
-         "travel: 1000, timeout_factor: 1.25, timeout_margin: 150ms, stop_settle: 300ms, "
+         "travel: " +
+         std::to_string(travel) + ", timeout_factor: 1.25, timeout_margin: " + margin +
+         ", stop_settle: 300ms, "
          "steps_per_unit: 100, unit_resolution: 0.01" +
          extra_options +
          "}\npoll_classes: {fast: 100ms}\npoints:\n"
@@ -49,10 +52,10 @@ asio::awaitable<Reply> urgent_after(TechnoFamily& family, Link& link, std::chron
 
 class TechnoBench : public ::testing::Test {
  protected:
-  void start(sim::techno::ControllerOptions options, const std::string& model = model_text()) {
+  void start(sim::techno::ControllerOptions options, const std::string& model = model_text(),
+             sim::techno::ExchangeOptions exchange = {}) {
     controller_ = std::make_unique<sim::techno::Controller>(options, sim::SimClock::now());
-    exchange_ = std::make_unique<sim::techno::TechnoExchange>(
-        *controller_, sim::techno::ExchangeOptions{}, faults_);
+    exchange_ = std::make_unique<sim::techno::TechnoExchange>(*controller_, exchange, faults_);
     transport_ = std::make_unique<test::SimTransport>(io_, *exchange_);
     link_ = std::make_unique<Link>(*transport_);
     Diagnostics d;
@@ -128,16 +131,42 @@ TEST(TechnoInterpret, HandshakesAndQueries) {
 TEST_F(TechnoBench, AxesNotDefinedUntilTheInitialisationIsSent) {
   auto o = defined();
   o.axes = 0;
-  start(o);
+  start(o, model_text(", init_when_undefined: false"));
   const auto before = transact(query("P"));
   EXPECT_EQ(before.status, Reply::Status::device_error);
   EXPECT_EQ(before.device_code, '4');
   EXPECT_EQ(transact(ack("7")).status, Reply::Status::ok);
   const auto after = transact(query("P"));
   ASSERT_EQ(after.status, Reply::Status::ok) << after.text;
-  // X Y Z, in_motion, X Y Z in units.
-  EXPECT_EQ(after.values, (std::vector<int64_t>{0, 0, 0, 0, 0, 0, 0}));
+  // X Y Z, in_motion, X Y Z in units, motion fault and error.
+  EXPECT_EQ(after.values, (std::vector<int64_t>{0, 0, 0, 0, 0, 0, 0, 0, 0}));
   EXPECT_EQ(transport_->writes().front(), "@0P\r");
+}
+
+TEST_F(TechnoBench, PowerUpStateIsInitialisedAtFirstContact) {
+  auto o = defined();
+  o.axes = 0;  // as the controller powers up: everything answers 4
+  start(o);
+  const auto p = transact(query("P"));
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+  EXPECT_EQ(transport_->writes(), (std::vector<std::string>{"@0P\r", "@07\r", "@0P\r"}));
+  const auto notes = link_->take_notes();
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("at first contact"), std::string::npos) << notes[0];
+  // A move works at once.
+  EXPECT_EQ(transact(ack("M100,5000,0,30,0,30,0,30")).status, Reply::Status::ok);
+}
+
+TEST_F(TechnoBench, PowerCycleAfterInitialisationFailsTheMoveButDefinesTheAxes) {
+  start(defined());
+  ASSERT_EQ(transact(ack("7")).status, Reply::Status::ok);
+  controller_->control("power-cycle", {}, sim::SimClock::now());
+  const auto r = transact(ack("M100,5000,0,30,0,30,0,30"));
+  EXPECT_EQ(r.status, Reply::Status::device_error);
+  EXPECT_EQ(r.device_code, '4');
+  EXPECT_NE(r.text.find("home before moving"), std::string::npos) << r.text;
+  EXPECT_EQ(transport_->writes().back(), "@07\r");
+  EXPECT_EQ(transact(ack("M100,5000,0,30,0,30,0,30")).status, Reply::Status::ok);
 }
 
 TEST_F(TechnoBench, CapitalMoveAnswersWhenTheMotionEnds) {
@@ -154,7 +183,7 @@ TEST_F(TechnoBench, CapitalMoveAnswersWhenTheMotionEnds) {
   EXPECT_LT(took, 450ms);
   const auto p = transact(query("P"));
   ASSERT_EQ(p.status, Reply::Status::ok);
-  EXPECT_EQ(p.values, (std::vector<int64_t>{1000, 0, 0, 0, 1000, 0, 0}));
+  EXPECT_EQ(p.values, (std::vector<int64_t>{1000, 0, 0, 0, 1000, 0, 0, 0, 0}));
 }
 
 TEST_F(TechnoBench, HomingWithoutMechanicsTimesOutAndSendsStopTwice) {
@@ -247,6 +276,122 @@ TEST_F(TechnoBench, LowerCaseMoveFreesTheLineAndPollsInferTheEnd) {
   EXPECT_EQ(in_motion, 0);
   EXPECT_EQ(x, 1000);
   EXPECT_GE(Clock::now() - t0, 400ms);
+}
+
+// IT116G against an independent implementation: the limit stops the axis at 600 of 1000 and the
+// controller sends `2` after the `0` it gave at the start. The motion ends with that error.
+TEST_F(TechnoBench, LimitAfterTheAcknowledgeIsReportedAsTheMotionsError) {
+  start(defined());
+  ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
+  // Machine coordinates: the axis starts 500 steps from its home switch, where P reads 0.
+  controller_->control("limit", std::vector<std::string>{"1100"}, sim::SimClock::now());
+  ASSERT_EQ(transact(ack("a1000,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
+  Reply p;
+  for (int i = 0; i < 40; ++i) {
+    std::this_thread::sleep_for(50ms);
+    p = transact(query("P"));
+    ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+    if (p.values[3] == 0) break;
+  }
+  EXPECT_EQ(p.values[3], 0);
+  EXPECT_EQ(p.values[0], 600);
+  EXPECT_EQ(p.values[7], 1);
+  EXPECT_EQ(p.values[8], '2');
+  // A stop after it (the PLC's reaction) does not inherit the error; nor does the next motion.
+  ASSERT_EQ(run(family_.send_urgent(*link_, device(0), ack("<stop>"))).status, Reply::Status::ok);
+  EXPECT_EQ(transact(query("P")).values[8], 0);
+  controller_->control("limit", std::vector<std::string>{"off"}, sim::SimClock::now());
+  ASSERT_EQ(transact(ack("a100,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
+  EXPECT_EQ(transact(query("P")).values[8], 0);
+}
+
+TEST_F(TechnoBench, CapitalMoveIntoTheLimitAnswers2) {
+  start(defined());
+  controller_->control("limit", std::vector<std::string>{"600"}, sim::SimClock::now());
+  const auto r = transact(ack("A1000,2500,0,30,0,30,0,30"));
+  EXPECT_EQ(r.status, Reply::Status::device_error);
+  EXPECT_EQ(r.device_code, '2');
+}
+
+// The first move after initialising: its start position is unknown to the family (no poll in
+// between), so the estimate assumes a full travel (20000 steps at 5000 steps/s: 4 s). The move
+// itself takes 0.25 s; the polls see the axis at its target long before the estimate.
+TEST_F(TechnoBench, LowerCaseMoveEndsWhenThePollsSeeItAtRestNotAtTheEstimate) {
+  auto o = defined();
+  o.axes = 0;
+  start(o, model_text("", 20000));
+  ASSERT_EQ(transact(ack("7")).status, Reply::Status::ok);
+  const auto t0 = Clock::now();
+  ASSERT_EQ(transact(ack("m1000,5000,0,30,0,30,0,30")).status, Reply::Status::ok);
+  Reply p;
+  for (int i = 0; i < 100; ++i) {
+    std::this_thread::sleep_for(50ms);
+    p = transact(query("P"));
+    ASSERT_EQ(p.status, Reply::Status::ok);
+    if (p.values[3] == 0) break;
+  }
+  EXPECT_EQ(p.values[3], 0);
+  EXPECT_EQ(p.values[0], 1000);
+  EXPECT_EQ(p.values[8], 0);
+  EXPECT_LT(Clock::now() - t0, 2s);  // half the estimate
+}
+
+TEST_F(TechnoBench, HomeEndsWhenTheAxisRestsAtTheSwitch) {
+  start(defined(), model_text("", 20000));
+  // Estimate: 20000 steps at the home speed 2000 = 10 s; the axis is 500 steps from its switch.
+  const auto t0 = Clock::now();
+  ASSERT_EQ(transact(ack("r1")).status, Reply::Status::ok);
+  Reply p;
+  for (int i = 0; i < 200; ++i) {
+    std::this_thread::sleep_for(50ms);
+    p = transact(query("P"));
+    ASSERT_EQ(p.status, Reply::Status::ok);
+    if (p.values[3] == 0) break;
+  }
+  EXPECT_EQ(p.values[3], 0);
+  EXPECT_EQ(p.values[0], 0);
+  EXPECT_LT(Clock::now() - t0, 5s);
+}
+
+// Issue 12: a controller slower than reply_timeout. Its late `0` must never confirm the next
+// command, which the controller refuses (`7`).
+TEST_F(TechnoBench, LateHandshakeNeverAnswersTheNextCommand) {
+  for (const uint32_t baud : {0u, 9600u, 115200u}) {
+    const bool wire = baud != 0;
+    sim::techno::ExchangeOptions x;
+    if (wire) {
+      x.wire.enabled = true;
+      x.wire.timing = sim::WireTiming(baud);
+      x.wire.turnaround = 1ms;
+    }
+    start(defined(), model_text(), x);
+    faults_.reply_delay = 70ms;  // reply_timeout is 50 ms
+    int confirmed_refusals = 0;
+    for (int i = 0; i < 10; ++i) {
+      transact(ack("n7"));
+      const auto refused = transact(ack("e3"));
+      if (refused.status == Reply::Status::ok) ++confirmed_refusals;
+      const auto p = transact(query("P"));
+      if (p.status == Reply::Status::ok) {
+        EXPECT_EQ(p.values[0], 0);
+      }
+    }
+    EXPECT_EQ(confirmed_refusals, 0) << baud << " baud (0: no wire time)";
+    faults_.reply_delay = 0ms;
+    EXPECT_EQ(transact(ack("e3")).device_code, '7');
+    EXPECT_EQ(transact(ack("n7")).status, Reply::Status::ok);
+  }
+}
+
+TEST_F(TechnoBench, AHandshakeFollowedByMoreBytesIsGarbled) {
+  start(defined());
+  faults_.reply_delay = 70ms;
+  transact(query("P"));  // times out; its 18 digits come late
+  faults_.reply_delay = 0ms;
+  // Without the guard the `0` of this command and the late digits would share the line.
+  const auto r = transact(ack("n7"));
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  EXPECT_EQ(interpret_techno_reply(ack("n7"), "0").status, Reply::Status::ok);
 }
 
 TEST_F(TechnoBench, QueriesDeferredDuringMotionWaitForItsEnd) {
@@ -362,6 +507,55 @@ TEST_F(TechnoBench, GarbledAndTruncatedReplies) {
   faults_.silence = true;
   EXPECT_EQ(transact(ack("n7")).status, Reply::Status::timeout);
 }
+
+// The manual leaves open whether `@0P` answers with the `0` handshake first, whether a CR ends
+// it, and whether a capital command ended by STOP still answers. The core scenario (power-up,
+// positions, a capital move, a lower-case move, a stop) runs under every combination.
+class TechnoReadings : public TechnoBench,
+                       public ::testing::WithParamInterface<std::tuple<bool, bool, bool>> {};
+
+TEST_P(TechnoReadings, CoreScenario) {
+  const auto [position_ack, reply_cr, stop_acknowledges] = GetParam();
+  auto o = defined();
+  o.axes = 0;  // power-up state
+  o.position_ack = position_ack;
+  o.reply_cr = reply_cr;
+  o.stop_acknowledges = stop_acknowledges;
+  start(o, model_text("", 1000, "2s"));  // a margin a loaded machine cannot exceed
+  const auto first = transact(query("P"));
+  ASSERT_EQ(first.status, Reply::Status::ok) << first.text;
+  EXPECT_EQ(first.values[0], 0);
+  const auto moved = transact(ack("M800,5000,300,5000,0,30,0,30"));
+  ASSERT_EQ(moved.status, Reply::Status::ok) << moved.text;
+  auto p = transact(query("P"));
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+  EXPECT_EQ(p.values[0], 800);
+  EXPECT_EQ(p.values[1], 300);
+  EXPECT_EQ(p.values[3], 0);
+  ASSERT_EQ(transact(ack("a200,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
+  for (int i = 0; i < 40; ++i) {
+    std::this_thread::sleep_for(50ms);
+    p = transact(query("P"));
+    ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+    if (p.values[3] == 0) break;
+  }
+  EXPECT_EQ(p.values[0], 1000);
+  EXPECT_EQ(p.values[3], 0);
+  EXPECT_EQ(p.values[8], 0);
+  // A long capital move ended by STOP: reported as stopped (255) whether or not it answers.
+  std::optional<Reply> stop;
+  asio::co_spawn(io_, urgent_after(family_, *link_, 200ms, "<stop>"),
+                 [&](std::exception_ptr, Reply r) { stop = r; });
+  const auto stopped = transact(ack("A5000,1000,0,30,0,30,0,30"));
+  EXPECT_EQ(stopped.device_code, 0xff) << stopped.text;
+  // The line is clean afterwards.
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(transact(query("P")).status, Reply::Status::ok);
+  EXPECT_EQ(transact(ack("n7")).status, Reply::Status::ok);
+}
+
+INSTANTIATE_TEST_SUITE_P(Techno, TechnoReadings,
+                         ::testing::Combine(::testing::Bool(), ::testing::Bool(),
+                                            ::testing::Bool()));
 
 TEST(TechnoFamilyBasics, AddressesAndWireEstimate) {
   TechnoFamily f;

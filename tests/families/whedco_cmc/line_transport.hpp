@@ -57,34 +57,56 @@ class LineTransport final : public ByteTransport {
   asio::awaitable<std::error_code> open() override { co_return std::error_code{}; }
   void close() override {}
   bool is_open() const override { return true; }
+  // Replies arrive this much after their request (a unit slower than the reply timeout).
+  void set_reply_delay(std::chrono::milliseconds delay) { delay_ = delay; }
+
   asio::awaitable<std::error_code> write(std::string_view bytes) override {
     writes_.emplace_back(bytes);
-    rx_ += responder_(bytes);
+    std::string out = responder_(bytes);
+    if (delay_.count() == 0)
+      rx_ += out;
+    else if (!out.empty())
+      late_.push_back({std::chrono::steady_clock::now() + delay_, std::move(out)});
     data_ready_.cancel();
     co_return std::error_code{};
   }
   asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) override {
     for (;;) {
+      arrive();
       if (!rx_.empty()) {
         const std::size_t n = std::min(buffer.size(), rx_.size());
         rx_.copy(static_cast<char*>(buffer.data()), n);
         rx_.erase(0, n);
         co_return std::pair{std::error_code{}, n};
       }
-      data_ready_.expires_at(asio::steady_timer::time_point::max());
+      data_ready_.expires_at(late_.empty() ? asio::steady_timer::time_point::max()
+                                           : late_.front().first);
       co_await data_ready_.async_wait(asio::as_tuple(asio::use_awaitable));
+      arrive();
       const auto state = co_await asio::this_coro::cancellation_state;
       if (rx_.empty() && state.cancelled() != asio::cancellation_type::none)
         co_return std::pair{std::make_error_code(std::errc::operation_canceled), std::size_t{0}};
     }
   }
-  void discard_input() override { rx_.clear(); }
+  void discard_input() override {
+    arrive();
+    rx_.clear();
+  }
   std::string describe() const override { return "in-process CMC line"; }
   double char_time_us() const override { return 1e6 * 10 / 38400; }
 
  private:
+  void arrive() {
+    while (!late_.empty() && late_.front().first <= std::chrono::steady_clock::now()) {
+      rx_ += late_.front().second;
+      late_.pop_front();
+    }
+  }
+
   Responder responder_;
+  std::chrono::milliseconds delay_{0};
+  std::deque<std::pair<std::chrono::steady_clock::time_point, std::string>> late_;
   asio::steady_timer data_ready_;
   std::string rx_;
   std::vector<std::string> writes_;

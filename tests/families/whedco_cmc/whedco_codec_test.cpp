@@ -184,7 +184,9 @@ TEST(WhedcoCommands, QueryKindsAndUnitRatioTracking) {
   EXPECT_EQ(prepare_command("FCW", error)->kind, QueryKind::axis_fault);
   EXPECT_EQ(prepare_command("RDI", error)->kind, QueryKind::bit_list);
   EXPECT_EQ(prepare_command("RDB", error)->kind, QueryKind::bit_list);
-  EXPECT_EQ(prepare_command("RS", error)->kind, QueryKind::plain);
+  EXPECT_EQ(prepare_command("RS", error)->kind, QueryKind::status_word);
+  EXPECT_EQ(prepare_command("RSY", error)->kind, QueryKind::status_word);
+  EXPECT_EQ(prepare_command("RSI3", error)->kind, QueryKind::plain);  // reset I/O 3, no query
   EXPECT_TRUE(prepare_command("RPZ", error)->scaled_reply);
   EXPECT_TRUE(prepare_command("FEX", error)->scaled_reply);
   EXPECT_FALSE(prepare_command("RSX", error)->scaled_reply);

@@ -186,7 +186,8 @@ class WhedcoOnSimulatedLine : public ::testing::Test {
 TEST_F(WhedcoOnSimulatedLine, UnitRatioIsReadOnceAndConvertsBothWays) {
   line_.unit(4)->execute("URX1000", sim::SimClock::now());
   EXPECT_EQ(transact("4", write("AMX12500")).status, Status::ok);
-  EXPECT_EQ(transport_.writes(), (std::vector<std::string>{"4URX?\r", "4AMX12.5\r"}));
+  // The first exchange with a unit reads its fault state (first contact).
+  EXPECT_EQ(transport_.writes(), (std::vector<std::string>{"4FC\r", "4URX?\r", "4AMX12.5\r"}));
   const auto r = transact("4", read("AMX?"));
   EXPECT_EQ(r.values, std::vector<int64_t>{12500}) << r.text;
   EXPECT_EQ(transport_.writes().back(), "4AMX?\r");
@@ -253,10 +254,14 @@ TEST_F(WhedcoOnSimulatedLine, SilentUnitTimesOutAndTheLineIsVoidedBeforeTheNextR
   EXPECT_EQ(transact("6", read("RS")).status, Status::timeout);
   EXPECT_EQ(transact("4", read("RS")).status, Status::ok);
   const auto& w = transport_.writes();
-  ASSERT_EQ(w.size(), 3u);
-  EXPECT_EQ(w[0], "6RS\r");
+  // First contact with unit 6 (FC) times out, so does the request; unit 4's FC, then RS.
+  ASSERT_EQ(w.size(), 6u);
+  EXPECT_EQ(w[0], "6FC\r");
   EXPECT_EQ(w[1], "!\r");
-  EXPECT_EQ(w[2], "4RS\r");
+  EXPECT_EQ(w[2], "6RS\r");
+  EXPECT_EQ(w[3], "!\r");
+  EXPECT_EQ(w[4], "4FC\r");
+  EXPECT_EQ(w[5], "4RS\r");
 }
 
 TEST_F(WhedcoOnSimulatedLine, LinkOpenVoidsAnyPartialLine) {
@@ -267,7 +272,8 @@ TEST_F(WhedcoOnSimulatedLine, LinkOpenVoidsAnyPartialLine) {
 TEST(WhedcoScripted, GarbledAndIncompleteRepliesThenResync) {
   asio::io_context io;
   test::LineTransport transport(
-      io, test::LineTransport::scripted({"12\x01*", "", "1250\r\n*", "12", "", "7\r\n*"}));
+      io,
+      test::LineTransport::scripted({"0\r\n*", "12\x01*", "", "1250\r\n*", "12", "", "7\r\n*"}));
   Link link(transport);
   WhedcoFamily family;
   const auto first = test::run(io, family.transact(link, node("4"), read("RS"), kTiming));
@@ -280,12 +286,12 @@ TEST(WhedcoScripted, GarbledAndIncompleteRepliesThenResync) {
   EXPECT_EQ(test::run(io, family.transact(link, node("4"), read("RS"), kTiming)).values,
             std::vector<int64_t>{7});
   EXPECT_EQ(transport.writes(),
-            (std::vector<std::string>{"4RS\r", "!\r", "4RS\r", "4RS\r", "!\r", "4RS\r"}));
+            (std::vector<std::string>{"4FC\r", "4RS\r", "!\r", "4RS\r", "4RS\r", "!\r", "4RS\r"}));
 }
 
 TEST(WhedcoScripted, UnitRatioThatCannotBeReadFailsTheRequest) {
   asio::io_context io;
-  test::LineTransport transport(io, test::LineTransport::scripted({"?\r\n*", "0\r\n*"}));
+  test::LineTransport transport(io, test::LineTransport::scripted({"0\r\n*", "?\r\n*", "0\r\n*"}));
   Link link(transport);
   WhedcoFamily family;
   const auto refused = test::run(io, family.transact(link, node("4"), read("RPX"), kTiming));
@@ -293,12 +299,13 @@ TEST(WhedcoScripted, UnitRatioThatCannotBeReadFailsTheRequest) {
   EXPECT_NE(refused.text.find("unit ratio of axis X"), std::string::npos) << refused.text;
   const auto zero = test::run(io, family.transact(link, node("4"), read("RPX"), kTiming));
   EXPECT_EQ(zero.status, Status::garbled);
-  EXPECT_EQ(transport.writes(), (std::vector<std::string>{"4URX?\r", "4URX?\r"}));
+  EXPECT_EQ(transport.writes(), (std::vector<std::string>{"4FC\r", "4URX?\r", "4URX?\r"}));
 }
 
 TEST(WhedcoScripted, OverlongReplyIsGarbled) {
   asio::io_context io;
-  test::LineTransport transport(io, test::LineTransport::scripted({std::string(2000, '1')}));
+  test::LineTransport transport(io,
+                                test::LineTransport::scripted({"0\r\n*", std::string(2000, '1')}));
   Link link(transport);
   WhedcoFamily family;
   const auto r = test::run(io, family.transact(link, node("4"), read("RS"), kTiming));
