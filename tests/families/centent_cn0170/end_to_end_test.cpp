@@ -282,7 +282,7 @@ TEST_F(CententEndToEnd, RefusalsAnswer04WithTheFamilyCode) {
 }
 
 TEST_F(CententEndToEnd, AutobaudAtStartAndSettingsReadBack) {
-  start("0,1", {0, 1}, ", poll: {fast: 100ms, slow: 200ms}", {"--power-up"});
+  start("0,1", {0, 1}, ", poll: {fast: 100ms, slow: 200ms}");  // power-up state: the default
   wait_online({1, 2});
   EXPECT_NE(plant_->daemon().log().find("auto-baud CR answered by unit(s) 0, 1"),
             std::string::npos);
@@ -297,6 +297,51 @@ TEST_F(CententEndToEnd, AutobaudAtStartAndSettingsReadBack) {
       3s));
   EXPECT_EQ(client_->write_single(2, kXProfile, 20).exception, 0x03);  // max 19
 }
+
+}  // namespace
+}  // namespace fieldgate::test
+
+// The core read+move scenario under each reading of the manual's reply formats (issue 20),
+// from the units' power-up state (waiting for the auto-baud CR).
+namespace fieldgate::test {
+namespace {
+
+struct Reading {
+  const char* name;
+  std::vector<std::string> sim_args;
+};
+
+std::ostream& operator<<(std::ostream& os, const Reading& r) {
+  return os << r.name;
+}
+
+const Reading kReadings[] = {
+    {"digit_x_cr", {}},
+    {"space_xp_crlf",
+     {"--prefix-separator", "space", "--position-reply", "xp", "--terminator", "crlf",
+      "--prefix-unit-messages"}},
+    {"colon_x_lf_plain_overflow",
+     {"--prefix-separator", "colon", "--terminator", "lf", "--overflow-mnemonic", "plain"}},
+    {"initialised_xp_cr", {"--initialised", "--position-reply", "xp"}},
+};
+
+class CententReadingEndToEnd : public CententEndToEnd,
+                               public ::testing::WithParamInterface<Reading> {};
+
+TEST_P(CententReadingEndToEnd, ReadsMovesAndReadsBack) {
+  start("0,1,2", {0, 1, 2}, ", poll: {fast: 100ms, slow: 1s}", GetParam().sim_args);
+  wait_online({1, 2, 3});
+  ASSERT_TRUE(client_->write_i32(3, kXTarget, 1000 * 1024).ok());
+  ASSERT_TRUE(client_->write_single(3, kCommand, kMoveXAbsolute).ok());
+  ASSERT_TRUE(wait_until([&] { return action_status(3) == 2; }, 10s));
+  EXPECT_EQ(client_->read_input_i32(3, kXPosition), 1000 * 1024);
+  EXPECT_EQ(motion(3) & (1 << kMovingBit), 0);
+  EXPECT_EQ(client_->read_input_i32(2, kXPosition), 0);
+  EXPECT_EQ(client_->read_input_i32(1, kXPosition), 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Readings, CententReadingEndToEnd, ::testing::ValuesIn(kReadings),
+                         [](const auto& info) { return std::string(info.param.name); });
 
 }  // namespace
 }  // namespace fieldgate::test

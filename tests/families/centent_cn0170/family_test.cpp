@@ -375,3 +375,69 @@ TEST(CententFamilyModel, ValidateModelCatchesMistakes) {
 
 }  // namespace
 }  // namespace fieldgate
+
+// --- the core read+move scenario under every reading of the manual (issue 20) ----------------
+
+namespace fieldgate {
+namespace {
+
+struct CententReading {
+  const char* name;
+  const char* separator;  // after the unit digit
+  bool xp;                // XP=…h (p.2) instead of X=…h (p.35)
+  const char* terminator;
+  bool prefix_unit_messages;
+  bool plain_overflow;  // the units take M1- only
+};
+
+std::ostream& operator<<(std::ostream& os, const CententReading& r) {
+  return os << r.name;
+}
+
+const CententReading kCententReadings[] = {
+    {"digit_x_cr", "", false, "\r", false, false},
+    {"space_xp_crlf", " ", true, "\r\n", true, false},
+    {"colon_x_lf", ":", false, "\n", false, true},
+    {"digit_xp_crlf_prefixed_unit_messages", "", true, "\r\n", true, true},
+};
+
+class CententEveryReading : public FamilyOnChain,
+                            public ::testing::WithParamInterface<CententReading> {};
+
+TEST_P(CententEveryReading, PowerUpReadMoveReadBack) {
+  const CententReading& reading = GetParam();
+  sim::centent::ChainOptions o;
+  o.power_up = true;  // as the units power up: waiting for the auto-baud CR
+  o.prefix_separator = reading.separator;
+  o.unit.position_reply_xp = reading.xp;
+  o.terminator = reading.terminator;
+  o.prefix_unit_messages = reading.prefix_unit_messages;
+  o.unit.accept_backslash_overflow = !reading.plain_overflow;
+  start({0, 1, 2}, o);
+  EXPECT_NE(log_.find("auto-baud CR answered by unit(s) 0, 1, 2"), std::string::npos) << log_;
+  EXPECT_NE(log_.find("chain order from .U?: 0, 1, 2"), std::string::npos) << log_;
+  for (int unit : {0, 1, 2}) {
+    const Reply r = call(unit, "XP?;YP?");
+    ASSERT_EQ(r.status, Reply::Status::ok) << unit << ": " << r.text;
+    EXPECT_EQ(r.values, (std::vector<int64_t>{0, 0, 0, 0, 0}));
+  }
+  const Reply move = command(2, "XV=200,4000;XA=0FFH;X=0FA000H");
+  ASSERT_EQ(move.status, Reply::Status::ok) << move.text;
+  Reply r;
+  for (int i = 0; i < 200; ++i) {
+    r = call(2, "XP?;YP?");
+    ASSERT_EQ(r.status, Reply::Status::ok) << r.text;
+    if ((r.values[4] & cn0170::kMoving) == 0) break;
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_EQ(r.values[0], 1000 * 1024);
+  EXPECT_EQ(r.values[4], 0);
+  EXPECT_EQ(call(1, "XP?;YP?").values[0], 0) << "unit 1 never moved";
+  EXPECT_EQ(call(0, "M?").values, std::vector<int64_t>{1});
+}
+
+INSTANTIATE_TEST_SUITE_P(Readings, CententEveryReading, ::testing::ValuesIn(kCententReadings),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace fieldgate
