@@ -538,3 +538,31 @@ TEST_F(FamilyOnChain, LateRepliesNeverAnswerAnotherRequest) {
 
 }  // namespace
 }  // namespace fieldgate
+
+// §9 #6 and #9: whether a unit selects itself after power-up, and whether units a K passes obey
+// it. The kill stops the chain under every combination.
+namespace fieldgate {
+namespace {
+
+class CententKillReadings : public FamilyOnChain,
+                            public ::testing::WithParamInterface<std::pair<bool, bool>> {};
+
+TEST_P(CententKillReadings, KillStopsEveryUnit) {
+  sim::centent::ChainOptions o;
+  o.power_up = true;
+  o.select_self_after_reset = GetParam().first;
+  o.kill_acts_upstream = GetParam().second;
+  start({0, 1, 2}, o);
+  for (int unit : {0, 1, 2}) ASSERT_EQ(command(unit, "X++1000").status, Reply::Status::ok);
+  const Reply r = call(1, "K", Request::Expect::ack, true);
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  const auto now = sim::SimClock::now();
+  for (std::size_t p = 0; p < 3; ++p) EXPECT_FALSE(chain_->unit_at(p).moving('X', now)) << p;
+}
+
+INSTANTIATE_TEST_SUITE_P(Readings, CententKillReadings,
+                         ::testing::Values(std::pair{true, false}, std::pair{false, false},
+                                           std::pair{true, true}, std::pair{false, true}));
+
+}  // namespace
+}  // namespace fieldgate
