@@ -5,17 +5,77 @@
 #include <boost/asio/this_coro.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
+#include <algorithm>
+
 namespace fieldgate {
 
 using namespace boost::asio::experimental::awaitable_operators;
 
+using Clock = std::chrono::steady_clock;
+
+std::chrono::microseconds guard_time(const LinkTiming& timing, double char_time_us) {
+  if (timing.guard_time.count() > 0) return timing.guard_time;
+  const auto chars = std::chrono::microseconds(static_cast<int64_t>(16 * char_time_us + 0.5));
+  return timing.reply_timeout + std::max(timing.byte_timeout, chars);
+}
+
 Link::Link(ByteTransport& transport, std::size_t max_frame)
     : transport_(transport), max_frame_(max_frame) {}
 
+Clock::time_point Link::wire_free_at() const {
+  return std::max(Clock::now(), tx_done_);
+}
+
 asio::awaitable<std::error_code> Link::send(std::string_view bytes) {
+  // write() completes when the OS has the bytes, not when they have crossed a slow line: a
+  // reply deadline counted from here would run out while the request is still on the wire.
+  const auto wire = std::chrono::microseconds(
+      static_cast<int64_t>(static_cast<double>(bytes.size()) * char_time_us()));
   auto ec = co_await transport_.write(bytes);
-  if (!ec) stats_.bytes_sent += bytes.size();
+  if (!ec) {
+    stats_.bytes_sent += bytes.size();
+    tx_done_ = wire_free_at() + wire;
+  }
   co_return ec;
+}
+
+asio::awaitable<LinkResync> Link::resync(std::chrono::microseconds guard,
+                                         std::chrono::microseconds limit) {
+  LinkResync result;
+  ++stats_.resyncs;
+  const auto started = Clock::now();
+  const auto give_up = wire_free_at() + limit;
+  result.drained = std::exchange(buffer_, {});
+  asio::steady_timer timer(co_await asio::this_coro::executor);
+  char chunk[512];
+  auto quiet_from = wire_free_at();
+  for (;;) {
+    if (const auto n = transport_.read_available(asio::buffer(chunk)); n > 0) {
+      stats_.bytes_received += n;
+      result.drained.append(chunk, n);
+      quiet_from = Clock::now();
+      continue;
+    }
+    const auto now = Clock::now();
+    if (now >= quiet_from + guard) break;
+    if (now >= give_up) {
+      result.quiet = false;
+      break;
+    }
+    timer.expires_at(std::min(quiet_from + guard, give_up));
+    auto outcome = co_await (transport_.read_some(asio::buffer(chunk)) ||
+                             timer.async_wait(asio::as_tuple(asio::use_awaitable)));
+    if (outcome.index() == 1) continue;  // read_available() above decides
+    auto [ec, n] = std::get<0>(outcome);
+    if (ec) break;  // the next transaction will see the failure
+    stats_.bytes_received += n;
+    result.drained.append(chunk, n);
+    quiet_from = Clock::now();
+  }
+  stats_.resync_bytes += result.drained.size();
+  stats_.bytes_discarded += result.drained.size();
+  result.waited = std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - started);
+  co_return result;
 }
 
 void Link::discard_input() {
@@ -49,7 +109,10 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
       buffer_.clear();
       co_return result;
     }
-    timer.expires_after(first ? timing.reply_timeout : timing.byte_timeout);
+    if (first)
+      timer.expires_at(wire_free_at() + timing.reply_timeout);
+    else
+      timer.expires_after(timing.byte_timeout);
     auto outcome = co_await (transport_.read_some(asio::buffer(chunk)) ||
                              timer.async_wait(asio::as_tuple(asio::use_awaitable)));
     if (outcome.index() == 1) {

@@ -17,14 +17,36 @@
 namespace fieldgate {
 
 struct LinkTiming {
-  std::chrono::microseconds reply_timeout{std::chrono::milliseconds(100)};  // to the first byte
-  std::chrono::microseconds byte_timeout{std::chrono::milliseconds(20)};    // gap inside a reply
+  // To the first byte of a reply, counted from when the request has left the wire (its wire
+  // time at the link's rate is added to the deadline).
+  std::chrono::microseconds reply_timeout{std::chrono::milliseconds(100)};
+  std::chrono::microseconds byte_timeout{std::chrono::milliseconds(20)};  // gap inside a reply
+  // Quiet time the line must show before it carries anything after a timeout, a garbled or a
+  // partial reply; 0 derives it (guard_time()).
+  std::chrono::microseconds guard_time{0};
+  // A forwarding device's own timeout on the network behind it (a Copley gateway amplifier
+  // answers e 32 for an absent CAN node only after it); 0 = the family's default.
+  std::chrono::microseconds forward_timeout{0};
 };
+
+// The resynchronisation guard: the configured one, or reply_timeout (a reply that was late by
+// up to one more timeout starts inside the window) plus the larger of byte_timeout and 16
+// character times (so the window outlasts a gap inside that late reply).
+std::chrono::microseconds guard_time(const LinkTiming& timing, double char_time_us);
 
 struct LinkStats {
   uint64_t bytes_sent = 0;
   uint64_t bytes_received = 0;
-  uint64_t bytes_discarded = 0;  // stray input thrown away before a request
+  uint64_t bytes_discarded = 0;  // stray input thrown away before a request or while resyncing
+  uint64_t resyncs = 0;          // guard periods waited after a failed exchange
+  uint64_t resync_bytes = 0;     // bytes that arrived during them (late or stray replies)
+};
+
+// What a resynchronisation found on the line.
+struct LinkResync {
+  std::string drained;  // everything that arrived (or was buffered) before the line went quiet
+  bool quiet = true;    // false: the line never went quiet within the limit
+  std::chrono::microseconds waited{0};
 };
 
 // Returns the length of the complete frame at the start of the buffer, or 0 if more is needed.
@@ -49,6 +71,14 @@ class Link {
   asio::awaitable<LinkRead> read_frame(const FrameSplitter& splitter, const LinkTiming& timing);
   // Clears our buffer and the OS input queue; counts what was thrown away.
   void discard_input();
+  // Replies carry no tag, so after a timeout, a garbled or a partial reply the link may not
+  // carry another request until it has been quiet for `guard` (from when our last byte left
+  // the wire): whatever arrives meanwhile is the late part of an earlier exchange and is
+  // drained. Gives up when the line is still busy after `limit`.
+  asio::awaitable<LinkResync> resync(std::chrono::microseconds guard,
+                                     std::chrono::microseconds limit);
+  // Bytes received but not consumed by a frame (left over after the last reply).
+  std::size_t buffered() const { return buffer_.size(); }
   // Waits without touching the line (inter-frame gap, pacing).
   asio::awaitable<void> pause(std::chrono::microseconds duration);
 
@@ -62,8 +92,12 @@ class Link {
   double char_time_us() const { return transport_.char_time_us(); }
 
  private:
+  // When the bytes sent so far will have left the wire, estimated from the character time.
+  std::chrono::steady_clock::time_point wire_free_at() const;
+
   ByteTransport& transport_;
   std::size_t max_frame_;
+  std::chrono::steady_clock::time_point tx_done_{};
   std::string buffer_;
   LinkStats stats_;
   std::vector<std::string> notes_;

@@ -28,11 +28,22 @@ asio::awaitable<void> ProtocolFamily::on_link_open(Link&, const LinkTiming&) {
   co_return;
 }
 
+asio::awaitable<LinkResync> ProtocolFamily::resync_after_failure(Link& link,
+                                                                 const LinkTiming& timing) {
+  const auto guard = guard_time(timing, link.char_time_us());
+  co_return co_await link.resync(guard, 10 * guard);
+}
+
 asio::awaitable<Reply> ProtocolFamily::send_urgent(Link&, const NodeAddress&, const Request& r) {
   Reply reply;
   reply.status = Reply::Status::device_error;
   reply.text = "family " + std::string(name()) + " has no urgent commands ('" + r.command + "')";
   co_return reply;
+}
+
+ProtocolFamily::NodeTimingNeed ProtocolFamily::node_timing_need(const NodeAddress&,
+                                                                const LinkTiming&) const {
+  return {};
 }
 
 std::size_t ProtocolFamily::estimate_wire_chars(const NodeAddress&, const Request& request) const {

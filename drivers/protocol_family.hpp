@@ -67,10 +67,25 @@ class ProtocolFamily {
   virtual asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing);
   virtual asio::awaitable<Reply> transact(Link& link, const NodeAddress& node,
                                           const Request& request, const LinkTiming& timing) = 0;
+  // Called by the bus after a timeout, a garbled or a partial reply (and after a reply that left
+  // unexplained bytes behind), before the link carries anything else: replies carry no tag, so
+  // a late one would answer the next request. The default drains the line until it has been
+  // quiet for guard_time(timing) (Link::resync), giving up after ten guard times. A family whose
+  // manual offers a cheaper way (an echo to check, a prompt) may override it.
+  virtual asio::awaitable<LinkResync> resync_after_failure(Link& link, const LinkTiming& timing);
   // Sends a command that must not wait for the line (see CommandOptions::urgent). The default
   // refuses: a family without such commands reports it instead of corrupting a transaction.
   virtual asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,
                                              const Request& request);
+  // The least reply timeout a node needs, and why (e.g. a node reached through a forwarding
+  // device must outwait that device's own timeout, or its "not reachable" reply arrives late).
+  // The bus uses it where no reply_timeout is configured; a configured value below it is
+  // warned about. The default: nothing beyond the bus's timing.
+  struct NodeTimingNeed {
+    std::chrono::microseconds reply_timeout{0};
+    std::string why;
+  };
+  virtual NodeTimingNeed node_timing_need(const NodeAddress& node, const LinkTiming& bus) const;
   // Characters on the wire for a request and its typical reply (poll budget estimate).
   virtual std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const;
 };

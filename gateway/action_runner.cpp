@@ -45,6 +45,9 @@ uint16_t action_error_of(const Reply& r) {
     case Reply::Status::unreachable:
     case Reply::Status::link_down:
       return kActionErrorUnreachable;
+    case Reply::Status::timeout:
+    case Reply::Status::garbled:
+      return kActionErrorNoReply;  // sent: it may have run
     default:
       return kActionErrorTimeout;
   }

@@ -38,6 +38,10 @@ struct BusCounters {
   uint64_t retries = 0;
   uint64_t reconnects = 0;
   uint64_t commands = 0;
+  // Serial buses: guard periods waited after a failed exchange, and the late or stray bytes
+  // drained during them.
+  uint64_t resyncs = 0;
+  uint64_t resync_bytes = 0;
   bool link_up = false;
   bool open_attempted = false;  // the first open finished, successfully or not
   // CAN buses (bytes_sent/bytes_received count the frames' data bytes there).

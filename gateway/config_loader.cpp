@@ -28,6 +28,17 @@ microseconds NodeConfig::period_of(const std::string& poll_class) const {
   return microseconds{0};
 }
 
+LinkTiming node_link_timing(const BusConfig& bus, const NodeConfig& node) {
+  LinkTiming t = bus.timing.link;
+  if (node.reply_timeout) {
+    t.reply_timeout = *node.reply_timeout;
+  } else if (!bus.timing.reply_timeout_set && bus.family) {
+    const auto need = bus.family->node_timing_need(node.address, t);
+    t.reply_timeout = std::max(t.reply_timeout, need.reply_timeout);
+  }
+  return t;
+}
+
 std::vector<NodeBinding> GatewayConfig::node_bindings() const {
   std::vector<NodeBinding> bindings;
   int index = 0;
@@ -216,11 +227,12 @@ class ConfigParser {
 
   void parse_timing(const YAML::Node& node, BusTiming& t, const std::string& where, bool can) {
     if (!r_.expect_map(node, where)) return;
-    r_.reject_unknown_keys(node,
-                           {"reply_timeout", "byte_timeout", "inter_frame_gap", "turnaround",
-                            "retries", "offline_after", "probe_interval", "reconnect_min",
-                            "reconnect_max", "heartbeat_timeout", "start_nodes"},
-                           where);
+    r_.reject_unknown_keys(
+        node,
+        {"reply_timeout", "byte_timeout", "guard_time", "forward_timeout", "inter_frame_gap",
+         "turnaround", "retries", "offline_after", "probe_interval", "reconnect_min",
+         "reconnect_max", "heartbeat_timeout", "start_nodes"},
+        where);
     for (const char* key : {"heartbeat_timeout", "start_nodes"})
       if (node[key] && !can)
         r_.error(node[key], fmt::format("{} {}: only a CAN bus (can: ...) has heartbeats and NMT",
@@ -232,6 +244,11 @@ class ConfigParser {
     };
     dur("reply_timeout", t.link.reply_timeout);
     dur("byte_timeout", t.link.byte_timeout);
+    dur("guard_time", t.link.guard_time);
+    dur("forward_timeout", t.link.forward_timeout);
+    t.reply_timeout_set = static_cast<bool>(node["reply_timeout"]);
+    if (t.link.guard_time.count() < 0)
+      r_.error(node["guard_time"], where + " guard_time: must not be negative");
     dur("inter_frame_gap", t.inter_frame_gap);
     dur("turnaround", t.turnaround);
     dur("probe_interval", t.probe_interval);
@@ -371,6 +388,18 @@ class ConfigParser {
       if (nodes->size() == 0) r_.error(*nodes, where + ": has no nodes");
     }
     if (bus.family && r_.diagnostics().ok() && bus.transport.kind != TransportConfig::Kind::can) {
+      for (const auto& n : bus.nodes) {
+        const auto need = bus.family->node_timing_need(n.address, bus.timing.link);
+        const auto used = node_link_timing(bus, n).reply_timeout;
+        if (used < need.reply_timeout)
+          config.warnings.push_back(fmt::format(
+              "{}: bus {} node {}: reply_timeout {} ms is below the {} ms this node needs: {}. "
+              "Raise it (per node: reply_timeout in the node's entry)",
+              to_string(n.mark), bus.name, n.name,
+              std::chrono::duration_cast<std::chrono::milliseconds>(used).count(),
+              std::chrono::duration_cast<std::chrono::milliseconds>(need.reply_timeout).count(),
+              need.why));
+      }
       const auto budget = compute_poll_budget(bus);
       if (budget.wire_seconds_per_second > 1.0)
         config.warnings.push_back(fmt::format(
@@ -408,7 +437,14 @@ class ConfigParser {
           r_.error(*name, fmt::format("{}: node name is already used", where));
       }
     r_.reject_unknown_keys(
-        node, {"name", "address", "model", "unit_id", "poll", "setpoints", "limits"}, where);
+        node,
+        {"name", "address", "model", "unit_id", "poll", "setpoints", "limits", "reply_timeout"},
+        where);
+    if (node["reply_timeout"]) {
+      n.reply_timeout = r_.duration(node["reply_timeout"], where + " reply_timeout");
+      if (n.reply_timeout && n.reply_timeout->count() <= 0)
+        r_.error(node["reply_timeout"], where + " reply_timeout: must be greater than 0");
+    }
     if (auto a = r_.require(node, "address", where)) {
       if (auto text = r_.string(*a, where + " address"); text && bus.family) {
         std::string error;

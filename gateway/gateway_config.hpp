@@ -41,6 +41,7 @@ struct ModbusConfig {
 
 struct BusTiming {
   LinkTiming link;
+  bool reply_timeout_set = false;  // given in the config (not the default)
   microseconds inter_frame_gap{0};
   microseconds turnaround{std::chrono::milliseconds(1)};  // expected device latency, for the budget
   int retries = 1;
@@ -77,6 +78,7 @@ struct NodeConfig {
   std::map<std::string, microseconds> poll_periods;  // overrides of the model's classes
   std::map<std::string, int64_t> setpoints;          // initial values, overriding defaults
   std::map<std::string, WriteLimits> limits;         // by point or setpoint name
+  std::optional<microseconds> reply_timeout;         // overrides the bus's for this node
   SourceMark mark;
 
   microseconds period_of(const std::string& poll_class) const;
@@ -94,6 +96,10 @@ struct BusConfig {
   // the bus can keep running untouched.
   std::string signature;
 };
+
+// A node's timing: the bus's, with the node's reply_timeout, or where none is configured (node
+// or bus) at least what its family says the node needs (ProtocolFamily::node_timing_need).
+LinkTiming node_link_timing(const BusConfig& bus, const NodeConfig& node);
 
 struct MetricsConfig {
   bool enabled = false;

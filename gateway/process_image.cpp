@@ -12,6 +12,8 @@ std::string_view to_string(NodeState state) {
       return "online";
     case NodeState::offline:
       return "offline";
+    case NodeState::faulted:
+      return "faulted";
   }
   return "?";
 }
@@ -47,6 +49,20 @@ int64_t ProcessImage::diagnostic(int index, DiagnosticField field, SteadyTime no
       return n.action.error;
     case DiagnosticField::node_state:
       return static_cast<uint16_t>(n.state);
+    case DiagnosticField::unknown_writes:
+      return clamp32(n.counters.unknown_writes);
+    case DiagnosticField::data_age_ms: {
+      // The oldest polled value: what a PLC reading this node's points may be served.
+      SteadyTime oldest = SteadyTime::max();
+      for (std::size_t i = 0; i < n.points.size(); ++i) {
+        if (i < n.polled.size() && !n.polled[i]) continue;
+        if (!n.points[i].valid) return 0xffffffff;
+        oldest = std::min(oldest, n.points[i].updated);
+      }
+      if (oldest == SteadyTime::max()) return 0;
+      return clamp32(static_cast<uint64_t>(
+          std::chrono::duration_cast<std::chrono::milliseconds>(now - oldest).count()));
+    }
   }
   return 0;
 }

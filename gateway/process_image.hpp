@@ -20,7 +20,9 @@ struct PointValue {
   bool valid = false;  // a good reply has been seen
 };
 
-enum class NodeState : uint16_t { starting = 0, online = 1, offline = 2 };
+// faulted: the node answers, but refuses every poll (e.g. a wrong axis letter): its values are
+// never fresh, so it is not online.
+enum class NodeState : uint16_t { starting = 0, online = 1, offline = 2, faulted = 3 };
 std::string_view to_string(NodeState state);
 
 struct NodeCounters {
@@ -29,6 +31,9 @@ struct NodeCounters {
   uint64_t errors = 0;
   uint64_t retries = 0;
   uint32_t consecutive_timeouts = 0;
+  // Commands (writes, action steps) that got no valid reply: sent, so they may have run. Also
+  // counted in timeouts or errors; a PLC must not assume either outcome.
+  uint64_t unknown_writes = 0;
   int64_t last_device_error = 0;
   std::string last_error_text;
   SteadyTime last_good{};
@@ -47,9 +52,12 @@ struct ActionState {
 inline constexpr uint16_t kActionErrorTimeout = 0xffff;
 inline constexpr uint16_t kActionErrorFailedCondition = 0xfffe;
 inline constexpr uint16_t kActionErrorUnreachable = 0xfffd;
+// A step got no valid reply (timeout, garbled): it may have run; never retried.
+inline constexpr uint16_t kActionErrorNoReply = 0xfffc;
 
 struct NodeImage {
   std::vector<PointValue> points;  // by model point index
+  std::vector<bool> polled;        // by model point index: the bus polls it (empty: unknown)
   // Action watches waiting for fresh values; the bus wakes them after each update. Kept here,
   // not in a runner, so a watch started before a reload is still woken after it.
   std::vector<boost::asio::steady_timer*> waiters;

@@ -16,6 +16,24 @@ namespace {
 constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
 using Clock = std::chrono::steady_clock;
 
+// Bytes for a log line: control characters and non-ASCII as escapes, long input shortened.
+std::string printable(std::string_view bytes) {
+  std::string out;
+  for (const char c : bytes.substr(0, 80)) {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '\r')
+      out += "\\r";
+    else if (c == '\n')
+      out += "\\n";
+    else if (u < 0x20 || u >= 0x7f)
+      out += fmt::format("\\x{:02x}", u);
+    else
+      out += c;
+  }
+  if (bytes.size() > 80) out += "...";
+  return out;
+}
+
 std::unique_ptr<ByteTransport> make_transport(asio::any_io_executor ex, const TransportConfig& t) {
   if (t.kind == TransportConfig::Kind::tcp)
     return std::make_unique<TcpTransport>(ex, t.host, t.port, serial_char_time_us(t.serial));
@@ -46,6 +64,7 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
     NodeRuntime rt;
     rt.index = index;
     rt.config = &n;
+    rt.timing = node_link_timing(config, n);
     rt.image = std::make_shared<NodeImage>();
     nodes_.push_back(rt);
     auto& img = *rt.image;
@@ -75,7 +94,11 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
       }
       existing->targets.push_back({static_cast<int>(p), point.read->field});
     }
+    nodes_.back().poll_items = static_cast<int>(items.size());
     for (auto& it : items) plan_.add(std::move(it));
+    img.polled.assign(n.model->points.size(), false);
+    for (const auto& it : items)
+      for (const auto& t : it.targets) img.polled[static_cast<std::size_t>(t.point)] = true;
     ++index;
   }
 }
@@ -153,6 +176,31 @@ asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, Comman
   co_return reply;
 }
 
+std::shared_ptr<SerialBus::PendingCommand> SerialBus::take_command() {
+  // A bus-wide command (a global stop) first; otherwise round-robin over nodes, in order of
+  // arrival within a node, so one unit flooded with writes does not delay the others' commands.
+  auto pick = commands_.begin();
+  const auto bus_wide = std::find_if(commands_.begin(), commands_.end(),
+                                     [](const auto& c) { return c->request.bus_wide; });
+  if (bus_wide != commands_.end()) {
+    pick = bus_wide;
+  } else {
+    const int count = static_cast<int>(nodes_.size());
+    int best = count + 1;
+    for (auto it = commands_.begin(); it != commands_.end(); ++it) {
+      const int distance = ((*it)->node - last_command_node_ - 1 + count) % count;
+      if (distance < best) {
+        best = distance;
+        pick = it;
+      }
+    }
+  }
+  auto cmd = *pick;
+  commands_.erase(pick);
+  last_command_node_ = cmd->node;
+  return cmd;
+}
+
 void SerialBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
   auto& img = (*n.image);
   if (img.state == state) return;
@@ -166,6 +214,9 @@ void SerialBus::set_state(NodeRuntime& n, NodeState state, std::string_view why)
     log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name,
                  n.config->address.text, why);
     n.next_probe = Clock::now() + config_.timing.probe_interval;
+  } else if (state == NodeState::faulted) {
+    log::warning("bus {}: node {} ({}) faulted: it answers but refuses every poll ({})",
+                 config_.name, n.config->name, n.config->address.text, why);
   }
 }
 
@@ -179,11 +230,20 @@ void SerialBus::all_nodes_offline(std::string_view why) {
   for (auto& n : nodes_) set_state(n, NodeState::offline, why);
 }
 
-void SerialBus::record(NodeRuntime& n, const Reply& reply) {
+void SerialBus::record(NodeRuntime& n, const Reply& reply, bool poll) {
   auto& c = (*n.image).counters;
   switch (count_reply(c, counters_, reply, Clock::now())) {
     case ReplyOutcome::answered:
-      set_state(n, NodeState::online, {});
+      if (reply.status == Reply::Status::ok) {
+        if (poll) n.refused_polls = 0;
+        if (poll || (*n.image).state != NodeState::faulted) set_state(n, NodeState::online, {});
+      } else if (poll) {
+        // The node answers but refuses this poll. Refusing every poll of a round (a wrong axis
+        // letter, a model that does not fit) means none of its values is ever fresh: faulted.
+        ++n.refused_polls;
+        if (n.refused_polls >= n.poll_items || (*n.image).state == NodeState::offline)
+          set_state(n, NodeState::faulted, reply.text);
+      }
       break;
     case ReplyOutcome::garbled:
       break;
@@ -197,7 +257,7 @@ void SerialBus::record(NodeRuntime& n, const Reply& reply) {
 }
 
 asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& request, int retries,
-                                           bool accept_no_reply) {
+                                           bool accept_no_reply, bool poll) {
   Reply reply;
   for (int attempt = 0; attempt <= retries; ++attempt) {
     if (attempt > 0) {
@@ -205,26 +265,51 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
       ++(*n.image).counters.retries;
     }
     const auto started = Clock::now();
-    reply =
-        co_await config_.family->transact(link_, n.config->address, request, config_.timing.link);
+    reply = co_await config_.family->transact(link_, n.config->address, request, n.timing);
     record_latency(std::chrono::duration<double>(Clock::now() - started).count());
     ++counters_.transactions;
     ++(*n.image).counters.transactions;
+    if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled ||
+        link_.buffered() > 0)
+      co_await resync(n, reply);
     if (accept_no_reply && reply.status == Reply::Status::timeout) {
       reply.status = Reply::Status::ok;
       break;
     }
     if (reply.status == Reply::Status::link_down) break;
     if (reply.status != Reply::Status::timeout && reply.status != Reply::Status::garbled) break;
-    if (attempt < retries) record(n, reply);
+    if (attempt < retries) record(n, reply, poll);
   }
-  record(n, reply);
+  record(n, reply, poll);
   if (reply.status == Reply::Status::link_down) {
     log::error("bus {}: link failed: {}", config_.name, reply.text);
     transport_->close();
   }
   co_await link_.pause(config_.timing.inter_frame_gap);
   co_return reply;
+}
+
+asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
+  if (!transport_->is_open()) co_return;
+  const auto found = co_await config_.family->resync_after_failure(link_, n.timing);
+  ++counters_.resyncs;
+  counters_.resync_bytes += found.drained.size();
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(found.waited).count();
+  const char* after = failed.status == Reply::Status::ok ? "stray bytes after a reply"
+                                                         : to_string(failed.status).data();
+  if (!found.drained.empty())
+    log::warning("bus {}: resync after {} from node {} ({}): drained {} byte(s) '{}' in {} ms",
+                 config_.name, after, n.config->name, n.config->address.text, found.drained.size(),
+                 printable(found.drained), ms);
+  else
+    log::debug("bus {}: resync after {} from node {} ({}): line quiet after {} ms", config_.name,
+               after, n.config->name, n.config->address.text, ms);
+  if (!found.quiet) {
+    // A line that never goes quiet cannot carry an untagged exchange: reopen it.
+    log::error("bus {}: line still busy {} ms after the {} from node {}; reopening the link",
+               config_.name, ms, after, n.config->name);
+    transport_->close();
+  }
 }
 
 void SerialBus::record_latency(double seconds) {
@@ -242,7 +327,7 @@ asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
   const bool probing = (*n.image).state == NodeState::offline;
   const Request request = item.request;
   const auto targets = item.targets;
-  Reply reply = co_await transact(n, request, probing ? 0 : config_.timing.retries, false);
+  Reply reply = co_await transact(n, request, probing ? 0 : config_.timing.retries, false, true);
   const auto now = Clock::now();
   if (probing) {
     n.next_probe = now + config_.timing.probe_interval;
@@ -310,24 +395,10 @@ asio::awaitable<void> SerialBus::run() {
       co_await open_link();
       continue;
     }
-    if (!commands_.empty()) {
-      auto cmd = commands_.front();
-      commands_.pop_front();
-      ++counters_.commands;
-      auto& n = nodes_[static_cast<std::size_t>(cmd->node)];
-      Reply reply;
-      if ((*n.image).state == NodeState::offline && !cmd->request.bus_wide) {
-        reply.status = Reply::Status::unreachable;
-        reply.text = "node is offline";
-      } else {
-        // Commands are not retried: a lost reply may hide a command the device already ran.
-        reply = co_await transact(n, cmd->request, 0, cmd->options.accept_no_reply);
-      }
-      cmd->done.try_send(boost::system::error_code{}, std::move(reply));
-      continue;
-    }
     const auto now = Clock::now();
-    auto due = plan_.next([&](int local) {
+    // The next poll: a due item of a node that is not offline (rate-monotonic, see PollPlan),
+    // or the probe of an offline node, whichever is due first.
+    auto due = plan_.pick(now, [&](int local) {
       return nodes_[static_cast<std::size_t>(local)].image->state != NodeState::offline;
     });
     std::optional<std::size_t> probe;
@@ -351,6 +422,35 @@ asio::awaitable<void> SerialBus::run() {
       chosen = probe;
       when = probe_when;
     }
+    // Commands go first, but back-to-back commands leave every other transaction to a due
+    // poll: clients flooding one unit cannot freeze the polling of the others.
+    const bool poll_due = chosen && when <= now;
+    if (!commands_.empty() && !(poll_due && commands_in_row_ >= kCommandsPerPoll)) {
+      auto cmd = take_command();
+      ++commands_in_row_;
+      ++counters_.commands;
+      auto& n = nodes_[static_cast<std::size_t>(cmd->node)];
+      Reply reply;
+      if ((*n.image).state == NodeState::offline && !cmd->request.bus_wide) {
+        reply.status = Reply::Status::unreachable;
+        reply.text = "node is offline";
+      } else {
+        // Commands are not retried: a lost reply may hide a command the device already ran.
+        reply = co_await transact(n, cmd->request, 0, cmd->options.accept_no_reply, false);
+        if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled) {
+          ++(*n.image).counters.unknown_writes;
+          log::warning("bus {}: node {} ({}): '{}' got {}: outcome unknown, not retried",
+                       config_.name, n.config->name, n.config->address.text, cmd->request.command,
+                       reply.text.empty() ? std::string(to_string(reply.status)) : reply.text);
+          reply.text = "no reply, outcome unknown (" +
+                       (reply.text.empty() ? std::string(to_string(reply.status)) : reply.text) +
+                       ")";
+        }
+      }
+      cmd->done.try_send(boost::system::error_code{}, std::move(reply));
+      continue;
+    }
+    commands_in_row_ = 0;
     if (chosen && when <= now) {
       // Nothing on the link answers (a power-cycled controller back at its power-up rate, a
       // re-plugged adapter): reopen it, so the family's link-open procedure runs again.

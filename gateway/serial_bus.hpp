@@ -54,13 +54,21 @@ class SerialBus final : public Bus {
     const NodeConfig* config = nullptr;
     std::shared_ptr<NodeImage> image;
     SteadyTime next_probe{};
+    LinkTiming timing;      // the bus's, with the node's reply timeout
+    int poll_items = 0;     // distinct poll requests of the node
+    int refused_polls = 0;  // polls in a row the node answered with a device error
   };
+  // Back-to-back commands before a due poll gets the line.
+  static constexpr int kCommandsPerPoll = 1;
 
   asio::awaitable<void> open_link();
   asio::awaitable<Reply> transact(NodeRuntime& node, const Request& request, int retries,
-                                  bool accept_no_reply);
+                                  bool accept_no_reply, bool poll);
+  std::shared_ptr<PendingCommand> take_command();
+  // After a timeout, a garbled reply or stray bytes: the family drains the line until quiet.
+  asio::awaitable<void> resync(NodeRuntime& node, const Reply& failed);
   asio::awaitable<void> run_poll(std::size_t item_index);
-  void record(NodeRuntime& node, const Reply& reply);
+  void record(NodeRuntime& node, const Reply& reply, bool poll);
   void record_latency(double seconds);
   void set_state(NodeRuntime& node, NodeState state, std::string_view why);
   void all_nodes_offline(std::string_view why);
@@ -80,6 +88,8 @@ class SerialBus final : public Bus {
   asio::steady_timer wake_;
   BusCounters counters_;
   bool stopping_ = false;
+  int commands_in_row_ = 0;
+  int last_command_node_ = -1;
   bool link_error_logged_ = false;
   SteadyTime opened_at_{};
 };

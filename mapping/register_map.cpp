@@ -57,9 +57,13 @@ constexpr DiagnosticLayout kDiagnostics[] = {
     {DiagnosticField::action_code, "diag.action_code", ValueType::uint16, "last action started"},
     {DiagnosticField::action_error, "diag.action_error", ValueType::uint16,
      "device error code of the last failed action (0xffff: timeout, 0xfffe: ended by failed "
-     "condition)"},
+     "condition, 0xfffd: unreachable, 0xfffc: no reply, outcome unknown)"},
     {DiagnosticField::node_state, "diag.node_state", ValueType::uint16,
-     "0 starting, 1 online, 2 offline"},
+     "0 starting, 1 online, 2 offline, 3 faulted (answers, refuses every poll)"},
+    {DiagnosticField::unknown_writes, "diag.unknown_writes", ValueType::uint32,
+     "commands sent without a valid reply: outcome unknown, answered 0x0B, not retried"},
+    {DiagnosticField::data_age_ms, "diag.data_age", ValueType::uint32,
+     "ms since the oldest polled value was read (0xffffffff: one never was)"},
 };
 
 RegisterEntry make_entry(RegisterEntry::Kind kind, uint16_t address, ValueType type,

@@ -35,7 +35,9 @@ enum class DiagnosticField {
   action_status,
   action_code,
   action_error,
-  node_state,  // 0 starting, 1 online, 2 offline
+  node_state,      // 0 starting, 1 online, 2 offline, 3 faulted
+  unknown_writes,  // uint32: commands sent that got no valid reply (outcome unknown)
+  data_age_ms,     // uint32: age of the oldest polled value, 0xffffffff if one was never read
 };
 
 enum class ActionStatus : uint16_t { idle = 0, busy = 1, done = 2, error = 3 };

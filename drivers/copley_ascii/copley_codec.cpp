@@ -4,6 +4,7 @@
 
 #include <cctype>
 #include <charconv>
+#include <cstdlib>
 
 namespace fieldgate::copley {
 
@@ -93,6 +94,48 @@ ParsedReply parse_reply(std::string_view line) {
     reply.kind = tag == 'r' ? ParsedReply::Kind::register_value : ParsedReply::Kind::error;
   }
   return reply;
+}
+
+ExpectedReply expected_reply(std::string_view command) {
+  ExpectedReply e;
+  if (command.size() < 1 || (command.size() > 1 && command[1] != ' ')) return e;
+  std::vector<std::string_view> tokens;
+  for (std::string_view rest = command.substr(1); !rest.empty();) {
+    while (!rest.empty() && rest.front() == ' ') rest.remove_prefix(1);
+    const auto end = rest.find(' ');
+    if (!rest.empty()) tokens.push_back(rest.substr(0, end));
+    rest = end == std::string_view::npos ? std::string_view{} : rest.substr(end);
+  }
+  switch (command.front()) {
+    case 's':
+    case 'c':
+    case 't':
+      e.kind = ExpectedReply::Kind::ok;
+      return e;
+    case 'r':
+      e.kind = ExpectedReply::Kind::none;
+      return e;
+    case 'i':
+      e.kind = tokens.size() > 1 ? ExpectedReply::Kind::ok : ExpectedReply::Kind::register_value;
+      return e;
+    case 'g': {
+      e.kind = ExpectedReply::Kind::values;
+      e.count = 1;
+      if (tokens.empty() || tokens[0].size() < 2) return e;
+      const std::string id(tokens[0].substr(1));  // after the bank letter
+      char* end = nullptr;
+      const long v = std::strtol(id.c_str(), &end, 0);
+      if (end == id.c_str() || *end != '\0') return e;
+      // Multi-value variables (digest §4): 0x6b nine values, 0x70-0x77 two, 0x5f "multi-value"
+      // without a count.
+      if (v == 0x6b) e.count = 9;
+      if (v >= 0x70 && v <= 0x77) e.count = 2;
+      if (v == 0x5f) e.count = 0;
+      return e;
+    }
+    default:
+      return e;
+  }
 }
 
 std::string_view error_text(int64_t code) {

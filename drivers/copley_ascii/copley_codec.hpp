@@ -27,6 +27,16 @@ struct ParsedReply {
 // negative numbers; a stray LF before or after.
 ParsedReply parse_reply(std::string_view line);
 
+// What a command can be answered with besides `e <code>` (digest §3), so that a reply that
+// cannot belong to it (a late or stray one) is recognised.
+struct ExpectedReply {
+  enum class Kind { ok, values, register_value, none, unknown };
+  Kind kind = Kind::unknown;
+  // For values: how many (0: any number, e.g. 0x5f whose count the manual does not give).
+  std::size_t count = 0;
+};
+ExpectedReply expected_reply(std::string_view command);
+
 // App. E text for an error code, "unknown error code" for codes the manual does not list.
 std::string_view error_text(int64_t code);
 

@@ -56,12 +56,47 @@ namespace {
 
 constexpr unsigned kPowerUpBaud = 9600;
 
-asio::awaitable<bool> answers_at_current_rate(Link& link, const LinkTiming& timing) {
+// What a rate probe found. Any well-formed reply, an error included, proves the amplifier hears
+// us at this rate: a multi-axis amplifier that wants an axis letter answers `g r0x90` with
+// e 33, and that is still an answer.
+struct Probe {
+  bool answered = false;
+  bool wants_axis = false;  // e 33 to the plain form, a value to `.a g r0x90`
+  std::string heard;        // for the log: what came back, if anything
+};
+
+asio::awaitable<copley::ParsedReply::Kind> probe_once(Link& link, const LinkTiming& timing,
+                                                      std::string_view command,
+                                                      std::string& heard) {
   link.discard_input();
-  if (co_await link.send(copley::encode_command(0, 0, "g r0x90"))) co_return false;
+  if (co_await link.send(std::string(command) + "\r"))
+    co_return copley::ParsedReply::Kind::malformed;
   const auto read = co_await link.read_frame(copley::frame_length, timing);
-  co_return read.status == LinkRead::Status::frame&& copley::parse_reply(read.frame).kind ==
-      copley::ParsedReply::Kind::values;
+  if (read.status != LinkRead::Status::frame) {
+    heard = read.partial.empty() ? "no reply" : "'" + read.partial + "'";
+    // A late or partial reply must not answer the next probe.
+    const auto guard = guard_time(timing, link.char_time_us());
+    co_await link.resync(guard, 10 * guard);
+    co_return copley::ParsedReply::Kind::malformed;
+  }
+  heard = "'" + read.frame.substr(0, read.frame.size() - 1) + "'";
+  co_return copley::parse_reply(read.frame).kind;
+}
+
+asio::awaitable<Probe> probe_rate(Link& link, const LinkTiming& timing) {
+  Probe p;
+  const auto plain = co_await probe_once(link, timing, "g r0x90", p.heard);
+  if (plain == copley::ParsedReply::Kind::values) {
+    p.answered = true;
+    co_return p;
+  }
+  // A multi-axis amplifier may answer a command without axis letter with e 33, or not at all
+  // (the manual only says the letter is necessary): does the axis form work?
+  std::string heard;
+  const auto axis = co_await probe_once(link, timing, ".a g r0x90", heard);
+  p.wants_axis = axis == copley::ParsedReply::Kind::values;
+  p.answered = p.wants_axis || plain != copley::ParsedReply::Kind::malformed;
+  co_return p;
 }
 
 }  // namespace
@@ -70,21 +105,23 @@ asio::awaitable<void> CopleyFamily::on_link_open(Link& link, const LinkTiming& t
   auto& transport = link.transport();
   const unsigned configured = transport.baud();
   if (configured == 0 || configured == kPowerUpBaud) co_return;
-  const bool already = co_await answers_at_current_rate(link, timing);
-  if (already) co_return;
+  const Probe at_configured = co_await probe_rate(link, timing);
+  if (at_configured.answered) co_return;            // already at the configured rate
   if (transport.set_baud(kPowerUpBaud)) co_return;  // not a real UART: nothing to switch
-  const bool at_power_up_rate = co_await answers_at_current_rate(link, timing);
-  if (!at_power_up_rate) {
+  const Probe at_power_up = co_await probe_rate(link, timing);
+  if (!at_power_up.answered) {
     transport.set_baud(configured);
-    link.note(fmt::format("Copley gateway amplifier answers neither at {} nor at {} baud",
-                          configured, kPowerUpBaud));
+    link.note(
+        fmt::format("Copley gateway amplifier does not answer at {} baud ({}) nor at its "
+                    "power-up rate {} ({}); staying at {}",
+                    configured, at_configured.heard, kPowerUpBaud, at_power_up.heard, configured));
     co_return;
   }
   // §4.1: send the new rate, switch the host as soon as the CR has left, expect ok at the new
-  // rate, then wait 100 ms before anything else.
+  // rate, then wait 100 ms before anything else. A multi-axis amplifier gets the axis form.
   link.discard_input();
-  const auto ec =
-      co_await link.send(copley::encode_command(0, 0, fmt::format("s r0x90 {}", configured)));
+  const std::string prefix = at_power_up.wants_axis ? ".a " : "";
+  const auto ec = co_await link.send(prefix + fmt::format("s r0x90 {}\r", configured));
   transport.drain();
   transport.set_baud(configured);
   if (ec) co_return;
@@ -92,33 +129,52 @@ asio::awaitable<void> CopleyFamily::on_link_open(Link& link, const LinkTiming& t
   co_await link.pause(std::chrono::milliseconds(100));
   const bool ok = read.status == LinkRead::Status::frame &&
                   copley::parse_reply(read.frame).kind == copley::ParsedReply::Kind::ok;
-  link.note(ok ? fmt::format("Copley gateway amplifier switched from {} to {} baud", kPowerUpBaud,
-                             configured)
+  link.note(ok ? fmt::format("Copley gateway amplifier switched from {} to {} baud{}", kPowerUpBaud,
+                             configured, at_power_up.wants_axis ? " (it wants an axis letter)" : "")
                : fmt::format("Copley gateway amplifier did not confirm the switch to {} baud",
                              configured));
 }
 
 Reply interpret_copley_reply(const NodeAddress& node, const Request& request,
                              std::string_view line) {
+  // Replies carry no address: a reply is this request's only if nothing else could have
+  // produced it. What the command code allows decides; the request's own expectation is the
+  // fallback for codes the digest does not list.
+  auto expected = copley::expected_reply(request.command);
+  if (expected.kind == copley::ExpectedReply::Kind::unknown)
+    expected.kind = request.expect == Request::Expect::ack ? copley::ExpectedReply::Kind::ok
+                                                           : copley::ExpectedReply::Kind::values;
   Reply reply;
   const auto parsed = copley::parse_reply(line);
+  const auto garbled = [&](std::string why) {
+    reply.status = Reply::Status::garbled;
+    reply.text = fmt::format("{} to '{}'", why, request.command);
+  };
   switch (parsed.kind) {
     case copley::ParsedReply::Kind::ok:
-      if (request.expect == Request::Expect::ack) {
+      if (expected.kind == copley::ExpectedReply::Kind::ok)
         reply.status = Reply::Status::ok;
-      } else {
-        reply.status = Reply::Status::garbled;
-        reply.text = "'ok' where a value was expected";
-      }
+      else
+        garbled("'ok' where a value was expected");
       break;
     case copley::ParsedReply::Kind::values:
+      if (expected.kind != copley::ExpectedReply::Kind::values) {
+        garbled("a value where 'ok' was expected");
+      } else if (expected.count != 0 && parsed.values.size() != expected.count) {
+        garbled(fmt::format("{} value(s) where {} were expected", parsed.values.size(),
+                            expected.count));
+      } else {
+        reply.status = Reply::Status::ok;
+        reply.values = parsed.values;
+      }
+      break;
     case copley::ParsedReply::Kind::register_value:
-      if (request.expect == Request::Expect::values) {
+      if (expected.kind == copley::ExpectedReply::Kind::register_value ||
+          (expected.kind == copley::ExpectedReply::Kind::values && request.command[0] != 'g')) {
         reply.status = Reply::Status::ok;
         reply.values = parsed.values;
       } else {
-        reply.status = Reply::Status::garbled;
-        reply.text = "a value where 'ok' was expected";
+        garbled("a CVM register value ('r n')");
       }
       break;
     case copley::ParsedReply::Kind::error: {
@@ -170,6 +226,23 @@ asio::awaitable<Reply> CopleyFamily::transact(Link& link, const NodeAddress& nod
       co_return r;
   }
   co_return r;
+}
+
+ProtocolFamily::NodeTimingNeed CopleyFamily::node_timing_need(const NodeAddress& node,
+                                                              const LinkTiming& bus) const {
+  if (node.number == 0) return {};
+  const auto can =
+      bus.forward_timeout.count() > 0
+          ? bus.forward_timeout
+          : std::chrono::duration_cast<std::chrono::microseconds>(kCopleyDefaultCanTimeout);
+  NodeTimingNeed need;
+  need.reply_timeout = can + kCopleyForwardMargin;
+  need.why = fmt::format(
+      "node {} is reached over CAN: the gateway amplifier answers e 32 for an absent node only "
+      "after its CAN timeout ({} ms{}), which a shorter reply timeout would not wait for",
+      node.text, std::chrono::duration_cast<std::chrono::milliseconds>(can).count(),
+      bus.forward_timeout.count() > 0 ? ", forward_timeout" : ", assumed: set forward_timeout");
+  return need;
 }
 
 std::size_t CopleyFamily::estimate_wire_chars(const NodeAddress& node,

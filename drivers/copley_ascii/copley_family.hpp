@@ -15,8 +15,18 @@ class CopleyFamily final : public ProtocolFamily {
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing) override;
+  // A node other than 0 is reached through the gateway amplifier over CAN: its reply timeout
+  // must exceed the amplifier's CAN timeout, so that e 32 for an absent node is its answer.
+  NodeTimingNeed node_timing_need(const NodeAddress& node, const LinkTiming& bus) const override;
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
 };
+
+// The gateway amplifier's CAN timeout when the bus does not give forward_timeout. The ASCII
+// guide gives none; this is an assumption to replace with the installed amplifiers' value.
+inline constexpr std::chrono::milliseconds kCopleyDefaultCanTimeout{100};
+// What a forwarded reply needs on top of the CAN timeout: the gateway amplifier's own
+// processing and the reply's first byte.
+inline constexpr std::chrono::milliseconds kCopleyForwardMargin{50};
 
 // The decision part of transact(): what a complete reply line means for this request.
 Reply interpret_copley_reply(const NodeAddress& node, const Request& request,

@@ -25,6 +25,9 @@ constexpr std::string_view kGenericHelp =
     "garbage N        answer the next N requests with random bytes\n"
     "truncate N       answer the next N requests with half a reply and no terminator\n"
     "delay MS         wait MS milliseconds more before every reply (0 = off)\n"
+    "chaos SEED LATE% DROP% GARBLE% TRUNCATE% LATE_MS\n"
+    "                 random faults on every reply (executed all the same): late by LATE_MS,\n"
+    "                 dropped, garbled, truncated; chaos off ends it\n"
     "quit             remove the link and exit\n";
 
 }  // namespace
@@ -120,6 +123,31 @@ std::string ControlChannel::execute(std::string_view line) {
       return "ok delay " + std::to_string(*n);
     }
     return "error: usage: delay MS";
+  }
+  if (verb == "chaos") {
+    if (arguments.size() == 1 && arguments[0] == "off") {
+      faults_.chaos.on = false;
+      return "ok chaos off";
+    }
+    std::vector<long long> v;
+    for (const auto& a : arguments) {
+      const auto n = parse_control_integer(a);
+      if (!n || *n < 0 || *n > 1'000'000'000) break;
+      v.push_back(*n);
+    }
+    if (arguments.size() != 6 || v.size() != 6 || v[1] + v[2] + v[3] + v[4] > 100)
+      return "error: usage: chaos SEED LATE% DROP% GARBLE% TRUNCATE% LATE_MS (percentages "
+             "summing to at most 100) | chaos off";
+    auto& c = faults_.chaos;
+    c.on = true;
+    c.seed = static_cast<std::uint32_t>(v[0]);
+    c.late_percent = static_cast<unsigned>(v[1]);
+    c.drop_percent = static_cast<unsigned>(v[2]);
+    c.garble_percent = static_cast<unsigned>(v[3]);
+    c.truncate_percent = static_cast<unsigned>(v[4]);
+    c.late = std::chrono::milliseconds(v[5]);
+    ++c.generation;
+    return "ok chaos";
   }
   if (verb == "quit") {
     quit_ = true;

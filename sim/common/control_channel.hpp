@@ -1,6 +1,7 @@
 #pragma once
 
 #include <chrono>
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <span>
@@ -17,6 +18,18 @@ struct FaultInjection {
   unsigned garbage_replies = 0;    // the next N replies become random bytes
   unsigned truncated_replies = 0;  // the next N replies lose their second half and terminator
   std::chrono::milliseconds reply_delay{0};  // added before every reply
+  // Random faults on every reply while `chaos` is on (percentages; the request is still
+  // executed): late by `late`, dropped, garbled, truncated. Seeded, so a failing run repeats.
+  struct Chaos {
+    bool on = false;
+    std::uint32_t seed = 1;
+    unsigned late_percent = 0;
+    unsigned drop_percent = 0;
+    unsigned garble_percent = 0;
+    unsigned truncate_percent = 0;
+    std::chrono::milliseconds late{0};
+    unsigned generation = 0;  // bumped by every chaos command, so the line reseeds
+  } chaos;
 };
 
 // Family-specific control commands: `verb` with its arguments. Returns the reply line ("ok…" or
@@ -30,7 +43,8 @@ std::optional<long long> parse_control_integer(std::string_view text);
 // Line commands on the simulator's stdin, one reply line each on stdout, so a test can inject
 // faults at runtime and knows when a command has taken effect.
 //
-// Generic commands:  silence on|off, garbage N, truncate N, delay MS, help, quit.
+// Generic commands:  silence on|off, garbage N, truncate N, delay MS,
+//                    chaos SEED LATE% DROP% GARBLE% TRUNCATE% LATE_MS | chaos off, help, quit.
 // Everything else goes to the family handler.
 class ControlChannel {
  public:

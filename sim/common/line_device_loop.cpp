@@ -108,12 +108,44 @@ void LineExchange::execute(const PendingRequest& request, SimTime now) {
     log(now, "baud " + std::to_string(*reply.new_baud), {});
   }
   if (reply.bytes.empty()) {
+    journal(now, request.bytes, {}, {});
     log(now, "tx (no reply)", {});
     return;
   }
   std::string bytes = reply.bytes;
   std::string_view note = "tx";
-  if (faults_.garbage_replies > 0) {
+  auto delay = faults_.reply_delay;
+  std::string_view chaos_fault;
+  if (faults_.chaos.on) {
+    if (chaos_generation_ != faults_.chaos.generation) {
+      chaos_generation_ = faults_.chaos.generation;
+      chaos_random_.seed(faults_.chaos.seed);
+    }
+    const auto& c = faults_.chaos;
+    const unsigned roll = std::uniform_int_distribution<unsigned>(0, 99)(chaos_random_);
+    if (roll < c.late_percent) {
+      chaos_fault = "late";
+      delay += c.late;
+    } else if (roll < c.late_percent + c.drop_percent) {
+      chaos_fault = "dropped";
+    } else if (roll < c.late_percent + c.drop_percent + c.garble_percent) {
+      chaos_fault = "garbled";
+    } else if (roll < c.late_percent + c.drop_percent + c.garble_percent + c.truncate_percent) {
+      chaos_fault = "truncated";
+    }
+  }
+  journal(now, request.bytes, reply.bytes, chaos_fault);
+  if (chaos_fault == "dropped") {
+    log(now, "tx (dropped)", bytes);
+    return;
+  }
+  if (chaos_fault == "garbled") {
+    bytes = garbage(bytes);
+    note = "tx (garbage)";
+  } else if (chaos_fault == "truncated") {
+    bytes = truncated(bytes);
+    note = "tx (truncated)";
+  } else if (faults_.garbage_replies > 0) {
     --faults_.garbage_replies;
     bytes = garbage(bytes);
     note = "tx (garbage)";
@@ -122,9 +154,20 @@ void LineExchange::execute(const PendingRequest& request, SimTime now) {
     bytes = truncated(bytes);
     note = "tx (truncated)";
   }
-  const SimTime start = now + options_.wire.turnaround + faults_.reply_delay + reply.extra_delay;
+  const SimTime start = now + options_.wire.turnaround + delay + reply.extra_delay;
   transmitter_.enqueue(start, bytes, options_.wire.enabled ? &options_.wire.timing : nullptr);
   log(now, note, bytes);
+}
+
+void LineExchange::journal(SimTime now, std::string_view request, std::string_view reply,
+                           std::string_view fault) {
+  if (options_.journal == nullptr) return;
+  const auto us =
+      std::chrono::duration_cast<std::chrono::microseconds>(now - log_epoch_.value_or(now)).count();
+  std::fprintf(options_.journal, "%lld %s -> %s%s%s\n", static_cast<long long>(us),
+               escape_bytes(request).c_str(), escape_bytes(reply).c_str(), fault.empty() ? "" : " ",
+               std::string(fault).c_str());
+  std::fflush(options_.journal);
 }
 
 std::string LineExchange::garbage(std::string_view reply) {

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <deque>
 #include <functional>
 #include <optional>
@@ -43,6 +44,10 @@ struct LineDeviceOptions {
   std::size_t max_pending = 4096;
   std::uint32_t seed = 1;
   bool verbose = false;  // log every request and reply to stderr
+  // Device journal: one line per executed request, "<µs since the first request> <request> ->
+  // <reply as the device produced it> [<fault applied on the way out>]", flushed at once, so a
+  // test can check what the device really did. nullptr: none.
+  std::FILE* journal = nullptr;
   std::string name = "sim";
 };
 
@@ -75,6 +80,8 @@ class LineExchange {
   void execute(const PendingRequest& request, SimTime now);
   std::string garbage(std::string_view reply);
   std::string truncated(std::string_view reply) const;
+  void journal(SimTime now, std::string_view request, std::string_view reply,
+               std::string_view fault);
   void log(SimTime now, std::string_view what, std::string_view bytes) const;
 
   LineDeviceHooks hooks_;
@@ -85,6 +92,8 @@ class LineExchange {
   std::deque<PendingRequest> requests_;
   PacedTransmitter transmitter_;
   std::mt19937 random_;
+  std::mt19937 chaos_random_;
+  unsigned chaos_generation_ = 0;
   std::optional<SimTime> log_epoch_;
 };
 

@@ -126,17 +126,36 @@ DeviceReply AmplifierNetwork::handle(std::string_view request, SimTime now) {
     reply.bytes = error_reply(*parsed.error, compact);
     return reply;
   }
-  // "0 …" addresses the gateway itself; only other IDs go over CAN.
+  // "0 …" addresses the gateway itself unless --zero-prefix says otherwise; only other IDs go
+  // over CAN.
   const int id = parsed.address.node.value_or(0);
+  if (parsed.address.node && id == 0 &&
+      options_.zero_prefix != NetworkOptions::ZeroPrefix::gateway) {
+    if (options_.zero_prefix == NetworkOptions::ZeroPrefix::invalid_node) {
+      reply.bytes = error_reply(Error::bad_node, compact);
+    } else {
+      reply.bytes = error_reply(Error::can_failure, compact);
+      reply.extra_delay = options_.forward_latency + options_.can_timeout;
+    }
+    return reply;
+  }
   const bool forwarded = id != 0;
   if (forwarded) reply.extra_delay = options_.forward_latency;
   Node* node = find(id);
   if (forwarded && (node == nullptr || !node->online || now < node->deaf_until)) {
     reply.bytes = error_reply(Error::can_failure, compact);
+    reply.extra_delay += options_.can_timeout;
     return reply;
   }
-  // Multi-axis amplifiers want the axis letter; without one the command goes to axis a. An axis
-  // the amplifier does not have is a parse error.
+  // Multi-axis amplifiers want the axis letter (--missing-axis: axis a, e 33 or silence). An
+  // axis the amplifier does not have is a parse error.
+  if (!parsed.address.axis && node->axes.size() > 1) {
+    if (options_.missing_axis == NetworkOptions::MissingAxis::parse_error) {
+      reply.bytes = error_reply(Error::parse_error, compact);
+      return reply;
+    }
+    if (options_.missing_axis == NetworkOptions::MissingAxis::silent) return reply;
+  }
   const auto index = static_cast<std::size_t>(parsed.address.axis.value_or('a') - 'a');
   if (index >= node->axes.size()) {
     reply.bytes = error_reply(Error::parse_error, compact);

@@ -31,6 +31,16 @@ struct NetworkOptions {
   std::chrono::milliseconds boot_time{0};
   // Reply `v1200` instead of `v 1200` (§2.8 shows both spellings).
   bool compact_replies = false;
+  // A command without an axis letter to a multi-axis amplifier: the manual says the letter is
+  // "necessary" but not what happens without it. Axis a, e 33, or no reply at all.
+  enum class MissingAxis { first_axis, parse_error, silent };
+  MissingAxis missing_axis = MissingAxis::first_axis;
+  // The prefix "0 " (whether it addresses the gateway is not shown): the gateway itself, e 31
+  // (no such forwarding target), or e 32 after the CAN timeout (forwarded to nobody).
+  enum class ZeroPrefix { gateway, invalid_node, can_failure };
+  ZeroPrefix zero_prefix = ZeroPrefix::gateway;
+  // The gateway amplifier's CAN timeout: e 32 for an absent or deaf node comes this late.
+  std::chrono::milliseconds can_timeout{0};
 };
 
 // The amplifiers on one RS-232 link: node 0 on the serial port and the nodes it reaches over

@@ -6,6 +6,8 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
+#include <memory>
+#include <stdexcept>
 #include <string>
 
 #include "sim/common/control_channel.hpp"
@@ -32,6 +34,10 @@ int main(int argc, char** argv) {
   bool compact = false;
   bool verbose = false;
   std::uint32_t seed = 1;
+  std::string missing_axis = "a";
+  std::string zero_prefix = "gateway";
+  long can_timeout_ms = 0;
+  std::string journal_path;
   app.add_option("--link", link, "symlink to create for the PTY slave, e.g. /tmp/copley0");
   app.add_option("--nodes", nodes,
                  "CAN node IDs, e.g. 0,3,5 (0 = the RS-232 gateway amplifier, "
@@ -51,6 +57,19 @@ int main(int argc, char** argv) {
   app.add_flag("--stepper", stepper, "Stepnet amplifiers (microstep states 31-42), default servo");
   app.add_flag("--compact-replies", compact,
                "reply v1200 instead of v 1200 (both are in the manual)");
+  app.add_option("--missing-axis", missing_axis,
+                 "a command without axis letter to a multi-axis amplifier: a (goes to axis a), "
+                 "e33 (parse error) or silent (no reply)")
+      ->check(CLI::IsMember({"a", "e33", "silent"}));
+  app.add_option("--zero-prefix", zero_prefix,
+                 "the prefix '0 ': gateway (addresses the gateway amplifier), e31 (invalid node "
+                 "ID) or e32 (CAN failure after the CAN timeout)")
+      ->check(CLI::IsMember({"gateway", "e31", "e32"}));
+  app.add_option("--can-timeout-ms", can_timeout_ms,
+                 "the gateway amplifier's CAN timeout: e 32 for an absent node comes this late")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--journal", journal_path,
+                 "append every executed request and the device's reply to this file");
   app.add_option("--seed", seed, "seed for garbage replies");
   app.add_flag("--verbose", verbose, "log every request and reply to stderr");
   CLI11_PARSE(app, argc, argv);
@@ -65,6 +84,14 @@ int main(int argc, char** argv) {
     network_options.forward_latency = std::chrono::microseconds(forward_us);
     network_options.boot_time = std::chrono::milliseconds(boot_ms);
     network_options.compact_replies = compact;
+    using Options = copley::NetworkOptions;
+    network_options.missing_axis = missing_axis == "e33"      ? Options::MissingAxis::parse_error
+                                   : missing_axis == "silent" ? Options::MissingAxis::silent
+                                                              : Options::MissingAxis::first_axis;
+    network_options.zero_prefix = zero_prefix == "e31"   ? Options::ZeroPrefix::invalid_node
+                                  : zero_prefix == "e32" ? Options::ZeroPrefix::can_failure
+                                                         : Options::ZeroPrefix::gateway;
+    network_options.can_timeout = std::chrono::milliseconds(can_timeout_ms);
     copley::AmplifierNetwork network(network_options, now);
 
     sim::LineDeviceOptions line_options;
@@ -76,6 +103,12 @@ int main(int argc, char** argv) {
     line_options.seed = seed;
     line_options.verbose = verbose;
     line_options.name = "copley";
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> journal(nullptr, &std::fclose);
+    if (!journal_path.empty()) {
+      journal.reset(std::fopen(journal_path.c_str(), "a"));
+      if (!journal) throw std::runtime_error("cannot open journal " + journal_path);
+      line_options.journal = journal.get();
+    }
 
     sim::FaultInjection faults;
     sim::LineExchange exchange(

@@ -22,7 +22,9 @@ namespace {
 
 class AmplifierOnUart final : public ByteTransport {
  public:
-  AmplifierOnUart(unsigned host_baud, unsigned amp_baud) : host_(host_baud), amp_(amp_baud) {}
+  // wants_axis: a multi-axis amplifier that answers e 33 to a command without an axis letter.
+  AmplifierOnUart(unsigned host_baud, unsigned amp_baud, bool wants_axis = false)
+      : host_(host_baud), amp_(amp_baud), wants_axis_(wants_axis) {}
 
   asio::awaitable<std::error_code> open() override { co_return std::error_code{}; }
   void close() override {}
@@ -31,9 +33,16 @@ class AmplifierOnUart final : public ByteTransport {
     if (host_ != amp_) co_return std::error_code{};  // framing errors: the amplifier hears noise
     line_ += bytes;
     if (line_.back() != '\r') co_return std::error_code{};
-    const std::string command = line_.substr(0, line_.size() - 1);
+    std::string command = line_.substr(0, line_.size() - 1);
     line_.clear();
     commands.push_back(command);
+    if (wants_axis_) {
+      if (command.rfind(".a ", 0) != 0) {
+        reply("e 33", amp_);
+        co_return std::error_code{};
+      }
+      command = command.substr(3);
+    }
     if (command == "g r0x90") {
       reply("v " + std::to_string(amp_), amp_);
     } else if (command.rfind("s r0x90 ", 0) == 0) {
@@ -78,6 +87,7 @@ class AmplifierOnUart final : public ByteTransport {
  private:
   void reply(const std::string& text, unsigned rate) { pending_.push_back({text + "\r", rate}); }
   unsigned host_, amp_;
+  bool wants_axis_;
   std::string line_;
   std::deque<std::pair<std::string, unsigned>> pending_;
 };
@@ -98,6 +108,7 @@ TEST(CopleyBaud, SwitchesAnAmplifierAtItsPowerUpRate) {
   const auto notes = open_link(uart);
   EXPECT_EQ(uart.amplifier_baud(), 115200u);
   EXPECT_EQ(uart.baud(), 115200u);
+  // The plain probe at 115200 goes unheard; so does the axis form that follows it.
   EXPECT_EQ(uart.commands, (std::vector<std::string>{"g r0x90", "s r0x90 115200"}));
   ASSERT_EQ(notes.size(), 1u);
   EXPECT_EQ(notes[0], "Copley gateway amplifier switched from 9600 to 115200 baud");
@@ -115,7 +126,30 @@ TEST(CopleyBaud, ReportsASilentLineAndKeepsTheConfiguredRate) {
   EXPECT_EQ(uart.baud(), 115200u);
   EXPECT_TRUE(uart.commands.empty());
   ASSERT_EQ(notes.size(), 1u);
-  EXPECT_NE(notes[0].find("answers neither at 115200 nor at 9600"), std::string::npos);
+  EXPECT_NE(notes[0].find("does not answer at 115200 baud (no reply) nor at its power-up rate "
+                          "9600 (no reply)"),
+            std::string::npos)
+      << notes[0];
+}
+
+// Issue 12 item 7: a 2-axis amplifier that wants an axis letter answers the plain probe with
+// e 33. That is an answer: at the configured rate nothing is switched and nothing is logged.
+TEST(CopleyBaud, AMultiAxisAmplifierAlreadyAtTheConfiguredRateIsLeftAlone) {
+  AmplifierOnUart uart(115200, 115200, true);
+  EXPECT_TRUE(open_link(uart).empty());
+  EXPECT_EQ(uart.baud(), 115200u);
+  EXPECT_EQ(uart.commands, (std::vector<std::string>{"g r0x90", ".a g r0x90"}));
+}
+
+TEST(CopleyBaud, AMultiAxisAmplifierAtItsPowerUpRateIsSwitchedWithTheAxisForm) {
+  AmplifierOnUart uart(115200, 9600, true);
+  const auto notes = open_link(uart);
+  EXPECT_EQ(uart.amplifier_baud(), 115200u);
+  EXPECT_EQ(uart.baud(), 115200u);
+  EXPECT_EQ(uart.commands,
+            (std::vector<std::string>{"g r0x90", ".a g r0x90", ".a s r0x90 115200"}));
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("switched from 9600 to 115200"), std::string::npos) << notes[0];
 }
 
 TEST(CopleyBaud, NothingToDoAt9600) {

@@ -31,6 +31,35 @@ TEST(CopleyInterpret, MismatchedReplyKindIsGarbled) {
   EXPECT_EQ(interpret_copley_reply(node(0), write("t 1"), "v 3\r").status, Reply::Status::garbled);
 }
 
+// A reply that cannot answer the request (a late reply to another command) is never taken.
+TEST(CopleyInterpret, ImplausibleRepliesAreGarbled) {
+  const auto garbled = [](const Request& r, const char* line) {
+    return interpret_copley_reply(node(0), r, line).status == Reply::Status::garbled;
+  };
+  // A value to a set, a copy, a trajectory command, even when the model expects values.
+  EXPECT_TRUE(garbled(write("s r0x24 21"), "v 21\r"));
+  EXPECT_TRUE(garbled(read("s r0x24 21"), "v 21\r"));
+  EXPECT_TRUE(garbled(write("c r0x24"), "v 0\r"));
+  // An ok, or a CVM register value, to a get.
+  EXPECT_TRUE(garbled(read("g r0x32"), "ok\r"));
+  EXPECT_TRUE(garbled(read("g r0x32"), "r 35\r"));
+  // Wrong field counts: one value per ordinary variable, nine for 0x6b, two for 0x70-0x77.
+  EXPECT_TRUE(garbled(read("g r0x32"), "v 1 2\r"));
+  EXPECT_TRUE(garbled(read("g r0x6b"), "v 1\r"));
+  EXPECT_TRUE(garbled(read("g r0x72"), "v 258\r"));
+  EXPECT_FALSE(garbled(read("g r0x72"), "v 258 0\r"));
+  EXPECT_FALSE(garbled(read("g r0x6B"), "v -7936 200 0 775 1550 775 -12774 32763 5813\r"));
+  EXPECT_FALSE(garbled(read("g r107"), "v -7936 200 0 775 1550 775 -12774 32763 5813\r"));
+  // CVM registers: read answers r n, write answers ok.
+  EXPECT_FALSE(garbled(read("i r0"), "r 35\r"));
+  EXPECT_TRUE(garbled(read("i r0"), "ok\r"));
+  EXPECT_FALSE(garbled(write("i r0 5"), "ok\r"));
+  EXPECT_TRUE(garbled(write("i r0 5"), "r 5\r"));
+  // Error replies answer anything.
+  EXPECT_FALSE(garbled(read("g r0x32"), "e 9\r"));
+  EXPECT_FALSE(garbled(write("s r0x24 41"), "e 14\r"));
+}
+
 TEST(CopleyInterpret, DeviceErrorCarriesCodeAndManualText) {
   const auto r = interpret_copley_reply(node(0), write("t2"), "e 33\r");
   EXPECT_EQ(r.status, Reply::Status::device_error);

@@ -281,3 +281,42 @@ TEST_F(ConfigLoaderTest, ShippedDemoConfigIsValid) {
 
 }  // namespace
 }  // namespace fieldgate
+
+namespace fieldgate {
+namespace {
+
+// Issue 12 item 4: a node forwarded over CAN must outwait the gateway amplifier's CAN timeout.
+TEST_F(ConfigLoaderTest, ForwardedCopleyNodesGetAReplyTimeoutBeyondTheCanTimeout) {
+  std::optional<LoadedConfig> c;
+  const std::string nodes =
+      "      - {name: gw, address: 0, model: copley-amplifier, unit_id: 1}\n"
+      "      - {name: fw, address: 3, model: copley-amplifier, unit_id: 2}\n";
+  // No reply_timeout configured: the forwarded node's default is derived, no warning.
+  ASSERT_EQ(load(bus(nodes, "    timing: {forward_timeout: 200ms}\n"), &c), "");
+  const auto& b = c->gateway.buses[0];
+  EXPECT_EQ(node_link_timing(b, b.nodes[0]).reply_timeout, std::chrono::milliseconds(100));
+  EXPECT_EQ(node_link_timing(b, b.nodes[1]).reply_timeout, std::chrono::milliseconds(250));
+  EXPECT_TRUE(c->gateway.warnings.empty());
+  // A configured value below it is used, and warned about with the reason.
+  ASSERT_EQ(load(bus(nodes, "    timing: {reply_timeout: 50ms}\n"), &c), "");
+  const auto& b2 = c->gateway.buses[0];
+  EXPECT_EQ(node_link_timing(b2, b2.nodes[1]).reply_timeout, std::chrono::milliseconds(50));
+  ASSERT_EQ(c->gateway.warnings.size(), 1u);
+  EXPECT_NE(c->gateway.warnings[0].find("node fw: reply_timeout 50 ms is below the 150 ms"),
+            std::string::npos)
+      << c->gateway.warnings[0];
+  EXPECT_NE(c->gateway.warnings[0].find("e 32"), std::string::npos);
+  // A per-node reply_timeout that covers it silences the warning for that node only.
+  ASSERT_EQ(load(bus("      - {name: gw, address: 0, model: copley-amplifier, unit_id: 1}\n"
+                     "      - {name: fw, address: 3, model: copley-amplifier, unit_id: 2, "
+                     "reply_timeout: 160ms}\n",
+                     "    timing: {reply_timeout: 50ms}\n"),
+                 &c),
+            "");
+  EXPECT_TRUE(c->gateway.warnings.empty());
+  EXPECT_EQ(node_link_timing(c->gateway.buses[0], c->gateway.buses[0].nodes[1]).reply_timeout,
+            std::chrono::milliseconds(160));
+}
+
+}  // namespace
+}  // namespace fieldgate

@@ -1,6 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <map>
 #include <set>
+#include <string>
+#include <vector>
 
 #include "gateway/poll_plan.hpp"
 
@@ -102,6 +105,85 @@ TEST(PollPlan, RestartNodeReschedulesFromNow) {
   EXPECT_LT(plan.item(2).next_due, t0 + 10s);
   EXPECT_EQ(plan.probe_item(1), 2u);
   EXPECT_FALSE(plan.probe_item(5));
+}
+
+TEST(PollPlan, RestartKeepsTheOriginalSlot) {
+  PollPlan plan;
+  plan.add(item(0, "a", 100ms));
+  plan.add(item(0, "b", 100ms));  // slot t0 + 50 ms
+  const SteadyTime t0{};
+  plan.start(t0);
+  plan.completed(0, t0 + 1ms);
+  plan.completed(1, t0 + 51ms);
+  // Offline for a moment, back before either item missed a period: their own ticks.
+  plan.restart_node(0, t0 + 70ms);
+  EXPECT_EQ(plan.item(0).next_due, t0 + 100ms);
+  EXPECT_EQ(plan.item(1).next_due, t0 + 150ms);
+  // Back after a longer absence: both missed a period and are due at once.
+  plan.restart_node(0, t0 + 400ms);
+  EXPECT_EQ(plan.item(0).next_due, t0 + 400ms);
+  EXPECT_EQ(plan.item(1).next_due, t0 + 400ms);
+}
+
+// A node that goes offline and online every 500 ms (a heartbeat that flaps): its 5 s class
+// must still run at least once every 5 s of online time.
+TEST(PollPlan, EveryClassRunsWithinItsPeriodWhileANodeFlaps) {
+  PollPlan plan;
+  plan.add(item(0, "fast", 100ms));
+  plan.add(item(0, "slow1", 5s));
+  plan.add(item(0, "slow2", 5s));
+  plan.add(item(0, "slow3", 5s));
+  SteadyTime now{};
+  plan.start(now);
+  bool online = true;
+  std::map<std::string, std::vector<SteadyTime>> runs;
+  SteadyTime flip = now + 500ms;
+  while (now < SteadyTime{} + 30s) {
+    if (now >= flip) {
+      online = !online;
+      if (online) plan.restart_node(0, now);
+      flip += online ? 450ms : 50ms;  // mostly online
+    }
+    auto due = plan.pick(now, [&](int) { return online; });
+    if (!due || due->when > now) {
+      now += 1ms;
+      continue;
+    }
+    now += 2ms;
+    runs[plan.item(due->item).request.command].push_back(now);
+    plan.completed(due->item, now);
+  }
+  for (const char* name : {"slow1", "slow2", "slow3"}) {
+    const auto& r = runs[name];
+    ASSERT_GE(r.size(), 5u) << name;
+    for (std::size_t i = 1; i < r.size(); ++i)
+      EXPECT_LE(r[i] - r[i - 1], 5s + 100ms) << name << " run " << i;
+  }
+}
+
+// Polls need far more than the line can carry: the fast class keeps its rate (it fits on its
+// own), slower classes share what is left, and none stops entirely.
+TEST(PollPlan, UnderOverloadTheFastClassKeepsItsPriority) {
+  PollPlan plan;
+  for (int node = 0; node < 4; ++node) {
+    plan.add(item(node, "fast", 100ms));
+    for (int k = 0; k < 10; ++k) plan.add(item(node, "slow", 200ms));
+  }
+  // Each poll takes 10 ms: fast alone needs 40 %, everything 240 %.
+  SteadyTime now{};
+  plan.start(now);
+  int fast = 0, slow = 0;
+  while (now < SteadyTime{} + 10s) {
+    auto due = plan.pick(now, all);
+    ASSERT_TRUE(due);
+    if (due->when > now) now = due->when;
+    now += 10ms;
+    (plan.item(due->item).request.command == "fast" ? fast : slow)++;
+    plan.completed(due->item, now);
+  }
+  EXPECT_GE(fast, 4 * 100 * 95 / 100);  // 4 nodes x 10/s x 10 s, within 5 %
+  EXPECT_GT(slow, 0);
+  EXPECT_LT(slow, 40 * 50);  // the slow class cannot have its full rate
 }
 
 }  // namespace

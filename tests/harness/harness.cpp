@@ -207,8 +207,10 @@ Plant::Plant(std::vector<SimulatedBus> buses, std::string modbus_extra,
   for (std::size_t i = 0; i < buses.size(); ++i) {
     auto& bus = buses[i];
     const auto link = dir_ / ("link" + std::to_string(i));
-    for (auto& arg : bus.sim_argv)
+    for (auto& arg : bus.sim_argv) {
       if (arg == "{link}") arg = link.string();
+      if (arg.rfind("{dir}", 0) == 0) arg = dir_.path().string() + arg.substr(5);
+    }
     sims_.push_back(
         std::make_unique<ChildProcess>(bus.sim_argv, dir_ / ("sim" + std::to_string(i) + ".log")));
     if (!wait_until([&] { return fs::exists(link); }, std::chrono::seconds(5)))
@@ -233,6 +235,19 @@ Plant::Plant(std::vector<SimulatedBus> buses, std::string modbus_extra,
   if (!up || !std::regex_search(log, m, listening))
     throw std::runtime_error("daemon did not start listening:\n" + log);
   port_ = std::stoi(m[1]);
+}
+
+std::vector<JournalEntry> read_journal(const std::filesystem::path& file) {
+  std::vector<JournalEntry> entries;
+  std::ifstream in(file);
+  std::string line;
+  static const std::regex format(R"(^(\d+) (.*) -> (.*?)(?: (late|dropped|garbled|truncated))?$)");
+  while (std::getline(in, line)) {
+    std::smatch m;
+    if (!std::regex_match(line, m, format)) continue;
+    entries.push_back({std::stoll(m[1]), m[2], m[3], m[4]});
+  }
+  return entries;
 }
 
 Plant::~Plant() {

@@ -81,7 +81,8 @@ class ModbusClient {
 struct SimulatedBus {
   std::string name;
   std::string protocol;
-  // Simulator command line; the argument "{link}" is replaced by the PTY link path.
+  // Simulator command line; the argument "{link}" is replaced by the PTY link path, "{dir}" at
+  // the start of an argument by the plant's scratch directory (e.g. "{dir}/journal").
   std::vector<std::string> sim_argv;
   std::string serial = "baud: 115200";  // YAML flow-map content besides the device
   std::string timing =
@@ -114,5 +115,16 @@ class CopleyPlant : public Plant {
  public:
   CopleyPlant(const std::string& sim_nodes, const std::string& config_nodes);
 };
+
+// One line of a simulator's device journal (--journal, sim/common LineExchange): a request the
+// device executed and the reply it produced, escaped as the simulator logs them ("ok\\r"), and
+// the fault injected on the way out ("late", "dropped", "garbled", "truncated" or "").
+struct JournalEntry {
+  long long at_us = 0;
+  std::string request;
+  std::string reply;
+  std::string fault;
+};
+std::vector<JournalEntry> read_journal(const std::filesystem::path& file);
 
 }  // namespace fieldgate::test

@@ -1,0 +1,86 @@
+// Issue 12 item 5: two clients writing back to back to one unit must not freeze the polling of
+// the other nodes on the bus, and what a PLC is served shows its age.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <thread>
+
+#include "harness.hpp"
+
+namespace fieldgate::test {
+namespace {
+
+using namespace std::chrono_literals;
+
+constexpr int kPosition = 0, kDesiredState = 0;
+constexpr int kDiagTransactions = 1004, kDiagDataAge = 1017;
+
+uint32_t u32(const ModbusResult& r) {
+  return (static_cast<uint32_t>(r.values[0]) << 16) | r.values[1];
+}
+
+class CopleyFairShare : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    SimulatedBus bus;
+    bus.name = "copley";
+    bus.protocol = "copley-ascii";
+    bus.sim_argv = {
+        FIELDGATE_SIM_COPLEY, "--link", "{link}", "--nodes", "0,3,5", "--baud", "115200",
+        "--emulate-wire"};
+    bus.nodes =
+        "      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1}\n"
+        "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2}\n"
+        "      - {name: amp5, address: 5, model: copley-amplifier, unit_id: 3}\n";
+    plant_ = std::make_unique<Plant>(std::vector<SimulatedBus>{bus});
+    client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
+    for (int unit : {1, 2, 3})
+      ASSERT_TRUE(wait_until([&] { return client_->read_input(unit, kPosition, 2).ok(); }));
+  }
+  void TearDown() override {
+    if (HasFailure() && plant_) std::cerr << "--- daemon log ---\n" << plant_->daemon().log();
+  }
+  // Transactions of units 2 and 3 (polls only: nothing else addresses them) over `window`.
+  std::pair<uint32_t, uint32_t> polls_during(std::chrono::milliseconds window) {
+    const auto a2 = u32(client_->read_input(2, kDiagTransactions, 2));
+    const auto a3 = u32(client_->read_input(3, kDiagTransactions, 2));
+    std::this_thread::sleep_for(window);
+    return {u32(client_->read_input(2, kDiagTransactions, 2)) - a2,
+            u32(client_->read_input(3, kDiagTransactions, 2)) - a3};
+  }
+  std::unique_ptr<Plant> plant_;
+  std::unique_ptr<ModbusClient> client_;
+};
+
+TEST_F(CopleyFairShare, FloodingOneUnitKeepsTheOthersPollRate) {
+  std::this_thread::sleep_for(1s);  // past start-up: every poll class has run
+  const auto idle = polls_during(3s);
+  ASSERT_GT(idle.first, 20u);
+
+  std::atomic<bool> flooding{true};
+  std::atomic<int> writes{0};
+  auto flood = [&] {
+    ModbusClient c("127.0.0.1", plant_->port());
+    while (flooding)
+      if (c.write_single(1, kDesiredState, 0).ok()) ++writes;
+  };
+  std::thread a(flood), b(flood);
+  std::this_thread::sleep_for(300ms);
+  const auto busy = polls_during(3s);
+  uint32_t max_age = 0;
+  for (int unit : {2, 3})
+    max_age = std::max(max_age, u32(client_->read_input(unit, kDiagDataAge, 2)));
+  flooding = false;
+  a.join();
+  b.join();
+
+  EXPECT_GT(writes.load(), 50) << "the flood did not load the line";
+  EXPECT_GE(busy.first * 10, idle.first * 9) << "unit 2: " << busy.first << " vs " << idle.first;
+  EXPECT_GE(busy.second * 10, idle.second * 9)
+      << "unit 3: " << busy.second << " vs " << idle.second;
+  // The oldest value served stays within the slowest poll class's period and a margin.
+  EXPECT_LT(max_age, 3000u);
+}
+
+}  // namespace
+}  // namespace fieldgate::test
