@@ -335,6 +335,19 @@ asio::awaitable<Reply> CententFamily::run(Link& link, int unit, cn0170::Plan pla
   co_return reply;
 }
 
+asio::awaitable<LinkResync> CententFamily::resync_after_failure(Link& link,
+                                                                const LinkTiming& timing) {
+  LinkResync found = co_await ProtocolFamily::resync_after_failure(link, timing);
+  std::string_view rest = found.drained;
+  while (const std::size_t n = cn0170::frame_length(rest)) {
+    const cn0170::Message m = cn0170::parse_message(rest.substr(0, n));
+    if (m.kind != cn0170::MessageKind::blank) chain_.absorb(m);
+    rest.remove_prefix(n);
+  }
+  flush_log(link);
+  co_return found;
+}
+
 asio::awaitable<Reply> CententFamily::read_replies(Link& link, cn0170::Exchange exchange,
                                                    const LinkTiming& timing) {
   for (int i = 0; i < kMaxLinesPerExchange; ++i) {

@@ -311,6 +311,13 @@ asio::awaitable<void> ImsPartyLineFamily::after_failure(Link& link, const LinkTi
   if (reply.status == Reply::Status::garbled) co_await drain(link, timing);
 }
 
+asio::awaitable<LinkResync> ImsPartyLineFamily::resync_after_failure(Link& link,
+                                                                     const LinkTiming& timing) {
+  LinkResync found = co_await ProtocolFamily::resync_after_failure(link, timing);
+  late_.stray(found.drained, Clock::now());
+  co_return found;
+}
+
 asio::awaitable<void> ImsPartyLineFamily::on_link_open(Link& link, const LinkTiming&) {
   // No LF to "finish" a line a previous run may have left half-sent: it would execute the half.
   // Such a line garbles one exchange at most, which then resynchronises.

@@ -29,6 +29,8 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   // Takes the node's pinned readings (options result_placement, echo_linefeed).
   void configure_node(const NodeAddress& node, const Model& model) override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
+  // The bus's resync (quiet for a guard time), with what it drained accounted as late replies.
+  asio::awaitable<LinkResync> resync_after_failure(Link& link, const LinkTiming& timing) override;
   asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing) override;
   // ESC, ^C and @ of a bus-wide action marked urgent: written at once, even in the middle of
