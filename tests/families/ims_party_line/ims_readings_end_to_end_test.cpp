@@ -77,16 +77,20 @@ class ImsReadingEndToEnd : public ::testing::TestWithParam<Reading> {
 
 TEST_P(ImsReadingEndToEnd, ReadsMovesAndReadsBack) {
   plant_ = make_plant(GetParam().sim_args, "9600", true,
-                      "reply_timeout: 80ms, byte_timeout: 30ms, retries: 1, offline_after: 3, "
+                      // Not a timing test: room for a loaded machine.
+                      "reply_timeout: 200ms, byte_timeout: 50ms, retries: 2, offline_after: 5, "
                       "probe_interval: 500ms");
   client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
   plant_->sim().send_line("position A 1000");
   plant_->sim().send_line("position C 123456");
-  ASSERT_TRUE(wait_until([&] {
-    return client_->read_input_i32(1, kPosition) == 1000 &&
-           client_->read_input_i32(2, kPosition) == 0 &&
-           client_->read_input_i32(3, kPosition) == 123456;
-  })) << "every node online with its position";
+  ASSERT_TRUE(wait_until(
+      [&] {
+        return client_->read_input_i32(1, kPosition) == 1000 &&
+               client_->read_input_i32(2, kPosition) == 0 &&
+               client_->read_input_i32(3, kPosition) == 123456;
+      },
+      20s))
+      << "every node online with its position";
   ASSERT_TRUE(client_->write_i32(2, kTarget, 1500).ok());
   ASSERT_TRUE(client_->write_single(2, kCommand, kMoveAbsolute).ok());
   ASSERT_TRUE(wait_until(
@@ -94,13 +98,16 @@ TEST_P(ImsReadingEndToEnd, ReadsMovesAndReadsBack) {
         auto r = client_->read_holding(2, kActionStatus, 1);
         return r.ok() && r.values[0] == 2;
       },
-      20s));
+      60s));
   EXPECT_EQ(client_->read_input_i32(2, kPosition), 1500);
   EXPECT_EQ(client_->read_input_i32(1, kPosition), 1000);
-  ASSERT_TRUE(wait_until([&] {
-    return plant_->daemon().log().find(std::string("unit B: result_placement detected: ") +
-                                       GetParam().placement) != std::string::npos;
-  })) << "the reading each unit uses is logged";
+  ASSERT_TRUE(wait_until(
+      [&] {
+        return plant_->daemon().log().find(std::string("unit B: result_placement detected: ") +
+                                           GetParam().placement) != std::string::npos;
+      },
+      20s))
+      << "the reading each unit uses is logged";
 }
 
 INSTANTIATE_TEST_SUITE_P(Readings, ImsReadingEndToEnd, ::testing::ValuesIn(kReadings),

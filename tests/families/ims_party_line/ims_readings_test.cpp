@@ -329,18 +329,11 @@ TEST_P(ImsLateReplies, NoValueOrConfirmationFromAnotherRequest) {
       continue;
     }
     const Reply r = transact(name, read("Z"));
-    if (getenv("IMS_TEST_VERBOSE"))
-      std::cerr << "  " << name << " delay " << transport_->faults().reply_delay.count() << " owed "
-                << family_.late_replies().owed() << " " << to_string(r.status) << " " << r.text
-                << "\n";
     if (r.status == Reply::Status::ok) {
       ++good;
       EXPECT_EQ(r.values, std::vector<int64_t>{positions.at(name)}) << "read of " << name;
     } else {
       ++bad;
-      if (getenv("IMS_TEST_VERBOSE"))
-        std::cerr << name << " " << transport_->faults().reply_delay.count() << " " << r.text
-                  << "\n";
       EXPECT_NE(r.status, Reply::Status::device_error);
     }
   }
