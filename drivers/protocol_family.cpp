@@ -22,6 +22,8 @@ std::string_view to_string(Reply::Status status) {
 
 void ProtocolFamily::validate_model(const Model&, Diagnostics&) const {}
 
+void ProtocolFamily::configure_node(const NodeAddress&, const Model&) {}
+
 asio::awaitable<void> ProtocolFamily::on_link_open(Link&, const LinkTiming&) {
   co_return;
 }

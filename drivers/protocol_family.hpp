@@ -60,6 +60,9 @@ class ProtocolFamily {
                                                    std::string& error) const = 0;
   // Family-specific checks of a model once its family is known.
   virtual void validate_model(const Model& model, Diagnostics& diagnostics) const;
+  // Called for every configured node when its bus is built, with the node's model: model options
+  // that change the exchange with that node (a pinned reply layout) reach the family here.
+  virtual void configure_node(const NodeAddress& node, const Model& model);
   // Runs every time the transport (re)opens, before the first transaction.
   virtual asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing);
   virtual asio::awaitable<Reply> transact(Link& link, const NodeAddress& node,

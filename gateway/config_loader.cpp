@@ -473,6 +473,8 @@ class ConfigParser {
         } else if (bus.family && validated_.insert(n.model.get()).second) {
           bus.family->validate_model(*n.model, r_.diagnostics());
         }
+        if (bus.family && n.model && n.model->family == bus.protocol && !n.address.text.empty())
+          bus.family->configure_node(n.address, *n.model);
       }
     }
     if (auto u = r_.require(node, "unit_id", where)) {

@@ -104,12 +104,30 @@ int Chain::chain_position(int unit) const {
 void Chain::absorb(const Message& m) {
   auto& u = units[static_cast<std::size_t>(m.unit)];
   switch (m.kind) {
+    case MessageKind::position:
+    case MessageKind::velocity:
+    case MessageKind::acceleration:
+    case MessageKind::profile:
+    case MessageKind::ratio:
+    case MessageKind::io:
+    case MessageKind::aux:
+    case MessageKind::analog:
+    case MessageKind::mode:
+    case MessageKind::time:
+    case MessageKind::date:
+      if (pay(m.unit, m.key)) return;
+      break;
+    default:
+      break;
+  }
+  switch (m.kind) {
     case MessageKind::autobaud: {
       // U<n> answers the first CR after a reset: the unit lost its selection, clock and queues,
       // and selects itself or nobody; nothing else on the chain can be trusted to be selected.
       const auto subject = static_cast<std::size_t>(m.subject);
       auto& reset = units[subject];
       ++reset.counters.resets;
+      owed[subject].clear();  // its queues are gone: nothing it owed will come
       ++reset.counters.unsolicited;
       reset.set_up = false;
       reset.mode = 0;
@@ -313,11 +331,47 @@ Plan plan_kill(Chain& chain, const Options& options, int unit, const std::vector
   return plan;
 }
 
+void Chain::owe(int unit, const std::vector<std::string>& keys,
+                std::chrono::steady_clock::time_point now) {
+  if (keys.empty()) return;
+  auto& debts = owed[static_cast<std::size_t>(unit)];
+  // A debt added while one is open keeps its age, so a unit that never pays is written off.
+  if (debts.empty()) owed_since[static_cast<std::size_t>(unit)] = now;
+  debts.insert(debts.end(), keys.begin(), keys.end());
+}
+
+bool Chain::pay(int unit, const std::string& key) {
+  auto& debts = owed[static_cast<std::size_t>(unit)];
+  const auto it = std::find(debts.begin(), debts.end(), key);
+  if (it == debts.end()) return false;
+  // Owed replies before it that did not come were lost.
+  debts.erase(debts.begin(), it + 1);
+  ++late_replies;
+  return true;
+}
+
+void Chain::expire_owed(std::chrono::steady_clock::time_point now,
+                        std::chrono::steady_clock::duration window) {
+  for (std::size_t u = 0; u < owed.size(); ++u) {
+    if (owed[u].empty() || now - owed_since[u] <= window) continue;
+    log(6, fmt::format("unit {}: gave up waiting for {} late repl{}", u, owed[u].size(),
+                       owed[u].size() == 1 ? "y" : "ies"));
+    owed[u].clear();
+  }
+}
+
 Exchange::Exchange(Chain& chain, int unit, Plan plan, std::string what)
     : chain_(chain),
       unit_(plan.reply_unit.value_or(unit)),
       plan_(std::move(plan)),
-      what_(std::move(what)) {}
+      what_(std::move(what)) {
+  was_answering_ = chain_.units[static_cast<std::size_t>(unit_)].answering;
+}
+
+void Exchange::owe_rest() {
+  for (std::size_t i = next_; i < plan_.expected.size(); ++i)
+    owes_.push_back(plan_.expected[i].key);
+}
 
 bool Exchange::finish(Reply::Status status, std::string text, int64_t code) {
   reply_ = Reply{};
@@ -360,6 +414,7 @@ bool Exchange::on_line(std::string_view line) {
       return false;
     case MessageKind::unknown:
       ++chain_.stray_lines;
+      if (was_answering_ || next_ > 0) owe_rest();
       lost();
       return finish(Reply::Status::garbled,
                     fmt::format("unreadable line '{}' while waiting for unit {}'s reply to '{}'",
@@ -387,10 +442,21 @@ bool Exchange::on_line(std::string_view line) {
         chain_.absorb(m);
         return false;
       }
+      if (!chain_.owed[static_cast<std::size_t>(unit_)].empty()) {
+        // It may reject an earlier request whose replies are still owed, or this one.
+        ++chain_.units[static_cast<std::size_t>(unit_)].counters.rejects;
+        owe_rest();
+        lost();
+        return finish(Reply::Status::garbled,
+                      fmt::format("unit {} rejected \"{}\" while replies to an earlier request "
+                                  "were still owed: which request it rejects is unknown",
+                                  unit_, m.text));
+      }
       ++chain_.units[static_cast<std::size_t>(unit_)].counters.rejects;
       chain_.units[static_cast<std::size_t>(unit_)].answering = true;
       // Replies to the rest of the request may still follow; they must not meet the next one.
       chain_.drain_before_next = true;
+      owe_rest();
       return finish(Reply::Status::device_error,
                     fmt::format("unit {} rejected \"{}\" (syntax error; the string was ignored)",
                                 unit_, m.text),
@@ -426,6 +492,11 @@ bool Exchange::on_line(std::string_view line) {
                               "a reset or a duplicate unit number); selection forgotten",
                               m.unit, what_, unit_));
   }
+  if (chain_.pay(unit_, m.key)) {
+    // The late answer to an earlier request with the same key: ours comes after it.
+    chain_.absorb(m);
+    return false;
+  }
   if (m.kind == MessageKind::mode)
     chain_.units[static_cast<std::size_t>(unit_)].mode = static_cast<int>(m.values.front());
   const bool is_confirmation = plan_.confirmation && next_ + 1 == plan_.expected.size();
@@ -444,6 +515,7 @@ bool Exchange::on_line(std::string_view line) {
 }
 
 Reply Exchange::on_timeout(std::string_view partial) {
+  if (was_answering_ || next_ > 0 || !partial.empty()) owe_rest();
   lost();
   if (!partial.empty())
     finish(Reply::Status::garbled,

@@ -1,7 +1,9 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <optional>
 #include <string>
@@ -102,8 +104,20 @@ struct Chain {
   uint64_t selections = 0;
   uint64_t stray_lines = 0;  // replies nobody waits for any more
   std::vector<LogEvent> events;
+  // Replies units still owe from exchanges that gave up (issue 12), by reply key in order. A
+  // unit answers in order, so its next replies with these keys are those late ones, never the
+  // answer to a new request. Written off after a window without news (README "Late replies").
+  std::array<std::deque<std::string>, kMaxUnit + 1> owed;
+  std::array<std::chrono::steady_clock::time_point, kMaxUnit + 1> owed_since{};
+  uint64_t late_replies = 0;  // skipped as late answers
 
   void forget_selection() { selected.reset(); }
+  void owe(int unit, const std::vector<std::string>& keys,
+           std::chrono::steady_clock::time_point now);
+  // A reply from `unit` with `key` that pays a debt: true if it was owed (and is now paid).
+  bool pay(int unit, const std::string& key);
+  void expire_owed(std::chrono::steady_clock::time_point now,
+                   std::chrono::steady_clock::duration window);
   void link_opened();
   // 1-based place in the chain, 0 when unknown or absent.
   int chain_position(int unit) const;
@@ -144,6 +158,9 @@ class Exchange {
   Reply on_too_many_lines();
   Reply on_link_error(std::string text);
   bool finished() const { return finished_; }
+  int unit() const { return unit_; }
+  // Reply keys still on their way when the exchange gave up (for Chain::owe).
+  const std::vector<std::string>& owes() const { return owes_; }
   const Reply& reply() const { return reply_; }
 
  private:
@@ -160,6 +177,9 @@ class Exchange {
   int64_t motion_ = 0;
   bool saw_position_ = false;
   std::optional<int> reset_seen_;
+  bool was_answering_ = false;
+  std::vector<std::string> owes_;
+  void owe_rest();
   int confirmed_mode_ = 0;
   Reply reply_;
   bool finished_ = false;

@@ -305,7 +305,18 @@ asio::awaitable<void> CententFamily::on_link_open(Link& link, const LinkTiming& 
 asio::awaitable<Reply> CententFamily::run(Link& link, int unit, cn0170::Plan plan, std::string what,
                                           const LinkTiming& timing) {
   if (plan.refused) co_return *plan.refused;
+  chain_.expire_owed(std::chrono::steady_clock::now(),
+                     std::max<std::chrono::steady_clock::duration>(5 * timing.reply_timeout,
+                                                                   std::chrono::milliseconds(250)));
   if (chain_.drain_before_next) {
+    // What arrived since is read, not just dropped: late replies among it pay their debts.
+    const LinkTiming no_wait{std::chrono::microseconds(0), std::chrono::microseconds(0)};
+    for (int i = 0; i < kMaxLinesPerExchange; ++i) {
+      const LinkRead read = co_await link.read_frame(kLineSplitter, no_wait);
+      if (read.status != LinkRead::Status::frame) break;
+      const cn0170::Message m = cn0170::parse_message(read.frame);
+      if (m.kind != cn0170::MessageKind::blank) chain_.absorb(m);
+    }
     link.discard_input();
     chain_.drain_before_next = false;
   }
@@ -324,6 +335,19 @@ asio::awaitable<Reply> CententFamily::run(Link& link, int unit, cn0170::Plan pla
   co_return reply;
 }
 
+asio::awaitable<LinkResync> CententFamily::resync_after_failure(Link& link,
+                                                                const LinkTiming& timing) {
+  LinkResync found = co_await ProtocolFamily::resync_after_failure(link, timing);
+  std::string_view rest = found.drained;
+  while (const std::size_t n = cn0170::frame_length(rest)) {
+    const cn0170::Message m = cn0170::parse_message(rest.substr(0, n));
+    if (m.kind != cn0170::MessageKind::blank) chain_.absorb(m);
+    rest.remove_prefix(n);
+  }
+  flush_log(link);
+  co_return found;
+}
+
 asio::awaitable<Reply> CententFamily::read_replies(Link& link, cn0170::Exchange exchange,
                                                    const LinkTiming& timing) {
   for (int i = 0; i < kMaxLinesPerExchange; ++i) {
@@ -339,9 +363,11 @@ asio::awaitable<Reply> CententFamily::read_replies(Link& link, cn0170::Exchange 
     } else {
       exchange.on_link_error(read.error.message());
     }
+    chain_.owe(exchange.unit(), exchange.owes(), std::chrono::steady_clock::now());
     co_return exchange.reply();
   }
   if (!exchange.finished()) exchange.on_too_many_lines();
+  chain_.owe(exchange.unit(), exchange.owes(), std::chrono::steady_clock::now());
   co_return exchange.reply();
 }
 

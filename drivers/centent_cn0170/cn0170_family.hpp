@@ -26,6 +26,9 @@ class CententFamily final : public ProtocolFamily {
   // Also takes the model's options as the chain's settings.
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
+  // The bus's resync (quiet for a guard time); late replies among what it drained pay their
+  // units' debts (README "Late replies").
+  asio::awaitable<LinkResync> resync_after_failure(Link& link, const LinkTiming& timing) override;
   asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing) override;
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;

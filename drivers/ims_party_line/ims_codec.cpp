@@ -242,6 +242,55 @@ std::optional<ResultLine> parse_result(std::string_view line) {
   return result;
 }
 
+EchoLine parse_echo_line(char name, std::string_view command, std::string_view line) {
+  EchoLine out;
+  if (line.empty() || line.back() != kLineFeed) return out;
+  while (!line.empty() && line.front() == '\r') line.remove_prefix(1);
+  std::string_view body = line.substr(0, line.size() - 1);
+  if (!body.empty() && body.back() == '\r') {
+    out.carriage_return = true;
+    body.remove_suffix(1);
+  }
+  const std::string sent = std::string(1, name) + normalize_command(command);
+  // With the name first: the name is never a digit, sign or space, so a line that matches both
+  // forms can be read as a value in one of them at most.
+  for (const auto form : {EchoMatch::with_name, EchoMatch::without_name}) {
+    const std::string_view echo =
+        form == EchoMatch::with_name ? std::string_view(sent) : std::string_view(sent).substr(1);
+    if (!body.starts_with(echo)) continue;
+    const std::string_view rest = body.substr(echo.size());
+    if (rest.find_first_not_of(' ') == std::string_view::npos) {
+      out.match = form;
+      out.rest = std::string(rest);
+      return out;
+    }
+    auto value = parse_result(std::string(rest) + kLineFeed);
+    if (!value) continue;
+    out.match = form;
+    out.rest = std::string(rest);
+    out.result = std::move(value);
+    return out;
+  }
+  return out;
+}
+
+StrayLine classify_stray(std::string_view line) {
+  if (is_blank_line(line)) return StrayLine::blank;
+  if (parse_result(line)) return StrayLine::result;
+  std::string_view body = line;
+  while (!body.empty() && (body.front() == '\r')) body.remove_prefix(1);
+  while (!body.empty() && (body.back() == '\n' || body.back() == '\r' || body.back() == ' '))
+    body.remove_suffix(1);
+  // [name]<query>: the command alone, with or without a name character in front.
+  for (std::size_t skip = 0; skip <= 1 && skip < body.size(); ++skip) {
+    const std::string_view command = body.substr(skip);
+    if (skip == 1 && !valid_name(body.front())) break;
+    if (command.empty() || classify(command) != CommandClass::query) continue;
+    if (parse_data(command.substr(1))) return StrayLine::query_echo;
+  }
+  return StrayLine::other;
+}
+
 std::string printable(std::string_view bytes) {
   std::string out;
   for (const char c : bytes) {

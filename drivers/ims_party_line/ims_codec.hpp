@@ -81,6 +81,30 @@ struct ResultLine {
 };
 std::optional<ResultLine> parse_result(std::string_view line);
 
+// How a unit lays out what follows the echoed command (issue 20: the manual supports several
+// readings, README "Reply layouts"). One line, LF included:
+//   [CR…][name]<command>LF              the echo alone (the LF echoed at once)
+//   [CR…][name]<command>CR LF           the echo, its LF held until execution, with the CR of
+//                                       "execution complete" (or of the result) before it
+//   [CR…][name]<command>[ …]<number>[ …][CR]LF   a query's result on the echo's line
+struct EchoLine {
+  EchoMatch match = EchoMatch::mismatch;
+  bool carriage_return = false;      // a CR before the line's LF
+  std::optional<ResultLine> result;  // a value after the echoed command
+  std::string rest;                  // what followed the echoed command, CR LF removed
+};
+EchoLine parse_echo_line(char name, std::string_view command, std::string_view line);
+
+// A line that arrived outside any exchange that wanted it (drained, flushed, or in the place of
+// another unit's echo): what it says about the replies still on their way.
+enum class StrayLine {
+  blank,       // CR/LF only: a completion
+  result,      // a number line: a result some unit owed
+  query_echo,  // an echo of a query alone: its result is still to come
+  other,       // an echo with its result, a non-query echo, noise
+};
+StrayLine classify_stray(std::string_view line);
+
 // `^` status bits (§4).
 namespace status {
 inline constexpr int64_t moving = 1;

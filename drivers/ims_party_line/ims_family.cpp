@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cstdio>
 #include <functional>
 #include <variant>
 
@@ -47,19 +48,6 @@ std::size_t everything(std::string_view buf) {
   return buf.size();
 }
 
-// After a bad reply the unit may still be sending (the rest of an echo, a result line): reads
-// until the line has been quiet for a byte timeout, so the next exchange starts clean. Bounded,
-// in case a unit streams without end (Z1, a tracing program).
-asio::awaitable<void> drain(Link& link, const LinkTiming& timing) {
-  const LinkTiming quiet{timing.byte_timeout, timing.byte_timeout};
-  const auto deadline = Clock::now() + 4 * timing.reply_timeout + 4 * timing.byte_timeout;
-  while (Clock::now() < deadline) {
-    const LinkRead read = co_await link.read_frame(everything, quiet);
-    if (read.status != LinkRead::Status::frame) break;
-  }
-  link.discard_input();
-}
-
 std::optional<Reply> failed_read(const LinkRead& read, std::string_view what, char name) {
   switch (read.status) {
     case LinkRead::Status::frame:
@@ -83,21 +71,40 @@ std::optional<Reply> failed_read(const LinkRead& read, std::string_view what, ch
 // Stray blank lines (a late completion of an earlier command) are skipped, a few at most.
 constexpr int kMaxBlankLines = 3;
 
-asio::awaitable<std::variant<LinkRead, Reply>> read_line(Link& link, const LinkTiming& timing,
-                                                         std::string_view what, char name) {
+struct LineRead {
+  std::optional<Reply> failure;
+  std::string line;
+  std::string partial;  // of a failed read
+};
+
+asio::awaitable<LineRead> read_line(Link& link, const LinkTiming& timing, std::string_view what,
+                                    char name, std::string_view prefix = {}) {
+  LineRead out;
   for (int blank = 0;; ++blank) {
     LinkRead read = co_await link.read_frame(ims::line_length, timing);
-    if (auto failure = failed_read(read, what, name)) co_return *failure;
-    if (!ims::is_blank_line(read.frame) || blank == kMaxBlankLines) co_return read;
+    if (auto failure = failed_read(read, what, name)) {
+      if (!prefix.empty() && failure->status == Reply::Status::timeout) {
+        failure->status = Reply::Status::garbled;
+        failure->text = fmt::format("incomplete {} '{}'", what, ims::printable(prefix));
+      }
+      out.failure = failure;
+      out.partial = std::string(prefix) + read.partial;
+      co_return out;
+    }
+    out.line = std::string(prefix) + read.frame;
+    if (!ims::is_blank_line(out.line) || blank == kMaxBlankLines || !prefix.empty()) co_return out;
   }
 }
 
 // Sends the line a character at a time, each once the previous one has come back (manual p.14:
-// "monitor echoed data to avoid UART over-run"). The name may or may not be echoed. The line is
+// "monitor echoed data to avoid UART over-run"). The name may or may not be echoed; the echo of
+// the closing LF is not waited for here (it may come at execution, after a result). The line is
 // always sent whole: a unit left with half a line would take the next line as its rest, and only
-// ESC, which stops every axis, clears it.
-asio::awaitable<std::optional<Reply>> send_paced(Link& link, const NodeAddress& node,
-                                                 const Request& request, const LinkTiming& timing) {
+// ESC, which stops every axis, clears it. Returns the echo so far, or the failure.
+asio::awaitable<std::pair<std::optional<Reply>, std::string>> send_paced(Link& link,
+                                                                         const NodeAddress& node,
+                                                                         const Request& request,
+                                                                         const LinkTiming& timing) {
   const char name = name_of(node);
   const std::string line = ims::encode_line(name, request.command);
   const std::string_view with_name(line);
@@ -107,8 +114,8 @@ asio::awaitable<std::optional<Reply>> send_paced(Link& link, const NodeAddress& 
   std::string echoed;
   for (std::size_t i = 0; i < line.size(); ++i) {
     if (auto ec = co_await link.send(with_name.substr(i, 1)))
-      co_return make_reply(Reply::Status::link_down, ec.message());
-    if (i == 0) continue;  // whether the name comes back is not known; the next char will
+      co_return std::pair{make_reply(Reply::Status::link_down, ec.message()), echoed};
+    if (i == 0 || i + 1 == line.size()) continue;  // the name's echo is optional; LF: see above
     if (failure) {
       co_await link.pause(gap);
       continue;
@@ -140,13 +147,32 @@ asio::awaitable<std::optional<Reply>> send_paced(Link& link, const NodeAddress& 
                                fmt::format("echo '{}' does not match '{}'", ims::printable(echoed),
                                            ims::printable(line)));
       }
-      if (failure && failure->status == Reply::Status::link_down) co_return failure;
+      if (failure && failure->status == Reply::Status::link_down)
+        co_return std::pair{failure, echoed};
     }
   }
-  co_return failure;
+  co_return std::pair{failure, echoed};
+}
+
+std::string pin_hint(std::string_view option, std::string_view value) {
+  return fmt::format(" (the model pins {}: {}; set it to auto to accept both)", option, value);
 }
 
 }  // namespace
+
+ImsPartyLineFamily::ImsPartyLineFamily()
+    : log_([](int level, const std::string& text) {
+        std::fprintf(stderr, "<%d>ims-party-line: %s\n", level, text.c_str());
+      }) {}
+
+void ImsPartyLineFamily::log(int level, const std::optional<std::string>& text) {
+  if (text && log_) log_(level, *text);
+}
+
+std::chrono::microseconds ImsPartyLineFamily::late_window(const LinkTiming& timing) {
+  return std::max<std::chrono::microseconds>(5 * timing.reply_timeout,
+                                             std::chrono::milliseconds(250));
+}
 
 std::optional<NodeAddress> ImsPartyLineFamily::parse_address(std::string_view text,
                                                              std::string& error) const {
@@ -160,7 +186,7 @@ std::optional<NodeAddress> ImsPartyLineFamily::parse_address(std::string_view te
 
 std::optional<Reply> check_ims_echo(const NodeAddress& node, const Request& request,
                                     std::string_view echo) {
-  if (ims::match_echo(name_of(node), request.command, echo) != ims::EchoMatch::mismatch)
+  if (ims::parse_echo_line(name_of(node), request.command, echo).match != ims::EchoMatch::mismatch)
     return std::nullopt;
   return make_reply(Reply::Status::garbled,
                     fmt::format("echo '{}' does not match '{}'", ims::printable(echo),
@@ -178,6 +204,35 @@ Reply interpret_ims_result(const NodeAddress& node, const Request& request, std:
   r.values = result->values;
   return r;
 }
+
+namespace {
+
+// What an echo line says, whichever reading the unit uses; nullopt: a result line follows.
+std::optional<Reply> interpret_echo(const NodeAddress& node, const Request& request,
+                                    const ims::EchoLine& echo, std::string_view line) {
+  if (echo.match == ims::EchoMatch::mismatch)
+    return make_reply(
+        Reply::Status::garbled,
+        fmt::format("echo '{}' does not match '{}'", ims::printable(line),
+                    ims::printable(ims::encode_line(name_of(node), request.command))));
+  if (!expects_result(request)) {
+    if (echo.result)
+      return make_reply(
+          Reply::Status::garbled,
+          fmt::format("unit {}: a value '{}' after the echo of '{}', which has no "
+                      "result",
+                      node.text, ims::printable(echo.rest), ims::printable(request.command)));
+    return make_reply(Reply::Status::ok, {});
+  }
+  if (echo.result) {
+    Reply r = make_reply(Reply::Status::ok, {});
+    r.values = echo.result->values;
+    return r;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
 
 Reply interpret_ims_reply(const NodeAddress& node, const Request& request,
                           std::string_view received) {
@@ -198,8 +253,8 @@ Reply interpret_ims_reply(const NodeAddress& node, const Request& request,
     return make_reply(Reply::Status::garbled,
                       fmt::format("incomplete echo '{}'", ims::printable(rest)));
   }
-  if (auto failure = check_ims_echo(node, request, *echo)) return *failure;
-  if (!expects_result(request)) return make_reply(Reply::Status::ok, {});
+  const auto parsed = ims::parse_echo_line(name_of(node), request.command, *echo);
+  if (auto reply = interpret_echo(node, request, parsed, *echo)) return *reply;
   const auto result = next_line(rest);
   if (!result) {
     if (rest.empty())
@@ -212,10 +267,62 @@ Reply interpret_ims_reply(const NodeAddress& node, const Request& request,
   return interpret_ims_result(node, request, *result);
 }
 
+void ImsPartyLineFamily::configure_node(const NodeAddress& node, const Model& model) {
+  ims::ReadingPins pins;
+  for (const auto& [key, value] : model.options) {
+    // validate_model reports bad values; here they count as auto.
+    if (key == "result_placement")
+      ims::parse_result_placement(value, pins.placement);
+    else if (key == "echo_linefeed")
+      ims::parse_echo_linefeed(value, pins.linefeed);
+  }
+  readings_.pin(name_of(node), pins);
+}
+
+asio::awaitable<void> ImsPartyLineFamily::flush(Link& link) {
+  const LinkTiming no_wait{std::chrono::microseconds(0), std::chrono::microseconds(0)};
+  const LinkRead read = co_await link.read_frame(everything, no_wait);
+  if (read.status == LinkRead::Status::frame) late_.stray(read.frame, Clock::now());
+  link.discard_input();
+}
+
+asio::awaitable<void> ImsPartyLineFamily::drain(Link& link, const LinkTiming& timing) {
+  // Quiet for a reply timeout, so a reply just slower than the timeout ends here and not in the
+  // next exchange. Bounded, in case a unit streams without end (Z1, a tracing program).
+  const LinkTiming quiet{timing.reply_timeout, timing.byte_timeout};
+  const auto deadline = Clock::now() + 4 * timing.reply_timeout + 4 * timing.byte_timeout;
+  std::string drained;
+  while (Clock::now() < deadline) {
+    const LinkRead read = co_await link.read_frame(everything, quiet);
+    if (read.status != LinkRead::Status::frame) break;
+    drained += read.frame;
+  }
+  late_.stray(drained, Clock::now());
+  link.discard_input();
+}
+
+asio::awaitable<void> ImsPartyLineFamily::after_failure(Link& link, const LinkTiming& timing,
+                                                        char name, const Request& request,
+                                                        const Reply& reply) {
+  // A unit that had answered and now is silent may only be slow: its echo may still come.
+  if (reply.status == Reply::Status::timeout && answering_[name])
+    late_.silent(name, ims::normalize_command(request.command), Clock::now());
+  if (reply.status == Reply::Status::timeout) answering_[name] = false;
+  if (reply.status == Reply::Status::garbled) co_await drain(link, timing);
+}
+
+asio::awaitable<LinkResync> ImsPartyLineFamily::resync_after_failure(Link& link,
+                                                                     const LinkTiming& timing) {
+  LinkResync found = co_await ProtocolFamily::resync_after_failure(link, timing);
+  late_.stray(found.drained, Clock::now());
+  co_return found;
+}
+
 asio::awaitable<void> ImsPartyLineFamily::on_link_open(Link& link, const LinkTiming&) {
   // No LF to "finish" a line a previous run may have left half-sent: it would execute the half.
   // Such a line garbles one exchange at most, which then resynchronises.
   link.discard_input();
+  late_ = {};
   co_return;
 }
 
@@ -226,7 +333,7 @@ asio::awaitable<Reply> ImsPartyLineFamily::transact_global(Link& link, const Req
                          "a bus-wide request cannot read: every unit's reply would collide");
   if (request.command.empty() || request.command.find_first_of("\r\n") != std::string::npos)
     co_return refused({ims::Refusal::invalid_line, "empty or multi-line global command"});
-  link.discard_input();
+  co_await flush(link);
   if (auto ec = co_await link.send(ims::encode_global(request.command)))
     co_return make_reply(Reply::Status::link_down, ec.message());
   // ESC and ^C get no answer in party mode; after `*` every unit echoes at once. Nothing of it
@@ -266,7 +373,8 @@ asio::awaitable<Reply> ImsPartyLineFamily::transact(Link& link, const NodeAddres
   const bool paced = shadow_.fast();
   // Serial handling slows while a unit steps fast (manual p.14); digest §9 doubles the timeout.
   if (paced) t.reply_timeout *= 2;
-  link.discard_input();
+  co_await flush(link);
+  log(5, late_.expire(Clock::now(), late_window(t)));
 
   if (ims::classify(request.command) == ims::CommandClass::no_echo) {
     // P, Q, q and X do not echo in party mode (§2); X answers a garbled '"32.'. Nothing to
@@ -281,55 +389,185 @@ asio::awaitable<Reply> ImsPartyLineFamily::transact(Link& link, const NodeAddres
     co_return make_reply(Reply::Status::ok, "sent; no echo in party mode");
   }
 
+  Reply reply = co_await exchange(link, node, request, t, paced);
+  if (reply.status == Reply::Status::ok) {
+    shadow_.acknowledged(
+        name, request.command, Clock::now(),
+        reply.values.empty() ? std::nullopt : std::optional<int64_t>(reply.values.front()));
+  }
+  co_return reply;
+}
+
+asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddress& node,
+                                                    const Request& request, const LinkTiming& t,
+                                                    bool paced) {
+  const char name = name_of(node);
+  const bool query = expects_result(request);
+  const ims::ReadingPins pins = readings_.pins(name);
+  Reply bad;
+
+  // The echo line. After the echoed command a unit may pause to execute before the rest of the
+  // line (a result on the echo's line, or the held LF), so the gap may run to the reply timeout.
+  const LinkTiming echo_timing{t.reply_timeout, std::max(t.byte_timeout, t.reply_timeout)};
+  LineRead echo;
   if (paced) {
-    auto failure = co_await send_paced(link, node, request, t);
+    auto [failure, echoed] = co_await send_paced(link, node, request, t);
     if (failure) {
-      if (failure->status != Reply::Status::link_down) co_await drain(link, t);
-      co_return *failure;
+      if (failure->status == Reply::Status::link_down) co_return *failure;
+      late_.stray(echoed, Clock::now());
+      bad = *failure;
+      co_await after_failure(link, t, name, request, bad);
+      co_return bad;
     }
+    echo = co_await read_line(link, echo_timing, "echo", name, echoed);
   } else {
     if (auto ec = co_await link.send(ims::encode_line(name, request.command)))
       co_return make_reply(Reply::Status::link_down, ec.message());
-    auto echo = co_await read_line(link, t, "echo", name);
-    if (auto* failure = std::get_if<Reply>(&echo)) {
-      if (failure->status == Reply::Status::garbled) co_await drain(link, t);
-      co_return *failure;
-    }
-    if (auto failure = check_ims_echo(node, request, std::get<LinkRead>(echo).frame)) {
-      co_await drain(link, t);
-      co_return *failure;
-    }
+    echo = co_await read_line(link, echo_timing, "echo", name);
+  }
+  if (echo.failure) {
+    if (echo.failure->status == Reply::Status::link_down) co_return *echo.failure;
+    // A query's echo that stopped before its LF: the rest (its result) may still come.
+    if (query && echo.failure->status == Reply::Status::garbled &&
+        ims::parse_echo_line(name, request.command, echo.partial + "\n").match !=
+            ims::EchoMatch::mismatch)
+      late_.owe_result(Clock::now());
+    bad = *echo.failure;
+    co_await after_failure(link, t, name, request, bad);
+    co_return bad;
   }
 
-  Reply reply = make_reply(Reply::Status::ok, {});
-  if (expects_result(request)) {
-    auto line = co_await read_line(link, t, "result line", name);
-    if (auto* failure = std::get_if<Reply>(&line)) {
-      if (failure->status == Reply::Status::timeout) {
-        failure->status = Reply::Status::garbled;
-        failure->text = fmt::format("unit {} echoed '{}' but sent no result line", node.text,
-                                    ims::printable(request.command));
-      }
-      if (failure->status == Reply::Status::garbled) co_await drain(link, t);
-      co_return *failure;
-    }
-    reply = interpret_ims_result(node, request, std::get<LinkRead>(line).frame);
-    if (reply.status != Reply::Status::ok) {
-      co_await drain(link, t);
-      co_return reply;
-    }
-  } else {
-    // The echo proved the unit took the line. The CR LF of "execution complete" (p.12) usually
-    // follows at once; wait one byte timeout for it so it does not spill into the next exchange.
-    const LinkTiming completion{t.byte_timeout, t.byte_timeout};
-    const LinkRead done = co_await link.read_frame(ims::line_length, completion);
-    if (done.status == LinkRead::Status::error)
-      co_return make_reply(Reply::Status::link_down, done.error.message());
+  const ims::EchoLine parsed = ims::parse_echo_line(name, request.command, echo.line);
+  if (parsed.match == ims::EchoMatch::mismatch) late_.stray(echo.line, Clock::now());
+  // A value after a non-query's echo is the rest of another unit's late line.
+  if (!query && parsed.result) late_.pay();
+  if (auto early = interpret_echo(node, request, parsed, echo.line);
+      early && early->status != Reply::Status::ok) {
+    bad = *early;
+    co_await after_failure(link, t, name, request, bad);
+    co_return bad;
   }
-  shadow_.acknowledged(
-      name, request.command, Clock::now(),
-      reply.values.empty() ? std::nullopt : std::optional<int64_t>(reply.values.front()));
-  co_return reply;
+
+  const bool with_name = parsed.match == ims::EchoMatch::with_name;
+  if (!with_name) {
+    // Without the name, the echo could be another unit's late echo of the same command.
+    if (readings_.echoes_name(name) == true) {
+      bad = make_reply(
+          Reply::Status::garbled,
+          fmt::format("unit {} echoes its name, but '{}' came without it: another unit's late "
+                      "echo?",
+                      node.text, ims::printable(echo.line)));
+      co_await after_failure(link, t, name, request, bad);
+      co_return bad;
+    }
+    if (late_.suspicious(name, ims::normalize_command(request.command), Clock::now(),
+                         late_window(t))) {
+      bad = make_reply(
+          Reply::Status::garbled,
+          fmt::format("echo '{}' without a name may be the late echo of a unit that went silent "
+                      "on the same command",
+                      ims::printable(echo.line)));
+      co_await after_failure(link, t, name, request, bad);
+      co_return bad;
+    }
+  }
+  log(5, readings_.seen_name_echo(name, with_name));
+  answering_[name] = true;
+
+  if (!query) {
+    const auto linefeed =
+        parsed.carriage_return ? ims::EchoLinefeed::at_execution : ims::EchoLinefeed::at_once;
+    if (pins.linefeed && *pins.linefeed != linefeed) {
+      bad = make_reply(
+          Reply::Status::garbled,
+          fmt::format("unit {}: echo '{}' has its LF {}", node.text, ims::printable(echo.line),
+                      linefeed == ims::EchoLinefeed::at_execution ? "after a CR (held until "
+                                                                    "execution)"
+                                                                  : "at once") +
+              pin_hint("echo_linefeed", ims::to_string(*pins.linefeed)));
+      co_await after_failure(link, t, name, request, bad);
+      co_return bad;
+    }
+    log(5, readings_.seen(name, linefeed));
+    if (linefeed == ims::EchoLinefeed::at_once) {
+      // The CR LF of "execution complete" (p.12) usually follows at once; wait one byte timeout
+      // for it so it does not spill into the next exchange.
+      const LinkTiming completion{t.byte_timeout, t.byte_timeout};
+      const LinkRead done = co_await link.read_frame(ims::line_length, completion);
+      if (done.status == LinkRead::Status::error)
+        co_return make_reply(Reply::Status::link_down, done.error.message());
+      if (done.status == LinkRead::Status::frame) late_.stray(done.frame, Clock::now());
+    }
+    co_return make_reply(Reply::Status::ok, {});
+  }
+
+  if (parsed.result && late_.owed() > 0) {
+    // The unit holds the echo's LF back: a late result of another unit can end its line.
+    bad = make_reply(Reply::Status::garbled,
+                     fmt::format("unit {}: '{}' may end with the late answer to an earlier "
+                                 "request ({} owed); not taken",
+                                 node.text, ims::printable(echo.line), late_.owed()));
+    co_await after_failure(link, t, name, request, bad);
+    co_return bad;
+  }
+  if (parsed.result) {
+    if (pins.placement == ims::ResultPlacement::next_line) {
+      bad =
+          make_reply(Reply::Status::garbled, fmt::format("unit {}: result on the echo's line '{}'",
+                                                         node.text, ims::printable(echo.line)) +
+                                                 pin_hint("result_placement", "next_line"));
+      co_await after_failure(link, t, name, request, bad);
+      co_return bad;
+    }
+    log(5, readings_.seen(name, ims::ResultPlacement::echo_line));
+    Reply r = make_reply(Reply::Status::ok, {});
+    r.values = parsed.result->values;
+    co_return r;
+  }
+
+  LineRead result = co_await read_line(link, t, "result line", name);
+  if (result.failure) {
+    if (result.failure->status == Reply::Status::link_down) co_return *result.failure;
+    late_.owe_result(Clock::now());
+    if (result.failure->status == Reply::Status::timeout) {
+      result.failure->status = Reply::Status::garbled;
+      result.failure->text = fmt::format("unit {} echoed '{}' but sent no result line", node.text,
+                                         ims::printable(request.command));
+    }
+    bad = *result.failure;
+    co_await after_failure(link, t, name, request, bad);
+    co_return bad;
+  }
+  Reply r = interpret_ims_result(node, request, result.line);
+  if (r.status != Reply::Status::ok) {
+    late_.owe_result(Clock::now());
+    late_.stray(result.line, Clock::now());
+    bad = r;
+    co_await after_failure(link, t, name, request, bad);
+    co_return bad;
+  }
+  if (late_.owed() > 0) {
+    // One of the results still owed may be this one: ours is owed instead.
+    {
+      bad = make_reply(
+          Reply::Status::garbled,
+          fmt::format("unit {}: result '{}' may be the late answer to an earlier request ({} "
+                      "owed); not taken",
+                      node.text, ims::printable(result.line), late_.owed()));
+      co_await after_failure(link, t, name, request, bad);
+      co_return bad;
+    }
+  }
+  if (pins.placement == ims::ResultPlacement::echo_line) {
+    bad =
+        make_reply(Reply::Status::garbled, fmt::format("unit {}: result on a line of its own '{}'",
+                                                       node.text, ims::printable(result.line)) +
+                                               pin_hint("result_placement", "echo_line"));
+    co_await after_failure(link, t, name, request, bad);
+    co_return bad;
+  }
+  log(5, readings_.seen(name, ims::ResultPlacement::next_line));
+  co_return r;
 }
 #pragma GCC diagnostic pop
 
@@ -353,7 +591,8 @@ struct ModelOptions {
 };
 
 constexpr std::string_view kKnownOptions =
-    "firmware, line_limit, line_limit_counts_name, addressed_soft_stop";
+    "firmware, line_limit, line_limit_counts_name, addressed_soft_stop, result_placement, "
+    "echo_linefeed";
 
 std::optional<bool> parse_bool(std::string_view s) {
   if (s == "true" || s == "yes" || s == "on") return true;
@@ -388,6 +627,14 @@ ModelOptions read_options(const Model& model, Diagnostics& diagnostics) {
         bad("true or false");
       else
         (key == "addressed_soft_stop" ? o.addressed_soft_stop : o.line_limit_counts_name) = *v;
+    } else if (key == "result_placement") {
+      std::optional<ims::ResultPlacement> pinned;
+      if (!ims::parse_result_placement(value, pinned))
+        bad("auto, next_line (the result on a line of its own) or echo_line (on the echo's line)");
+    } else if (key == "echo_linefeed") {
+      std::optional<ims::EchoLinefeed> pinned;
+      if (!ims::parse_echo_linefeed(value, pinned))
+        bad("auto, at_once or at_execution (when a non-query's echoed LF comes)");
     } else {
       diagnostics.error(model.mark, fmt::format("model {}: unknown ims-party-line option '{}' "
                                                 "(known: {})",

@@ -1,9 +1,13 @@
 #pragma once
 
+#include <functional>
+#include <map>
 #include <optional>
+#include <string>
 #include <string_view>
 
 #include "drivers/ims_party_line/ims_chain.hpp"
+#include "drivers/ims_party_line/ims_readings.hpp"
 #include "drivers/protocol_family.hpp"
 
 namespace fieldgate {
@@ -13,11 +17,20 @@ namespace fieldgate {
 // readings of the manual's ambiguities.
 class ImsPartyLineFamily final : public ProtocolFamily {
  public:
+  // Log lines with a syslog priority (5 notice, 4 warning): the reading each unit was found to
+  // use, late replies written off. Default: stderr with journald's "<N>" prefix.
+  using LogSink = std::function<void(int level, const std::string& text)>;
+  ImsPartyLineFamily();
+
   std::string_view name() const override { return "ims-party-line"; }
   std::optional<NodeAddress> parse_address(std::string_view text,
                                            std::string& error) const override;
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
+  // Takes the node's pinned readings (options result_placement, echo_linefeed).
+  void configure_node(const NodeAddress& node, const Model& model) override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
+  // The bus's resync (quiet for a guard time), with what it drained accounted as late replies.
+  asio::awaitable<LinkResync> resync_after_failure(Link& link, const LinkTiming& timing) override;
   asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing) override;
   // ESC, ^C and @ of a bus-wide action marked urgent: written at once, even in the middle of
@@ -27,12 +40,32 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
 
   const ims::ChainShadow& shadow() const { return shadow_; }
+  const ims::UnitReadings& readings() const { return readings_; }
+  const ims::LateReplies& late_replies() const { return late_; }
+  void pin(char name, ims::ReadingPins pins) { readings_.pin(name, pins); }
+  void set_log_sink(LogSink sink) { log_ = std::move(sink); }
+
+  // How long a debt of late replies is kept (README "Late replies").
+  static std::chrono::microseconds late_window(const LinkTiming& timing);
 
  private:
   asio::awaitable<Reply> transact_global(Link& link, const Request& request,
                                          const LinkTiming& timing);
+  asio::awaitable<Reply> exchange(Link& link, const NodeAddress& node, const Request& request,
+                                  const LinkTiming& timing, bool paced);
+  // Everything waiting in the input, read and accounted (LateReplies::stray), then dropped.
+  asio::awaitable<void> flush(Link& link);
+  // After a bad reply: read until the line has been quiet for a byte timeout, accounting it.
+  asio::awaitable<void> drain(Link& link, const LinkTiming& timing);
+  asio::awaitable<void> after_failure(Link& link, const LinkTiming& timing, char name,
+                                      const Request& request, const Reply& reply);
+  void log(int level, const std::optional<std::string>& text);
 
   ims::ChainShadow shadow_;
+  ims::UnitReadings readings_;
+  ims::LateReplies late_;
+  std::map<char, bool> answering_;  // the unit's echo came on its last exchange
+  LogSink log_;
 };
 
 // The decision parts of transact(), pure so the digest's transcripts test them.

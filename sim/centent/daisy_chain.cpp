@@ -63,8 +63,10 @@ std::size_t DaisyChain::frame(std::string_view pending) {
 std::string DaisyChain::message(const Node& node, std::string_view text, bool unit_message) const {
   std::string out;
   const int number = node.unit->number();
-  if (number != 0 && (!unit_message || options_.prefix_unit_messages))
+  if (number != 0 && (!unit_message || options_.prefix_unit_messages)) {
     out += static_cast<char>('0' + number);
+    out += options_.prefix_separator;
+  }
   out += text;
   out += options_.terminator;
   return out;

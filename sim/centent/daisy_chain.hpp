@@ -23,6 +23,7 @@ struct ChainOptions {
   bool select_self_after_reset = true;  // after power-up a unit is selected (as one unit is)
   bool kill_acts_upstream = false;      // a K passing unselected units stops them too
   bool prefix_unit_messages = false;    // [Un] and U<n> carry the unit prefix as well
+  std::string prefix_separator;         // between the unit digit and the message: "", " ", ":"
   std::string terminator = "\r";
   std::chrono::microseconds hop_delay{0};  // store-and-forward latency per unit, each way
 };

@@ -26,7 +26,9 @@ int main(int argc, char** argv) {
   bool emulate_wire = false;
   long turnaround_us = -1;
   long hop_delay_us = 0;
+  bool initialised = false;
   bool power_up = false;
+  std::string prefix_separator = "none";
   bool lenient_autobaud = false;
   std::string select_after_reset = "self";
   bool kill_upstream = false;
@@ -51,8 +53,9 @@ int main(int argc, char** argv) {
   app.add_option("--hop-delay-us", hop_delay_us,
                  "store-and-forward latency per unit passed, each way")
       ->check(CLI::NonNegativeNumber);
-  app.add_flag("--power-up", power_up,
-               "start as after power-on: every unit waits for its auto-baud CR");
+  app.add_flag("--initialised", initialised,
+               "start as if the host had already sent the auto-baud CR (default: as after "
+               "power-on, every unit waits for it, manual p.1)");
   app.add_flag("--lenient-autobaud", lenient_autobaud,
                "a unit waiting for its auto-baud CR locks on the next CR even after other "
                "characters (default: they make it fail until the next reset, as p.1 says)");
@@ -63,6 +66,11 @@ int main(int argc, char** argv) {
                "units a K passes on its way to the selected unit obey it too");
   app.add_flag("--prefix-unit-messages", prefix_unit_messages,
                "prefix [Un] and U<n> with the unit number as well");
+  app.add_flag("--power-up", power_up, "start as after power-on (the default; kept for scripts)");
+  app.add_option("--prefix-separator", prefix_separator,
+                 "between a unit's digit and its message (the manual never shows one): none "
+                 "(2X=…h), space (2 X=…h) or colon (2:X=…h)")
+      ->check(CLI::IsMember({"none", "space", "colon"}));
   app.add_option("--position-reply", position_reply, "x: X=…h (p.35); xp: XP=…h (p.2)")
       ->check(CLI::IsMember({"x", "xp"}));
   app.add_option("--terminator", terminator, "reply terminator")
@@ -81,7 +89,10 @@ int main(int argc, char** argv) {
     const sim::SimTime now = sim::SimClock::now();
     centent::ChainOptions options;
     options.units = centent::parse_unit_list(units);
-    options.power_up = power_up;
+    options.power_up = power_up || !initialised;
+    options.prefix_separator = prefix_separator == "space"   ? " "
+                               : prefix_separator == "colon" ? ":"
+                                                             : "";
     options.strict_autobaud = !lenient_autobaud;
     options.select_self_after_reset = select_after_reset == "self";
     options.kill_acts_upstream = kill_upstream;

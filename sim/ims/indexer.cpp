@@ -60,12 +60,6 @@ std::optional<std::vector<double>> parse_fields(std::string_view text) {
   return fields;
 }
 
-std::string padded(const std::string& number) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof buffer, "%7s\r\n", number.c_str());
-  return buffer;
-}
-
 std::uint16_t velocity_word(double rate) {
   return static_cast<std::uint16_t>(
       std::clamp(65535.0 - std::round(1'228'800.0 / std::max(rate, 1.0)), 0.0, 65535.0));
@@ -79,7 +73,8 @@ double Indexer::achievable_rate(double requested) {
   return 1'228'800.0 / divisor;
 }
 
-Indexer::Indexer(char name, HomeSwitch home, SimTime now) : name_(name), home_(home) {
+Indexer::Indexer(char name, HomeSwitch home, SimTime now, ResultFormat format)
+    : name_(name), home_(home), format_(std::move(format)) {
   nvm_.fill(0xff);
   saved_ = params_;
   store_parameters();
@@ -234,9 +229,9 @@ Indexer::Outcome Indexer::execute(std::string_view line, SimTime now) {
         const int address = i0 + k;
         text += (k % 10 == 0 ? "" : " ") +
                 std::to_string(address >= 0 && address < 2048 ? nvm_[address] : 0);
-        if (k % 10 == 9 || k == count - 1) text += "\r\n";
+        if (k % 10 == 9 || k == count - 1) text += format_.end;
       }
-      return result(text.empty() ? std::string("\r\n") : text);
+      return result(text.empty() ? format_.end : text);
     }
     case 'B':
       params_.jog_slow = i0;
@@ -414,11 +409,29 @@ void Indexer::set_position(SimTime now, double value) {
 std::string Indexer::format_position(double value) const {
   char buffer[32];
   const double hundredths = std::round(value * 100);
-  if (params_.resolution == 1 && std::fmod(hundredths, 100) != 0)
+  const bool decimals = format_.decimals == ResultFormat::Decimals::always ||
+                        (format_.decimals == ResultFormat::Decimals::variable_resolution &&
+                         params_.resolution == 1 && std::fmod(hundredths, 100) != 0);
+  if (decimals)
     std::snprintf(buffer, sizeof buffer, "%.2f", hundredths / 100);
   else
     std::snprintf(buffer, sizeof buffer, "%lld", std::llround(value));
   return buffer;
+}
+
+std::string Indexer::padded(const std::string& number) const {
+  switch (format_.padding) {
+    case ResultFormat::Padding::right_aligned: {
+      char buffer[32];
+      std::snprintf(buffer, sizeof buffer, "%7s", number.c_str());
+      return buffer + format_.end;
+    }
+    case ResultFormat::Padding::space:
+      return " " + number + format_.end;
+    case ResultFormat::Padding::none:
+      break;
+  }
+  return number + format_.end;
 }
 
 void Indexer::store_parameters() {

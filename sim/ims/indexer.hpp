@@ -47,9 +47,21 @@ struct HomeSwitch {
   bool high_below = true;  // high for positions <= edge; false: high for positions >= edge
 };
 
+// How a unit prints a result (the manual allows several readings, issue 20): padding, the line
+// end, and when positions carry two decimals.
+struct ResultFormat {
+  enum class Padding { right_aligned, space, none };  // "   1000", " 1000", "1000"
+  enum class Decimals { variable_resolution, always, never };
+  Padding padding = Padding::right_aligned;
+  std::string end = "\r\n";
+  // variable_resolution: "12.50" only in VR with a fraction (as [Z] reads); always: "1000.00"
+  // in every mode ([Z] prints two decimals); never: whole numbers (p.12).
+  Decimals decimals = Decimals::variable_resolution;
+};
+
 class Indexer {
  public:
-  Indexer(char name, HomeSwitch home, SimTime now);
+  Indexer(char name, HomeSwitch home, SimTime now, ResultFormat format = {});
 
   char name() const { return name_; }
 
@@ -99,9 +111,11 @@ class Indexer {
   std::optional<SimTime> index_end(SimTime now) const;
   void store_parameters();
   std::string format_position(double value) const;
+  std::string padded(const std::string& number) const;
 
   char name_;
   HomeSwitch home_;
+  ResultFormat format_;
   MotionAxis motion_;
   double origin_ = 0;  // physical position of count 0
   bool index_running_ = false;

@@ -19,6 +19,17 @@ bool no_echo_command(char c) {
   return c == 'P' || c == 'Q' || c == 'q' || c == 'X';
 }
 
+// The commands that answer with a value (§4): Z z ^ ] [ and A129.
+bool is_query(std::string_view body) {
+  if (body.empty()) return false;
+  if (std::string_view("Zz^][").find(body.front()) != std::string_view::npos) return true;
+  if (body.front() != 'A') return false;
+  body.remove_prefix(1);
+  while (!body.empty() && body.front() == ' ') body.remove_prefix(1);
+  while (!body.empty() && body.back() == ' ') body.remove_suffix(1);
+  return body == "129";
+}
+
 }  // namespace
 
 std::vector<char> parse_names(std::string_view text) {
@@ -46,7 +57,8 @@ PartyLine::PartyLine(PartyLineOptions options, FaultInjection& faults,
       clock_(std::move(clock)),
       random_(options_.seed) {
   for (const char name : options_.names)
-    units_.emplace(name, Unit{Indexer(name, options_.home, now), true, false});
+    units_.emplace(name,
+                   Unit{Indexer(name, options_.home, now, options_.result_format), true, false});
 }
 
 LineDeviceHooks PartyLine::hooks() {
@@ -177,7 +189,13 @@ std::string PartyLine::echo(std::string_view received) {
       }
     }
     if (c == '\n') {
-      if (line_.echoing && !line_.hold_linefeed) out += disturbed(c);
+      if (line_.target == Target::unit) {
+        const std::string_view body = std::string_view(line_.text).substr(1, line_.body - 1);
+        line_.withheld_linefeed =
+            line_.echoing &&
+            (is_query(body) ? options_.result_on_echo_line : options_.linefeed_at_execution);
+      }
+      if (line_.echoing && !line_.hold_linefeed && !line_.withheld_linefeed) out += disturbed(c);
       heard_.push_back(std::move(line_));
       line_ = {};
       continue;
@@ -249,7 +267,18 @@ DeviceReply PartyLine::respond(std::string_view request, SimTime now) {
       if (units.empty()) return reply;
       const auto o = units.front()->indexer.execute(body, now);
       if (heard->fault == Fault::truncate) return reply;  // the rest of its answer is lost
-      reply.bytes = (heard->hold_linefeed ? "\n" : "") + bytes_of(o);
+      if (heard->withheld_linefeed && !heard->hold_linefeed) {
+        // The echo's LF was left out: the result ends the echo's line, or the LF comes at
+        // execution after the completion's CR.
+        if (o.kind == Indexer::Outcome::Kind::result)
+          reply.bytes = options_.result_on_echo_line ? o.text : "\n" + o.text;
+        else if (o.kind == Indexer::Outcome::Kind::completion && options_.completion)
+          reply.bytes = "\r\n";
+        else
+          reply.bytes = "\n";
+      } else {
+        reply.bytes = (heard->hold_linefeed ? "\n" : "") + bytes_of(o);
+      }
       reply.extra_delay = o.delay;
       if (heard->fault == Fault::collision) reply.bytes = collide(reply.bytes);
       return reply;

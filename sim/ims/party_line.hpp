@@ -22,6 +22,13 @@ struct PartyLineOptions {
   bool echo_name = false;
   // CR LF "execution complete" after commands without a numeric result (p.12).
   bool completion = true;
+  // A query's result on the echo's line, after the echoed command: the echoed LF is left out
+  // and the result (with its own line end) takes its place ("X Y= 0/25 …", p.47; issue 20).
+  bool result_on_echo_line = false;
+  // The echoed LF of a non-query is held until execution and comes after the CR of the
+  // completion ([W] "the echoed line feed is delayed"): "AV2000" … "\r\n".
+  bool linefeed_at_execution = false;
+  ResultFormat result_format;
   // A unit stepping faster than this (steps/s) drops characters that arrive back to back
   // (manual p.14); 0 turns the overrun off.
   double overrun_above = 10'000;
@@ -78,8 +85,9 @@ class PartyLine {
     Target target = Target::none;
     Fault fault = Fault::none;
     bool echoing = false;
-    bool hold_linefeed = false;  // W keeps its LF until the wait ends
-    std::size_t body = 0;        // characters after the name
+    bool hold_linefeed = false;      // W keeps its LF until the wait ends
+    bool withheld_linefeed = false;  // the echoed LF comes with the result or at execution
+    std::size_t body = 0;            // characters after the name
   };
 
   void start_line(char first, std::string& out);

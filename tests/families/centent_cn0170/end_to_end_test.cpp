@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <iostream>
+#include <random>
 #include <regex>
 #include <thread>
 
@@ -35,9 +36,9 @@ std::string nodes(const std::vector<int>& units, const std::string& poll) {
 class CententPlant : public Plant {
  public:
   CententPlant(const std::string& sim_units, const std::string& config_nodes,
-               std::vector<std::string> extra = {})
+               std::vector<std::string> extra = {}, const std::string& baud = "115200")
       : Plant({SimulatedBus{"chain", "centent-cn0170", argv(sim_units, std::move(extra)),
-                            "baud: 115200",
+                            "baud: " + baud,
                             "reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, "
                             "offline_after: 3, probe_interval: 300ms",
                             config_nodes}}) {}
@@ -79,8 +80,8 @@ class CententEndToEnd : public ::testing::Test {
  protected:
   void start(const std::string& sim_units, const std::vector<int>& units,
              const std::string& poll = ", poll: {fast: 100ms, slow: 1s}",
-             std::vector<std::string> extra = {}) {
-    plant_ = std::make_unique<CententPlant>(sim_units, nodes(units, poll), std::move(extra));
+             std::vector<std::string> extra = {}, const std::string& baud = "115200") {
+    plant_ = std::make_unique<CententPlant>(sim_units, nodes(units, poll), std::move(extra), baud);
     client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
   }
   void wait_online(const std::vector<int>& unit_ids) {
@@ -282,7 +283,7 @@ TEST_F(CententEndToEnd, RefusalsAnswer04WithTheFamilyCode) {
 }
 
 TEST_F(CententEndToEnd, AutobaudAtStartAndSettingsReadBack) {
-  start("0,1", {0, 1}, ", poll: {fast: 100ms, slow: 200ms}", {"--power-up"});
+  start("0,1", {0, 1}, ", poll: {fast: 100ms, slow: 200ms}");  // power-up state: the default
   wait_online({1, 2});
   EXPECT_NE(plant_->daemon().log().find("auto-baud CR answered by unit(s) 0, 1"),
             std::string::npos);
@@ -297,6 +298,110 @@ TEST_F(CententEndToEnd, AutobaudAtStartAndSettingsReadBack) {
       3s));
   EXPECT_EQ(client_->write_single(2, kXProfile, 20).exception, 0x03);  // max 19
 }
+
+}  // namespace
+}  // namespace fieldgate::test
+
+// The core read+move scenario under each reading of the manual's reply formats (issue 20),
+// from the units' power-up state (waiting for the auto-baud CR).
+namespace fieldgate::test {
+namespace {
+
+struct Reading {
+  const char* name;
+  std::vector<std::string> sim_args;
+};
+
+std::ostream& operator<<(std::ostream& os, const Reading& r) {
+  return os << r.name;
+}
+
+const Reading kReadings[] = {
+    {"digit_x_cr", {}},
+    {"space_xp_crlf",
+     {"--prefix-separator", "space", "--position-reply", "xp", "--terminator", "crlf",
+      "--prefix-unit-messages"}},
+    {"colon_x_lf_plain_overflow",
+     {"--prefix-separator", "colon", "--terminator", "lf", "--overflow-mnemonic", "plain"}},
+    {"initialised_xp_cr", {"--initialised", "--position-reply", "xp"}},
+};
+
+class CententReadingEndToEnd : public CententEndToEnd,
+                               public ::testing::WithParamInterface<Reading> {};
+
+TEST_P(CententReadingEndToEnd, ReadsMovesAndReadsBack) {
+  start("0,1,2", {0, 1, 2}, ", poll: {fast: 100ms, slow: 1s}", GetParam().sim_args);
+  wait_online({1, 2, 3});
+  ASSERT_TRUE(client_->write_i32(3, kXTarget, 1000 * 1024).ok());
+  ASSERT_TRUE(client_->write_single(3, kCommand, kMoveXAbsolute).ok());
+  ASSERT_TRUE(wait_until([&] { return action_status(3) == 2; }, 10s));
+  EXPECT_EQ(client_->read_input_i32(3, kXPosition), 1000 * 1024);
+  EXPECT_EQ(motion(3) & (1 << kMovingBit), 0);
+  EXPECT_EQ(client_->read_input_i32(2, kXPosition), 0);
+  EXPECT_EQ(client_->read_input_i32(1, kXPosition), 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Readings, CententReadingEndToEnd, ::testing::ValuesIn(kReadings),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace fieldgate::test
+
+// Replies slower than the reply timeout (issue 12), at 9600 baud with wire time and at 115200:
+// every value served as good is that unit's, every output write answered success is on that
+// unit.
+namespace fieldgate::test {
+namespace {
+
+class CententLateEndToEnd : public CententEndToEnd,
+                            public ::testing::WithParamInterface<const char*> {};
+
+TEST_P(CententLateEndToEnd, NoWrongValueAndNoWrongConfirmation) {
+  const std::string baud = GetParam();
+  std::vector<std::string> extra{"--baud", baud};
+  if (baud == "9600") extra.push_back("--emulate-wire");
+  start("0,1,2", {0, 1, 2}, ", poll: {fast: 200ms, slow: 2s}", extra, baud);
+  wait_online({1, 2, 3});
+  ASSERT_TRUE(client_->write_i32(3, kXTarget, 1000 * 1024).ok());
+  ASSERT_TRUE(client_->write_single(3, kCommand, kMoveXAbsolute).ok());
+  ASSERT_TRUE(wait_until([&] { return action_status(3) == 2; }, 20s));
+  const int32_t positions[] = {0, 0, 1000 * 1024};
+  std::mt19937 random(3);
+  const int delays[] = {0, 20, 40, 60, 90, 150};
+  int good = 0, wrong = 0, writes_ok = 0, writes_wrong = 0;
+  const auto until = std::chrono::steady_clock::now() + 5s;
+  while (std::chrono::steady_clock::now() < until) {
+    plant_->sim().send_line("delay " + std::to_string(delays[random() % std::size(delays)]));
+    const int id = 1 + static_cast<int>(random() % 3);
+    if (random() % 6 == 0) {
+      const int on = static_cast<int>(random() % 2);
+      if (client_->write_single(id, kOut1, on).ok()) {
+        ++writes_ok;
+        const std::string status = plant_->control("position " + std::to_string(id - 1));
+        if (status.find(" out1=" + std::to_string(on)) == std::string::npos) {
+          ++writes_wrong;
+          ADD_FAILURE() << "out1=" << on << " confirmed on unit " << id - 1 << ": " << status;
+        }
+      }
+      continue;
+    }
+    const auto value = client_->read_input_i32(id, kXPosition);
+    std::this_thread::sleep_for(std::chrono::milliseconds(random() % 20));
+    if (!value) continue;
+    ++good;
+    if (*value != positions[id - 1]) {
+      ++wrong;
+      ADD_FAILURE() << "unit " << id - 1 << " served " << *value;
+    }
+  }
+  plant_->sim().send_line("delay 0");
+  std::cout << "[ measured ] " << baud << ": " << good << " good reads, " << wrong << " wrong; "
+            << writes_ok << " writes confirmed, " << writes_wrong << " wrong\n";
+  EXPECT_GT(good, 0);
+  wait_online({1, 2, 3});
+}
+
+INSTANTIATE_TEST_SUITE_P(Bauds, CententLateEndToEnd, ::testing::Values("9600", "115200"));
 
 }  // namespace
 }  // namespace fieldgate::test

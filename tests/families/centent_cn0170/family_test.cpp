@@ -7,9 +7,14 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/local/connect_pair.hpp>
 #include <boost/asio/local/stream_protocol.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/asio/use_awaitable.hpp>
 #include <boost/asio/write.hpp>
 
+#include <fmt/format.h>
+
+#include <deque>
+#include <random>
 #include <thread>
 
 #include "drivers/centent_cn0170/cn0170_family.hpp"
@@ -92,10 +97,31 @@ class FamilyOnChain : public ::testing::Test {
         wire_ += line;
         const auto reply = chain_->handle(line, sim::SimClock::now());
         if (reply.bytes.empty()) continue;
+        if (reply_delay_.count() > 0 || !outbox_.empty()) {
+          // Late replies keep their order, as a chain delivers them.
+          const auto due = std::max(
+              std::chrono::steady_clock::now() + reply_delay_,
+              outbox_.empty() ? std::chrono::steady_clock::time_point{} : outbox_.back().first);
+          outbox_.emplace_back(due, reply.bytes);
+          if (outbox_.size() == 1) asio::co_spawn(io_, send_late(), [](std::exception_ptr) {});
+          continue;
+        }
         auto [wec, w] =
             co_await asio::async_write(*sim_side_, asio::buffer(reply.bytes), use_tuple);
         if (wec) co_return;
       }
+    }
+  }
+
+  asio::awaitable<void> send_late() {
+    asio::steady_timer timer(io_);
+    while (!outbox_.empty()) {
+      timer.expires_at(outbox_.front().first);
+      co_await timer.async_wait(use_tuple);
+      const std::string bytes = outbox_.front().second;
+      outbox_.pop_front();
+      auto [ec, n] = co_await asio::async_write(*sim_side_, asio::buffer(bytes), use_tuple);
+      if (ec) co_return;
     }
   }
 
@@ -136,6 +162,8 @@ class FamilyOnChain : public ::testing::Test {
   LinkTiming timing_{30ms, 10ms};
   std::string log_;
   std::string wire_;
+  std::chrono::milliseconds reply_delay_{0};
+  std::deque<std::pair<std::chrono::steady_clock::time_point, std::string>> outbox_;
 };
 
 TEST_F(FamilyOnChain, LinkOpenAutobaudsAndDiscoversTheChain) {
@@ -372,6 +400,169 @@ TEST(CententFamilyModel, ValidateModelCatchesMistakes) {
   for (const char* fine : {"point f", "point g", "point h"})
     EXPECT_EQ(text.find(fine), std::string::npos) << text;
 }
+
+}  // namespace
+}  // namespace fieldgate
+
+// --- the core read+move scenario under every reading of the manual (issue 20) ----------------
+
+namespace fieldgate {
+namespace {
+
+struct CententReading {
+  const char* name;
+  const char* separator;  // after the unit digit
+  bool xp;                // XP=…h (p.2) instead of X=…h (p.35)
+  const char* terminator;
+  bool prefix_unit_messages;
+  bool plain_overflow;  // the units take M1- only
+};
+
+std::ostream& operator<<(std::ostream& os, const CententReading& r) {
+  return os << r.name;
+}
+
+const CententReading kCententReadings[] = {
+    {"digit_x_cr", "", false, "\r", false, false},
+    {"space_xp_crlf", " ", true, "\r\n", true, false},
+    {"colon_x_lf", ":", false, "\n", false, true},
+    {"digit_xp_crlf_prefixed_unit_messages", "", true, "\r\n", true, true},
+};
+
+class CententEveryReading : public FamilyOnChain,
+                            public ::testing::WithParamInterface<CententReading> {};
+
+TEST_P(CententEveryReading, PowerUpReadMoveReadBack) {
+  const CententReading& reading = GetParam();
+  sim::centent::ChainOptions o;
+  o.power_up = true;  // as the units power up: waiting for the auto-baud CR
+  o.prefix_separator = reading.separator;
+  o.unit.position_reply_xp = reading.xp;
+  o.terminator = reading.terminator;
+  o.prefix_unit_messages = reading.prefix_unit_messages;
+  o.unit.accept_backslash_overflow = !reading.plain_overflow;
+  start({0, 1, 2}, o);
+  EXPECT_NE(log_.find("auto-baud CR answered by unit(s) 0, 1, 2"), std::string::npos) << log_;
+  EXPECT_NE(log_.find("chain order from .U?: 0, 1, 2"), std::string::npos) << log_;
+  for (int unit : {0, 1, 2}) {
+    const Reply r = call(unit, "XP?;YP?");
+    ASSERT_EQ(r.status, Reply::Status::ok) << unit << ": " << r.text;
+    EXPECT_EQ(r.values, (std::vector<int64_t>{0, 0, 0, 0, 0}));
+  }
+  const Reply move = command(2, "XV=200,4000;XA=0FFH;X=0FA000H");
+  ASSERT_EQ(move.status, Reply::Status::ok) << move.text;
+  Reply r;
+  for (int i = 0; i < 200; ++i) {
+    r = call(2, "XP?;YP?");
+    ASSERT_EQ(r.status, Reply::Status::ok) << r.text;
+    if ((r.values[4] & cn0170::kMoving) == 0) break;
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_EQ(r.values[0], 1000 * 1024);
+  EXPECT_EQ(r.values[4], 0);
+  EXPECT_EQ(call(1, "XP?;YP?").values[0], 0) << "unit 1 never moved";
+  EXPECT_EQ(call(0, "M?").values, std::vector<int64_t>{1});
+}
+
+INSTANTIATE_TEST_SUITE_P(Readings, CententEveryReading, ::testing::ValuesIn(kCententReadings),
+                         [](const auto& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace fieldgate
+
+// Replies slower than the reply timeout (issue 12): every value taken as good is that unit's,
+// every command confirmed ran on that unit.
+namespace fieldgate {
+namespace {
+
+TEST_F(FamilyOnChain, LateRepliesNeverAnswerAnotherRequest) {
+  start({0, 1, 2});
+  const std::map<int, int64_t> positions{{0, 1000 * 1024}, {1, 2500 * 1024}, {2, 77 * 1024}};
+  for (const auto& [unit, p] : positions) {
+    ASSERT_EQ(command(unit, fmt::format("XP=0{:X}H", p)).status, Reply::Status::ok);
+    ASSERT_EQ(call(unit, "XP?;YP?").values.front(), p);
+  }
+  // A command whose confirmation is late, then one the unit rejects: the late M1 is the first's.
+  reply_delay_ = 60ms;
+  EXPECT_EQ(command(1, "P3=1").status, Reply::Status::timeout);
+  reply_delay_ = 0ms;
+  const Reply rejected = command(1, "XZ=5");
+  EXPECT_NE(rejected.status, Reply::Status::ok) << "confirmed by the late M1 of P3=1";
+  std::this_thread::sleep_for(100ms);
+  io_.poll();
+
+  std::mt19937 random(5);
+  const std::chrono::milliseconds delays[] = {0ms, 10ms, 20ms, 40ms, 60ms, 100ms};
+  int good = 0, refused = 0, confirmed = 0;
+  for (int i = 0; i < 150; ++i) {
+    reply_delay_ = delays[random() % std::size(delays)];
+    const int unit = static_cast<int>(random() % 3);
+    if (random() % 5 == 0) {
+      // The unit rejects it ("…" ?): never confirmed, whatever late M1 is on its way.
+      const Reply r = command(unit, "XZ=5");
+      EXPECT_NE(r.status, Reply::Status::ok) << "a rejected command confirmed on unit " << unit;
+      continue;
+    }
+    if (random() % 4 == 0) {
+      const bool on = random() % 2;
+      const Reply r = command(unit, on ? "P3=1" : "P3=0");
+      if (r.status == Reply::Status::ok) {
+        ++confirmed;
+        EXPECT_EQ(chain_->find(unit)->output(3), on) << "command to unit " << unit;
+      }
+      continue;
+    }
+    const Reply r = call(unit, "XP?;YP?");
+    if (r.status != Reply::Status::ok) {
+      ++refused;
+      continue;
+    }
+    ++good;
+    EXPECT_EQ(r.values.front(), positions.at(unit)) << "read of unit " << unit;
+  }
+  reply_delay_ = 0ms;
+  std::this_thread::sleep_for(400ms);
+  io_.poll();
+  for (const auto& [unit, p] : positions) {
+    Reply r = call(unit, "XP?;YP?");
+    if (r.status != Reply::Status::ok) r = call(unit, "XP?;YP?");
+    EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+    EXPECT_EQ(r.values.front(), p);
+  }
+  std::cout << "[ measured ] " << good << " good reads, " << refused << " refused, " << confirmed
+            << " commands confirmed, " << family_.chain().late_replies << " late replies skipped\n";
+  EXPECT_GT(good, 0);
+  EXPECT_GT(refused, 0);
+  EXPECT_GT(family_.chain().late_replies, 0u);
+}
+
+}  // namespace
+}  // namespace fieldgate
+
+// §9 #6 and #9: whether a unit selects itself after power-up, and whether units a K passes obey
+// it. The kill stops the chain under every combination.
+namespace fieldgate {
+namespace {
+
+class CententKillReadings : public FamilyOnChain,
+                            public ::testing::WithParamInterface<std::pair<bool, bool>> {};
+
+TEST_P(CententKillReadings, KillStopsEveryUnit) {
+  sim::centent::ChainOptions o;
+  o.power_up = true;
+  o.select_self_after_reset = GetParam().first;
+  o.kill_acts_upstream = GetParam().second;
+  start({0, 1, 2}, o);
+  for (int unit : {0, 1, 2}) ASSERT_EQ(command(unit, "X++1000").status, Reply::Status::ok);
+  const Reply r = call(1, "K", Request::Expect::ack, true);
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
+  const auto now = sim::SimClock::now();
+  for (std::size_t p = 0; p < 3; ++p) EXPECT_FALSE(chain_->unit_at(p).moving('X', now)) << p;
+}
+
+INSTANTIATE_TEST_SUITE_P(Readings, CententKillReadings,
+                         ::testing::Values(std::pair{true, false}, std::pair{false, false},
+                                           std::pair{true, true}, std::pair{false, true}));
 
 }  // namespace
 }  // namespace fieldgate

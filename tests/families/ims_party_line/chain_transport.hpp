@@ -50,10 +50,12 @@ class ChainTransport final : public ByteTransport {
       if (faults_.silence) continue;
       const sim::DeviceReply reply = chain_.respond(request, sim::SimClock::now());
       if (reply.bytes.empty()) continue;
-      if (reply.extra_delay.count() == 0) {
+      // `delay MS` of the control channel holds results and completions, not echoes.
+      const auto delay = reply.extra_delay + faults_.reply_delay;
+      if (delay.count() == 0) {
         deliver(reply.bytes);
       } else {
-        auto timer = std::make_shared<asio::steady_timer>(io_, reply.extra_delay);
+        auto timer = std::make_shared<asio::steady_timer>(io_, delay);
         timer->async_wait(
             [this, timer, bytes = reply.bytes](boost::system::error_code) { deliver(bytes); });
       }
@@ -78,6 +80,12 @@ class ChainTransport final : public ByteTransport {
     }
   }
 
+  std::size_t read_available(asio::mutable_buffer buffer) override {
+    const std::size_t n = std::min(buffer.size(), rx_.size());
+    rx_.copy(static_cast<char*>(buffer.data()), n);
+    rx_.erase(0, n);
+    return n;
+  }
   void discard_input() override { rx_.clear(); }
   std::string describe() const override { return "simulated party line"; }
   double char_time_us() const override { return 1e6 * 10 / 9600; }
