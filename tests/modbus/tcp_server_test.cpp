@@ -529,6 +529,7 @@ TEST_F(ModbusTcpServerTest, IdleTimeoutAppliesAgainAfterAWrite) {
 TEST_F(ModbusTcpServerTest, MaxClientsRefusesExtraConnections) {
   auto options = loopback_options();
   options.max_clients = 2;
+  options.when_full = WhenFull::refuse;
   start_server(options);
   run_client([&] {
     auto first = std::make_unique<Client>(port_);
