@@ -46,7 +46,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       default: {
         // Mostly frames from the node's SDO server, sometimes from anywhere.
         CanFrame frame;
-        frame.id = (op & 0x10) ? (input.byte() << 8 | input.byte()) & 0x7FF : sdo_tx + node;
+        frame.id = (op & 0x10) ? (input.byte() << 8 | input.byte()) & 0x7FF : cob::sdo_tx + node;
         frame.len = input.byte() % 10;  // 9 is invalid on purpose
         frame.rtr = op & 0x20;
         frame.error = op & 0x40;

@@ -1,5 +1,9 @@
 // The Modbus TCP server's input path: MBAP framing of a byte stream cut at fuzzer-chosen
 // points, PDU parsing, dispatch to a request handler and response encoding.
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+
 #include <boost/asio/co_spawn.hpp>
 #include <boost/asio/detached.hpp>
 #include <boost/asio/io_context.hpp>

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "gateway/config_loader.hpp"
 #include "mapping/model_loader.hpp"
@@ -103,6 +104,17 @@ TEST_F(ConfigHardening, AliasesAreNotExpandedByTheCheck) {
   }
   reader.load_string(text);
   EXPECT_TRUE(d.ok()) << d.to_text();
+}
+
+TEST_F(ConfigHardening, MalformedTextFoundByTheFuzzerEndsWithAnError) {
+  // yaml-cpp 0.7 reported documents forever on this text; the duplicate-key walk hung in it.
+  std::ifstream in(FIELDGATE_SOURCE_DIR "/fuzz/corpus/config/regression-yaml-cpp-endless-documents",
+                   std::ios::binary);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(text.size(), 1u);
+  Diagnostics d;
+  EXPECT_FALSE(load_model_text(text.substr(1), "found.yaml", d));
+  EXPECT_FALSE(d.ok());
 }
 
 TEST_F(ConfigHardening, DurationWithoutAUnitIsRejectedAndNamesTheFix) {
