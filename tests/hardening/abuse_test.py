@@ -10,6 +10,7 @@ Counts are printed; nothing asserts a wall-clock limit.
 import os
 import resource
 import select
+import shutil
 import socket
 import struct
 import subprocess
@@ -72,8 +73,8 @@ buses:
                     break
                 except OSError:
                     if self.proc.poll() is not None or time.time() > deadline:
-                        self.stop()
-                        print(open(os.path.join(self.dir, "daemon.log")).read())
+                        failures.append("daemon did not start listening")
+                        self.stop()  # prints the daemon's log
                         sys.exit("daemon did not start listening")
                     time.sleep(0.05)
 
@@ -89,6 +90,13 @@ buses:
                 self.proc.kill()
                 self.proc.wait()
         self.log.close()
+        # A sanitizer build (scripts/test --sanitize) reports into the daemon's log.
+        log = open(os.path.join(self.dir, "daemon.log"), errors="replace").read()
+        check("Sanitizer" not in log and "runtime error" not in log,
+              "no sanitizer report in the daemon's log")
+        if failures:
+            print("--- daemon log ---\n" + log[-4000:])
+        shutil.rmtree(self.dir, ignore_errors=True)
 
 
 def adu(tid, unit, pdu):
