@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -134,16 +135,28 @@ class ConfigParser {
 
   void parse_modbus(const YAML::Node& node, ModbusConfig& m) {
     if (!r_.expect_map(node, "modbus")) return;
-    r_.reject_unknown_keys(
-        node,
-        {"listen", "max_clients", "idle_timeout", "request_timeout", "word_order", "offline_reads",
-         "writes_enabled", "allow", "read_only_units", "read_only_tables"},
-        "modbus");
+    r_.reject_unknown_keys(node,
+                           {"listen", "max_clients", "when_full", "max_clients_per_address",
+                            "idle_timeout", "request_timeout", "word_order", "offline_reads",
+                            "writes_enabled", "allow", "read_only_units", "read_only_tables"},
+                           "modbus");
     if (const auto listen = node["listen"])
       parse_listen(listen, "modbus listen", m.address, m.port);
     if (node["max_clients"])
       m.max_clients = static_cast<std::size_t>(
           r_.integer(node["max_clients"], "modbus max_clients", 1, 1024).value_or(32));
+    if (const auto wf = node["when_full"]) {
+      const auto text = r_.string(wf, "modbus when_full");
+      if (text && (*text == "evict_idle" || *text == "refuse"))
+        m.evict_when_full = *text == "evict_idle";
+      else if (text)
+        r_.error(wf,
+                 fmt::format("modbus when_full: expected evict_idle or refuse, found '{}'", *text));
+    }
+    if (node["max_clients_per_address"])
+      m.max_clients_per_address = static_cast<std::size_t>(
+          r_.integer(node["max_clients_per_address"], "modbus max_clients_per_address", 0, 1024)
+              .value_or(0));
     if (node["idle_timeout"])
       m.idle_timeout =
           r_.duration(node["idle_timeout"], "modbus idle_timeout").value_or(m.idle_timeout);
@@ -275,7 +288,9 @@ class ConfigParser {
                     bool device_required) {
     if (!r_.expect_map(node, where)) return;
     if (device_required)
-      r_.reject_unknown_keys(node, {"device", "baud", "data_bits", "parity", "stop_bits"}, where);
+      r_.reject_unknown_keys(
+          node, {"device", "baud", "allow_nonstandard_baud", "data_bits", "parity", "stop_bits"},
+          where);
     if (device_required) {
       if (auto d = r_.require(node, "device", where))
         if (auto text = expand(*d, where + " device")) s.device = *text;
@@ -283,6 +298,7 @@ class ConfigParser {
     if (node["baud"])
       s.baud = static_cast<unsigned>(
           r_.integer(node["baud"], where + " baud", 50, 4000000).value_or(9600));
+    check_baud(node, where);
     if (node["data_bits"])
       s.data_bits = static_cast<unsigned>(
           r_.integer(node["data_bits"], where + " data_bits", 5, 8).value_or(8));
@@ -300,6 +316,26 @@ class ConfigParser {
       else if (text)
         r_.error(p, fmt::format("{} parity: expected none, even or odd, found '{}'", where, *text));
     }
+  }
+
+  // A typo such as 11520 or 9601 would otherwise open the port at a rate no controller uses;
+  // some USB adapters do support odd rates, so they can be allowed explicitly.
+  void check_baud(const YAML::Node& node, const std::string& where) {
+    static constexpr int64_t standard[] = {
+        50,     75,     110,     134,     150,     200,     300,     600,     1200,    1800,
+        2400,   4800,   9600,    19200,   38400,   57600,   115200,  230400,  460800,  500000,
+        576000, 921600, 1000000, 1152000, 1500000, 2000000, 2500000, 3000000, 3500000, 4000000};
+    const auto baud_node = node["baud"];
+    if (!baud_node || !baud_node.IsScalar()) return;
+    const auto baud = parse_integer_text(baud_node.Scalar());
+    if (!baud || std::find(std::begin(standard), std::end(standard), *baud) != std::end(standard))
+      return;
+    const auto allow = node["allow_nonstandard_baud"];
+    if (allow && r_.boolean(allow, where + " allow_nonstandard_baud").value_or(false)) return;
+    r_.error(baud_node, fmt::format("{} baud: {} is not a standard rate (such as 9600, 19200, "
+                                    "38400, 57600 or 115200); if the adapter really supports "
+                                    "it, add allow_nonstandard_baud: true",
+                                    where, *baud));
   }
 
   void parse_can(const YAML::Node& node, TransportConfig& t, const std::string& where) {
@@ -360,8 +396,10 @@ class ConfigParser {
       const auto tcp = node["tcp"];
       bus.transport.kind = TransportConfig::Kind::tcp;
       if (r_.expect_map(tcp, where + " tcp")) {
-        r_.reject_unknown_keys(tcp, {"host", "port", "baud", "data_bits", "parity", "stop_bits"},
-                               where + " tcp");
+        r_.reject_unknown_keys(
+            tcp,
+            {"host", "port", "baud", "allow_nonstandard_baud", "data_bits", "parity", "stop_bits"},
+            where + " tcp");
         if (auto h = r_.require(tcp, "host", where + " tcp"))
           bus.transport.host = expand(*h, where + " tcp host").value_or("");
         if (auto p = r_.require(tcp, "port", where + " tcp"))

@@ -61,6 +61,8 @@ modbus::ModbusTcpServerOptions Gateway::server_options(const GatewayConfig& conf
   modbus::ModbusTcpServerOptions options;
   options.endpoint = asio::ip::tcp::endpoint(asio::ip::make_address(m.address), m.port);
   options.max_clients = m.max_clients;
+  options.when_full = m.evict_when_full ? modbus::WhenFull::evict_idle : modbus::WhenFull::refuse;
+  options.max_clients_per_address = m.max_clients_per_address;
   options.idle_timeout = m.idle_timeout;
   options.request_timeout = m.request_timeout;
   if (!m.allow.empty()) {

@@ -26,6 +26,8 @@ struct ModbusConfig {
   std::string address = "0.0.0.0";
   uint16_t port = 502;
   std::size_t max_clients = 32;
+  bool evict_when_full = true;              // when_full: evict_idle (true) or refuse
+  std::size_t max_clients_per_address = 0;  // 0: no limit
   microseconds idle_timeout{std::chrono::seconds(300)};
   WordOrder word_order = WordOrder::high_first;
   OfflineReads offline_reads = OfflineReads::exception;

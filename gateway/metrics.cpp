@@ -167,6 +167,10 @@ std::string render_metrics(const Gateway& gateway) {
            static_cast<double>(stats.clients_refused));
   w.sample("fieldgate_modbus_clients_refused_total", "reason=\"allow_list\"",
            static_cast<double>(stats.clients_denied));
+  w.family("fieldgate_modbus_clients_evicted_total", "counter",
+           "Idle connections closed to make room for a new one (when_full: evict_idle).");
+  w.sample("fieldgate_modbus_clients_evicted_total", "",
+           static_cast<double>(stats.clients_evicted));
   return std::move(w).text();
 }
 

@@ -3,6 +3,7 @@
 #include <boost/asio/as_tuple.hpp>
 #include <boost/asio/co_spawn.hpp>
 #include <boost/asio/detached.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/asio/use_awaitable.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
@@ -18,19 +19,23 @@ constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
 
 struct MetricsServer::State {
   State(asio::any_io_executor ex, asio::ip::tcp::endpoint ep, Render r)
-      : acceptor(ex, ep), render(std::move(r)) {}
+      : acceptor(ex, ep), accept_retry(ex), render(std::move(r)) {}
   asio::ip::tcp::acceptor acceptor;
+  asio::steady_timer accept_retry;
   Render render;
+  std::size_t open = 0;  // connections being served now
+  MetricsServerStats stats;
   bool stopped = false;
 };
 
 namespace {
 
-asio::awaitable<void> serve(beast::tcp_stream stream, std::shared_ptr<MetricsServer::State> state) {
+asio::awaitable<void> exchange(beast::tcp_stream& stream, MetricsServer::State& state) {
   beast::flat_buffer buffer(8192);
   http::request_parser<http::empty_body> parser;
   parser.header_limit(8192);
-  stream.expires_after(std::chrono::seconds(5));
+  // One deadline for the whole exchange, reading and writing: a scraper is local and quick.
+  stream.expires_after(MetricsServer::exchange_timeout);
   auto [ec, n] = co_await http::async_read(stream, buffer, parser, use_tuple);
   (void)n;
   if (ec) co_return;
@@ -45,10 +50,10 @@ asio::awaitable<void> serve(beast::tcp_stream stream, std::shared_ptr<MetricsSer
   } else if (req.target() != "/metrics") {
     res.result(http::status::not_found);
     res.body() = "try /metrics\n";
-  } else if (!state->stopped) {
+  } else if (!state.stopped) {
     res.result(http::status::ok);
     res.set(http::field::content_type, "text/plain; version=0.0.4; charset=utf-8");
-    res.body() = state->render();
+    res.body() = state.render();
   }
   res.prepare_payload();
   if (req.method() == http::verb::head) res.body().clear();
@@ -59,13 +64,33 @@ asio::awaitable<void> serve(beast::tcp_stream stream, std::shared_ptr<MetricsSer
   stream.socket().shutdown(asio::ip::tcp::socket::shutdown_send, ignored);
 }
 
+// The accept loop counted this connection in state->open already.
+asio::awaitable<void> serve(beast::tcp_stream stream, std::shared_ptr<MetricsServer::State> state) {
+  try {
+    co_await exchange(stream, *state);
+  } catch (...) {
+    // Belongs to this connection alone.
+  }
+  --state->open;
+}
+
 asio::awaitable<void> accept_loop(std::shared_ptr<MetricsServer::State> state) {
   while (!state->stopped) {
     auto [ec, socket] = co_await state->acceptor.async_accept(use_tuple);
+    if (state->stopped) co_return;
     if (ec) {
-      if (state->stopped || ec == asio::error::operation_aborted) co_return;
+      // E.g. EMFILE: retrying at once would spin; stop() closes the acceptor meanwhile.
+      state->accept_retry.expires_after(std::chrono::milliseconds(100));
+      co_await state->accept_retry.async_wait(use_tuple);
       continue;
     }
+    if (state->open >= MetricsServer::max_connections) {
+      // Closed at once: stalled scrapers must not take the descriptors the Modbus server needs.
+      ++state->stats.refused;
+      continue;
+    }
+    ++state->stats.accepted;
+    ++state->open;
     asio::co_spawn(state->acceptor.get_executor(),
                    serve(beast::tcp_stream(std::move(socket)), state), asio::detached);
   }
@@ -89,6 +114,15 @@ void MetricsServer::stop() {
   state_->stopped = true;
   boost::system::error_code ignored;
   state_->acceptor.close(ignored);
+  state_->accept_retry.cancel();
+}
+
+const MetricsServerStats& MetricsServer::stats() const {
+  return state_->stats;
+}
+
+std::size_t MetricsServer::open_connections() const {
+  return state_->open;
 }
 
 asio::ip::tcp::endpoint MetricsServer::local_endpoint() const {

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "gateway/bus.hpp"
+#include "gateway/device_identification.hpp"
 #include "gateway/log.hpp"
 
 namespace fieldgate {
@@ -121,6 +122,12 @@ modbus::ReadBitsResult RegisterMapHandler::read_bits(uint8_t unit_id, modbus::Bi
     bits.push_back(value != 0);
   }
   return bits;
+}
+
+modbus::DeviceIdentificationResult RegisterMapHandler::device_identification(uint8_t unit_id) {
+  const UnitMap* unit = config_->register_map.unit(unit_id);
+  if (!unit) return ExceptionCode::gateway_path_unavailable;
+  return identify(*unit, image_.node(unit->node_index));
 }
 
 modbus::ReadRegistersResult RegisterMapHandler::read_registers(uint8_t unit_id,

@@ -28,6 +28,7 @@ class RegisterMapHandler final : public modbus::RequestHandler {
                                                        std::span<const uint16_t> values) override;
   asio::awaitable<modbus::WriteResult> write_coils(uint8_t unit, uint16_t address,
                                                    std::vector<bool> values) override;
+  modbus::DeviceIdentificationResult device_identification(uint8_t unit) override;
 
  private:
   struct EntryValue;

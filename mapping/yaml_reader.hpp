@@ -21,7 +21,8 @@ class YamlReader {
   YamlReader(std::string file, Diagnostics& diagnostics)
       : file_(std::move(file)), diag_(diagnostics) {}
 
-  // Parses a file; a syntax error is recorded and an undefined node returned.
+  // Parses a file; a syntax error, or a key repeated within one mapping (yaml-cpp would keep
+  // both and lookups would silently see the first), is recorded and an undefined node returned.
   YAML::Node load_file();
   YAML::Node load_string(const std::string& text);
 
@@ -45,7 +46,8 @@ class YamlReader {
                                  int64_t max);
   std::optional<double> number(const YAML::Node& node, std::string_view what);
   std::optional<bool> boolean(const YAML::Node& node, std::string_view what);
-  // "250ms", "2s", "1.5s", "500us", "1min" or a bare integer of milliseconds.
+  // "250ms", "2s", "1.5s", "500us", "1min". A bare number is an error: "0.05" was once read
+  // as milliseconds (50 us) where seconds were meant, and any default unit invites that.
   std::optional<std::chrono::microseconds> duration(const YAML::Node& node, std::string_view what);
 
  private:
@@ -55,6 +57,7 @@ class YamlReader {
 
 // Parses integer text as the reader does ("0x1A", "-12", "12"); nullopt on anything else.
 std::optional<int64_t> parse_integer_text(std::string_view text);
+// A number with one of the units us, ms, s, min; nullopt without a unit or on anything else.
 std::optional<std::chrono::microseconds> parse_duration_text(std::string_view text);
 
 }  // namespace fieldgate

@@ -1,5 +1,7 @@
 #include "gateway/modbus/pdu.hpp"
 
+#include <algorithm>
+
 namespace fieldgate::modbus {
 namespace {
 
@@ -134,13 +136,17 @@ FunctionCode function_code(const Request& request) {
     FunctionCode operator()(const ReadWriteRegistersRequest&) const {
       return FunctionCode::read_write_multiple_registers;
     }
+    FunctionCode operator()(const ReadDeviceIdentificationRequest&) const {
+      return FunctionCode::encapsulated_interface;
+    }
   };
   return std::visit(Visitor{}, request);
 }
 
 bool is_write(const Request& request) {
   return !std::holds_alternative<ReadBitsRequest>(request) &&
-         !std::holds_alternative<ReadRegistersRequest>(request);
+         !std::holds_alternative<ReadRegistersRequest>(request) &&
+         !std::holds_alternative<ReadDeviceIdentificationRequest>(request);
 }
 
 std::variant<Request, ExceptionCode> parse_request(std::span<const std::uint8_t> pdu) {
@@ -177,6 +183,12 @@ std::variant<Request, ExceptionCode> parse_request(std::span<const std::uint8_t>
       return parse_write_registers(pdu);
     case FunctionCode::read_write_multiple_registers:
       return parse_read_write(pdu);
+    case FunctionCode::encapsulated_interface:
+      // Other MEI types (0x0D CANopen general reference) are not served.
+      if (pdu.size() < 2 || pdu[1] != mei_read_device_identification)
+        return ExceptionCode::illegal_function;
+      if (pdu.size() != 4 || pdu[2] < 1 || pdu[2] > 4) return ExceptionCode::illegal_data_value;
+      return Request{ReadDeviceIdentificationRequest{pdu[2], pdu[3]}};
   }
   return ExceptionCode::illegal_function;
 }
@@ -228,6 +240,64 @@ std::vector<std::uint8_t> encode_write_multiple_response(FunctionCode function,
   std::vector<std::uint8_t> out{static_cast<std::uint8_t>(function)};
   put16(out, address);
   put16(out, count);
+  return out;
+}
+
+namespace {
+
+// The highest object id of each read device ID code's category.
+std::uint8_t last_id_of(std::uint8_t read_code) {
+  return read_code == 1 ? 0x02 : read_code == 2 ? 0x7F : 0xFF;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encode_device_identification_response(
+    const ReadDeviceIdentificationRequest& request, const DeviceIdentification& objects) {
+  static constexpr std::size_t header = 7;  // 2B 0E code conformity more next count
+  static constexpr std::size_t max_value = max_pdu_size - header - 2;
+  bool regular = false;
+  for (const auto& o : objects) regular = regular || (o.id > 0x02 && o.id <= 0x7F);
+  // Stream and individual access, basic or regular category.
+  const std::uint8_t conformity = regular ? 0x82 : 0x81;
+  std::vector<std::uint8_t> out{static_cast<std::uint8_t>(FunctionCode::encapsulated_interface),
+                                mei_read_device_identification,
+                                request.read_code,
+                                conformity,
+                                0x00,
+                                0x00,
+                                0x00};
+  const auto append = [&out](const DeviceIdObject& o) {
+    const std::size_t n = std::min(o.value.size(), max_value);
+    out.push_back(o.id);
+    out.push_back(static_cast<std::uint8_t>(n));
+    out.insert(out.end(), o.value.begin(), o.value.begin() + static_cast<std::ptrdiff_t>(n));
+  };
+  if (request.read_code == 4) {
+    for (const auto& o : objects) {
+      if (o.id != request.object_id) continue;
+      append(o);
+      out[6] = 1;
+      return out;
+    }
+    return encode_exception(out[0], ExceptionCode::illegal_data_address);
+  }
+  const std::uint8_t last = last_id_of(request.read_code);
+  bool known = false;
+  for (const auto& o : objects) known = known || (o.id == request.object_id && o.id <= last);
+  const std::uint8_t first = known ? request.object_id : 0x00;
+  std::uint8_t count = 0;
+  for (const auto& o : objects) {
+    if (o.id < first || o.id > last) continue;
+    if (out.size() + 2 + std::min(o.value.size(), max_value) > max_pdu_size) {
+      out[4] = 0xFF;  // more follows
+      out[5] = o.id;  // ask again from here
+      break;
+    }
+    append(o);
+    ++count;
+  }
+  out[6] = count;
   return out;
 }
 

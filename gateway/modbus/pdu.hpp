@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <string_view>
 #include <variant>
 #include <vector>
@@ -22,7 +23,10 @@ enum class FunctionCode : std::uint8_t {
   write_multiple_coils = 0x0F,
   write_multiple_registers = 0x10,
   read_write_multiple_registers = 0x17,
+  encapsulated_interface = 0x2B,  // only MEI type 0x0E, read device identification
 };
+
+inline constexpr std::uint8_t mei_read_device_identification = 0x0E;
 
 enum class ExceptionCode : std::uint8_t {
   illegal_function = 0x01,
@@ -94,9 +98,17 @@ struct ReadWriteRegistersRequest {  // 0x17: the write is performed before the r
   bool operator==(const ReadWriteRegistersRequest&) const = default;
 };
 
+// 0x2B / 0x0E. Read device ID codes: 1 basic, 2 regular, 3 extended (streams starting at
+// object_id), 4 one object.
+struct ReadDeviceIdentificationRequest {
+  std::uint8_t read_code;
+  std::uint8_t object_id;
+  bool operator==(const ReadDeviceIdentificationRequest&) const = default;
+};
+
 using Request = std::variant<ReadBitsRequest, ReadRegistersRequest, WriteSingleCoilRequest,
                              WriteSingleRegisterRequest, WriteCoilsRequest, WriteRegistersRequest,
-                             ReadWriteRegistersRequest>;
+                             ReadWriteRegistersRequest, ReadDeviceIdentificationRequest>;
 
 FunctionCode function_code(const Request& request);
 bool is_write(const Request& request);
@@ -119,5 +131,21 @@ std::vector<std::uint8_t> encode_write_single_register_response(std::uint16_t ad
 std::vector<std::uint8_t> encode_write_multiple_response(FunctionCode function,
                                                          std::uint16_t address,
                                                          std::uint16_t count);
+
+// Device identification objects: 0x00 VendorName, 0x01 ProductCode, 0x02 MajorMinorRevision
+// (basic, mandatory), 0x03-0x06 VendorUrl, ProductName, ModelName, UserApplicationName
+// (regular, optional).
+struct DeviceIdObject {
+  std::uint8_t id;
+  std::string value;
+};
+using DeviceIdentification = std::vector<DeviceIdObject>;
+
+// The 0x2B/0x0E response for `objects` (sorted by id, basic ones present): a stream answers
+// the objects of the requested category from object_id on (from 0 if object_id is not one of
+// them), as many as fit, with "more follows" and the next id otherwise; code 4 answers the
+// one object, or exception 0x02 if there is none with that id. Values are cut to fit a PDU.
+std::vector<std::uint8_t> encode_device_identification_response(
+    const ReadDeviceIdentificationRequest& request, const DeviceIdentification& objects);
 
 }  // namespace fieldgate::modbus

@@ -31,6 +31,11 @@ asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, const Re
   const FunctionCode function = function_code(request);
   const auto fc = static_cast<std::uint8_t>(function);
 
+  if (const auto* r = std::get_if<ReadDeviceIdentificationRequest>(&request)) {
+    DeviceIdentificationResult result = handler.device_identification(unit);
+    if (!result.ok()) co_return encode_exception(fc, result.exception());
+    co_return encode_device_identification_response(*r, result.values());
+  }
   if (const auto* r = std::get_if<ReadBitsRequest>(&request)) {
     co_return read_bits(handler, unit, *r);
   }
@@ -70,6 +75,10 @@ asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, const Re
 }
 
 }  // namespace
+
+DeviceIdentificationResult RequestHandler::device_identification(std::uint8_t) {
+  return ExceptionCode::illegal_function;
+}
 
 asio::awaitable<std::vector<std::uint8_t>> dispatch(RequestHandler& handler, std::uint8_t unit,
                                                     std::span<const std::uint8_t> request_pdu) {

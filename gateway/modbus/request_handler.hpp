@@ -36,6 +36,7 @@ class ReadResult {
 
 using ReadBitsResult = ReadResult<std::vector<bool>>;
 using ReadRegistersResult = ReadResult<std::vector<std::uint16_t>>;
+using DeviceIdentificationResult = ReadResult<DeviceIdentification>;
 
 // Success (default), or the exception to answer with.
 class WriteResult {
@@ -69,6 +70,10 @@ class RequestHandler {
                                                        std::span<const std::uint16_t> values) = 0;
   virtual asio::awaitable<WriteResult> write_coils(std::uint8_t unit, std::uint16_t address,
                                                    std::vector<bool> values) = 0;
+
+  // FC 0x2B/0x0E: the unit's identification objects, sorted by id, 0x00-0x02 at least. Called
+  // synchronously like the reads. The default answers 0x01 (not supported).
+  virtual DeviceIdentificationResult device_identification(std::uint8_t unit);
 };
 
 // Parses a request PDU, calls the handler and returns the response PDU (normal or exception).

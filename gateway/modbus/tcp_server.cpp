@@ -56,6 +56,10 @@ struct Session {
   asio::ip::address peer;
   asio::steady_timer timer;
   Clock::time_point deadline = Clock::time_point::max();
+  // When the last complete request arrived (or the connection, before the first one).
+  Clock::time_point last_request = Clock::now();
+  bool answering = false;  // a request is being answered: never evicted
+  bool closing = false;    // evicted or denied; its coroutine has not finished yet
   bool timed_out = false;
   MbapFramer framer;
   std::vector<std::uint8_t> out;
@@ -104,7 +108,10 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
     options_ = std::move(options);
     if (options_.allow_client) {
       for (auto& session : sessions_) {
-        if (!options_.allow_client(session->peer)) session->close();
+        if (!options_.allow_client(session->peer)) {
+          session->closing = true;
+          session->close();
+        }
       }
     }
     return true;
@@ -134,28 +141,51 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
         ++stats_.clients_denied;
         continue;  // the socket closes as it goes out of scope
       }
-      if (options_.max_clients != 0 && sessions_.size() >= options_.max_clients) {
+      if (!admit(peer)) {
         ++stats_.clients_refused;
         continue;
       }
-      asio::co_spawn(executor_, run_session(self, std::move(socket), peer), asio::detached);
+      boost::system::error_code ignored;
+      socket.set_option(tcp::no_delay(true), ignored);
+      socket.set_option(tcp::socket::keep_alive(true), ignored);
+      // Replies are first written directly and only awaited when the send buffer is full.
+      socket.non_blocking(true, ignored);
+      // The session is listed at once, so the next accept already counts it.
+      sessions_.push_back(std::make_shared<Session>(std::move(socket), peer));
+      ++stats_.clients_accepted;
+      ++stats_.clients_connected;
+      asio::co_spawn(executor_, run_session(self, std::prev(sessions_.end())), asio::detached);
     }
   }
 
+  // Whether a new connection from `peer` may be served, making room first if the policy says so.
+  bool admit(const asio::ip::address& peer) {
+    std::size_t open = 0;
+    std::size_t from_peer = 0;
+    std::shared_ptr<Session> idlest;
+    for (const auto& session : sessions_) {
+      if (session->closing) continue;
+      ++open;
+      if (session->peer == peer) ++from_peer;
+      if (!session->answering && (!idlest || session->last_request < idlest->last_request))
+        idlest = session;
+    }
+    if (options_.max_clients_per_address != 0 && from_peer >= options_.max_clients_per_address)
+      return false;
+    if (options_.max_clients == 0 || open < options_.max_clients) return true;
+    if (options_.when_full == WhenFull::refuse || !idlest) return false;
+    idlest->closing = true;
+    idlest->close();
+    ++stats_.clients_evicted;
+    return true;
+  }
+
   // `self` keeps the server state alive while the client is served.
-  asio::awaitable<void> run_session([[maybe_unused]] std::shared_ptr<Impl> self, tcp::socket socket,
-                                    asio::ip::address peer) {
-    if (stopped_) co_return;  // stop() came between the accept and this coroutine's start
-    boost::system::error_code ignored;
-    socket.set_option(tcp::no_delay(true), ignored);
-    socket.set_option(tcp::socket::keep_alive(true), ignored);
-    // Replies are first written directly and only awaited when the send buffer is full.
-    socket.non_blocking(true, ignored);
-    sessions_.push_back(std::make_shared<Session>(std::move(socket), peer));
-    const auto position = std::prev(sessions_.end());
+  asio::awaitable<void> run_session([[maybe_unused]] std::shared_ptr<Impl> self,
+                                    std::list<std::shared_ptr<Session>>::iterator position) {
     const std::shared_ptr<Session> session = *position;
-    ++stats_.clients_accepted;
-    ++stats_.clients_connected;
+    // stop() or an eviction came between the accept and this coroutine's start: the socket is
+    // closed already and the reads below fail at once.
     try {
       co_await (serve(*session) || watchdog(*session));
     } catch (...) {
@@ -175,7 +205,10 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
       MbapFramer::Frame frame;
       MbapFramer::Status status;
       while ((status = framer.next(frame)) == MbapFramer::Status::frame) {
+        s.last_request = Clock::now();
+        s.answering = true;
         const bool keep_open = co_await answer(s, frame);
+        s.answering = false;
         if (!keep_open) co_return;
         pending_since = last_read;
       }

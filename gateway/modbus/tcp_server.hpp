@@ -15,11 +15,26 @@
 
 namespace fieldgate::modbus {
 
+// What a new connection does to a server already at max_clients.
+enum class WhenFull {
+  // The open connection that has gone longest without a complete request (since it connected,
+  // if it never sent one) is closed to make room (counted as evicted). Connections whose
+  // request is being answered are never chosen; if every one is, the newcomer is refused. A
+  // stalled or half-sent socket thus cannot keep a PLC that reconnects from getting in.
+  evict_idle,
+  // The newcomer is accepted and closed at once (counted as refused).
+  refuse,
+};
+
 struct ModbusTcpServerOptions {
   // An unspecified IPv6 address ("::") listens dual-stack, IPv4 clients included.
   asio::ip::tcp::endpoint endpoint{asio::ip::tcp::v4(), 502};
-  // Connections beyond this are accepted and closed at once (counted as refused). 0 = no limit.
+  // Open connections at most; see WhenFull for what a further one does. 0 = no limit.
   std::size_t max_clients = 32;
+  WhenFull when_full = WhenFull::evict_idle;
+  // Open connections per client address at most; a further one from that address is refused,
+  // whatever when_full says, so one host cannot take every slot. 0 = no limit.
+  std::size_t max_clients_per_address = 0;
   // No new request started for this long: the connection is closed. Zero disables.
   std::chrono::steady_clock::duration idle_timeout = std::chrono::seconds(60);
   // A request not completely received, or a reply not completely sent, within this time:
@@ -39,7 +54,8 @@ struct ModbusTcpServerStats {
   std::array<FunctionCounters, 256> functions{};  // indexed by the request's function code
   std::uint64_t clients_connected = 0;            // open now
   std::uint64_t clients_accepted = 0;             // served since start
-  std::uint64_t clients_refused = 0;              // closed at once: max_clients reached
+  std::uint64_t clients_refused = 0;              // closed at once: a client limit reached
+  std::uint64_t clients_evicted = 0;              // closed to make room (WhenFull::evict_idle)
   std::uint64_t clients_denied = 0;               // closed at once: allow_client said no
   std::uint64_t clients_timed_out = 0;            // closed by idle_timeout / request_timeout
   std::uint64_t framing_errors = 0;               // closed: bad MBAP protocol id or length

@@ -45,7 +45,7 @@ TEST(AccessControl, AllowListAdmitsListedClients) {
 }
 
 TEST(AccessControl, MaxClientsRefusesTheExtraConnection) {
-  auto p = plant("  max_clients: 2\n");
+  auto p = plant("  max_clients: 2\n  when_full: refuse\n");
   ModbusClient a("127.0.0.1", p->port()), b("127.0.0.1", p->port());
   EXPECT_TRUE(a.read_input(1, 1000, 1).ok());
   EXPECT_TRUE(b.read_input(1, 1000, 1).ok());

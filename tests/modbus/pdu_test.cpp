@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace fieldgate::modbus {
@@ -176,7 +177,69 @@ TEST(PduParse, UnsupportedFunctionsAreIllegalFunction) {
         << "function " << fc;
   }
   EXPECT_EQ(parse_error({}), ExceptionCode::illegal_function);
-  EXPECT_EQ(parse_error({0x2B, 0x0E, 0x01, 0x00}), ExceptionCode::illegal_function);
+  // 0x2B serves only MEI type 0x0E (read device identification).
+  EXPECT_EQ(parse_error({0x2B, 0x0D, 0x01, 0x00}), ExceptionCode::illegal_function);
+  EXPECT_EQ(parse_error({0x2B}), ExceptionCode::illegal_function);
+}
+
+// --- 0x2B / 0x0E read device identification (spec 6.21) ----------------------------------
+
+TEST(DeviceIdentification, RequestParsesAndBadCodesOrLengthsAreIllegalDataValue) {
+  EXPECT_EQ(parse_ok({0x2B, 0x0E, 0x01, 0x00}), Request(ReadDeviceIdentificationRequest{1, 0}));
+  EXPECT_EQ(parse_ok({0x2B, 0x0E, 0x04, 0x02}), Request(ReadDeviceIdentificationRequest{4, 2}));
+  EXPECT_FALSE(is_write(parse_ok({0x2B, 0x0E, 0x01, 0x00})));
+  EXPECT_EQ(parse_error({0x2B, 0x0E, 0x00, 0x00}), ExceptionCode::illegal_data_value);
+  EXPECT_EQ(parse_error({0x2B, 0x0E, 0x05, 0x00}), ExceptionCode::illegal_data_value);
+  EXPECT_EQ(parse_error({0x2B, 0x0E, 0x01}), ExceptionCode::illegal_data_value);
+  EXPECT_EQ(parse_error({0x2B, 0x0E, 0x01, 0x00, 0x00}), ExceptionCode::illegal_data_value);
+}
+
+const DeviceIdentification kObjects{
+    {0x00, "Company identification"}, {0x01, "Product code XX"}, {0x02, "V2.11"}, {0x05, "model"}};
+
+TEST(DeviceIdentification, BasicStreamMatchesTheSpecExample) {
+  // Spec 6.21 example: basic stream from object 0; conformity 0x82 as a regular object exists.
+  Bytes expected{0x2B, 0x0E, 0x01, 0x82, 0x00, 0x00, 0x03, 0x00, 0x16};
+  for (char c : std::string("Company identification")) expected.push_back(std::uint8_t(c));
+  expected.insert(expected.end(), {0x01, 0x0F});
+  for (char c : std::string("Product code XX")) expected.push_back(std::uint8_t(c));
+  expected.insert(expected.end(), {0x02, 0x05});
+  for (char c : std::string("V2.11")) expected.push_back(std::uint8_t(c));
+  EXPECT_EQ(encode_device_identification_response({1, 0}, kObjects), expected);
+}
+
+TEST(DeviceIdentification, RegularStreamStartsAtTheObjectAskedForOrAtZero) {
+  const Bytes from_two = encode_device_identification_response({2, 0x02}, kObjects);
+  ASSERT_GE(from_two.size(), 7u);
+  EXPECT_EQ(from_two[6], 2);  // V2.11 and model
+  EXPECT_EQ(from_two[7], 0x02);
+  // An id that is no object restarts the stream at object 0.
+  const Bytes unknown = encode_device_identification_response({2, 0x40}, kObjects);
+  EXPECT_EQ(unknown[6], 4);
+  EXPECT_EQ(unknown[7], 0x00);
+  // Basic category: regular objects are left out.
+  EXPECT_EQ(encode_device_identification_response({1, 0x05}, kObjects)[6], 3);
+}
+
+TEST(DeviceIdentification, IndividualAccess) {
+  const Bytes one = encode_device_identification_response({4, 0x05}, kObjects);
+  EXPECT_EQ(one,
+            (Bytes{0x2B, 0x0E, 0x04, 0x82, 0x00, 0x00, 0x01, 0x05, 0x05, 'm', 'o', 'd', 'e', 'l'}));
+  EXPECT_EQ(encode_device_identification_response({4, 0x03}, kObjects), (Bytes{0xAB, 0x02}));
+}
+
+TEST(DeviceIdentification, LongObjectsAreCutAndStreamsContinueWithMoreFollows) {
+  DeviceIdentification big{
+      {0x00, std::string(300, 'v')}, {0x01, std::string(200, 'p')}, {0x02, "1.0"}};
+  const Bytes first = encode_device_identification_response({1, 0}, big);
+  EXPECT_LE(first.size(), max_pdu_size);
+  EXPECT_EQ(first[4], 0xFF);  // more follows
+  EXPECT_EQ(first[5], 0x01);  // from object 1
+  EXPECT_EQ(first[6], 1);
+  const Bytes second = encode_device_identification_response({1, first[5]}, big);
+  EXPECT_LE(second.size(), max_pdu_size);
+  EXPECT_EQ(second[4], 0x00);
+  EXPECT_EQ(second[6], 2);
 }
 
 // --- Quantity and address limits ----------------------------------------------------------

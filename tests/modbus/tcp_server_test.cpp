@@ -529,6 +529,7 @@ TEST_F(ModbusTcpServerTest, IdleTimeoutAppliesAgainAfterAWrite) {
 TEST_F(ModbusTcpServerTest, MaxClientsRefusesExtraConnections) {
   auto options = loopback_options();
   options.max_clients = 2;
+  options.when_full = WhenFull::refuse;
   start_server(options);
   run_client([&] {
     auto first = std::make_unique<Client>(port_);
@@ -551,6 +552,50 @@ TEST_F(ModbusTcpServerTest, MaxClientsRefusesExtraConnections) {
   });
   EXPECT_EQ(server_->stats().clients_refused, 1u);
   EXPECT_EQ(server_->stats().clients_accepted, 3u);
+}
+
+TEST_F(ModbusTcpServerTest, WhenFullTheIdlestIsEvictedButNeverOneBeingAnswered) {
+  auto options = loopback_options();
+  options.max_clients = 2;  // when_full: evict_idle is the default
+  start_server(options);
+  run_client([&] {
+    // The oldest request, but its write is still being confirmed.
+    RawClient slow(port_);
+    ASSERT_TRUE(slow.send(adu(1, 1, {0x06, 0x03, 0x20, 0x00, 0x07})));  // holding 800
+    ASSERT_TRUE(wait_until([&] { return handler_->slow_writes_pending == 1; }));
+    RawClient idle(port_);  // connected later, sends nothing
+    ASSERT_TRUE(wait_until([&] { return connected_clients() == 2; }));
+
+    Client plc(port_);
+    ASSERT_TRUE(plc.connect());
+    EXPECT_EQ(plc.read_one(5), 5);
+    EXPECT_TRUE(idle.wait_closed(2s));
+
+    on_io([&] {
+      handler_->release_slow_writes();
+      return 0;
+    });
+    EXPECT_EQ(slow.receive(12), adu(1, 1, {0x06, 0x03, 0x20, 0x00, 0x07}));
+  });
+  EXPECT_EQ(server_->stats().clients_evicted, 1u);
+  EXPECT_EQ(server_->stats().clients_refused, 0u);
+}
+
+TEST_F(ModbusTcpServerTest, PerAddressLimitRefusesTheExtraConnectionFromThatAddress) {
+  auto options = loopback_options();
+  options.max_clients_per_address = 1;
+  start_server(options);
+  run_client([&] {
+    Client first(port_);
+    ASSERT_TRUE(first.connect());
+    EXPECT_EQ(first.read_one(1), 1);
+    Client second(port_);
+    second.connect();
+    EXPECT_EQ(second.read_one(2), -1);
+    EXPECT_EQ(first.read_one(3), 3);
+  });
+  EXPECT_EQ(server_->stats().clients_refused, 1u);
+  EXPECT_EQ(server_->stats().clients_evicted, 0u);
 }
 
 TEST_F(ModbusTcpServerTest, BadMbapHeaderDropsTheConnectionUnanswered) {
