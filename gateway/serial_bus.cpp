@@ -5,6 +5,7 @@
 
 #include <algorithm>
 
+#include "drivers/printable_bytes.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/tcp_transport.hpp"
 #include "gateway/log.hpp"
@@ -15,24 +16,6 @@ namespace fieldgate {
 namespace {
 constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
 using Clock = std::chrono::steady_clock;
-
-// Bytes for a log line: control characters and non-ASCII as escapes, long input shortened.
-std::string printable(std::string_view bytes) {
-  std::string out;
-  for (const char c : bytes.substr(0, 80)) {
-    const auto u = static_cast<unsigned char>(c);
-    if (c == '\r')
-      out += "\\r";
-    else if (c == '\n')
-      out += "\\n";
-    else if (u < 0x20 || u >= 0x7f)
-      out += fmt::format("\\x{:02x}", u);
-    else
-      out += c;
-  }
-  if (bytes.size() > 80) out += "...";
-  return out;
-}
 
 std::unique_ptr<ByteTransport> make_transport(asio::any_io_executor ex, const TransportConfig& t) {
   if (t.kind == TransportConfig::Kind::tcp)
@@ -301,7 +284,7 @@ asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
   if (!found.drained.empty())
     log::warning("bus {}: resync after {} from node {} ({}): drained {} byte(s) '{}' in {} ms",
                  config_.name, after, n.config->name, n.config->address.text, found.drained.size(),
-                 printable(found.drained), ms);
+                 printable_bytes(found.drained, 80), ms);
   else
     log::debug("bus {}: resync after {} from node {} ({}): line quiet after {} ms", config_.name,
                after, n.config->name, n.config->address.text, ms);

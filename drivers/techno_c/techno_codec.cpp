@@ -8,6 +8,8 @@
 #include <charconv>
 #include <cmath>
 
+#include "drivers/printable_bytes.hpp"
+
 namespace fieldgate::techno {
 
 namespace {
@@ -28,21 +30,6 @@ std::string_view strip_terminator(std::string_view frame) {
   return frame;
 }
 
-std::string printable(std::string_view bytes) {
-  std::string out;
-  for (const char c : bytes) {
-    if (c == '\r')
-      out += "\\r";
-    else if (c == '\n')
-      out += "\\n";
-    else if (c >= 0x20 && c < 0x7f)
-      out += c;
-    else
-      out += fmt::format("\\x{:02x}", static_cast<unsigned char>(c));
-  }
-  return out;
-}
-
 ParsedReply malformed(std::string problem) {
   ParsedReply r;
   r.kind = ParsedReply::Kind::malformed;
@@ -61,7 +48,8 @@ ParsedReply error_reply(char code) {
 ParsedReply single_character(char c, std::string_view what) {
   if (is_error_code(c)) return error_reply(c);
   if (c == kAck) return malformed(fmt::format("acknowledge without {}", what));
-  return malformed(fmt::format("unexpected character '{}'", printable(std::string_view(&c, 1))));
+  return malformed(
+      fmt::format("unexpected character '{}'", printable_bytes(std::string_view(&c, 1))));
 }
 
 }  // namespace
@@ -272,7 +260,8 @@ std::string_view error_text(char c) {
 }
 
 std::string describe_error(char c) {
-  const std::string shown = c == '\r' ? std::string("CR") : printable(std::string_view(&c, 1));
+  const std::string shown =
+      c == '\r' ? std::string("CR") : printable_bytes(std::string_view(&c, 1));
   return fmt::format("'{}' ({}): {}", shown, static_cast<int>(static_cast<unsigned char>(c)),
                      error_text(c));
 }
@@ -314,7 +303,8 @@ int64_t sign_extend_24(uint32_t raw) {
 
 ParsedReply parse_handshake(std::string_view frame) {
   if (frame.size() != 1)
-    return malformed(fmt::format("expected one handshake character, got '{}'", printable(frame)));
+    return malformed(
+        fmt::format("expected one handshake character, got '{}'", printable_bytes(frame)));
   if (frame.front() == kAck) {
     ParsedReply r;
     r.kind = ParsedReply::Kind::ok;
@@ -322,7 +312,7 @@ ParsedReply parse_handshake(std::string_view frame) {
     return r;
   }
   if (is_error_code(frame.front())) return error_reply(frame.front());
-  return malformed(fmt::format("unexpected character '{}'", printable(frame)));
+  return malformed(fmt::format("unexpected character '{}'", printable_bytes(frame)));
 }
 
 ParsedReply parse_positions(std::string_view frame) {
@@ -331,7 +321,8 @@ ParsedReply parse_positions(std::string_view frame) {
   if (frame.size() == 1) return single_character(frame.front(), "position data");
   if (frame.size() % 6 == 1 && frame.front() == kAck) frame.remove_prefix(1);
   if (frame.size() % 6 != 0 || frame.size() > kPositionDigits)
-    return malformed(fmt::format("expected 18 hex digits (X Y Z), got '{}'", printable(frame)));
+    return malformed(
+        fmt::format("expected 18 hex digits (X Y Z), got '{}'", printable_bytes(frame)));
   ParsedReply r;
   r.kind = ParsedReply::Kind::ok;
   r.code = kAck;
@@ -339,7 +330,7 @@ ParsedReply parse_positions(std::string_view frame) {
     const std::string_view field = frame.substr(i, 6);
     uint32_t raw = 0;
     if (!std::all_of(field.begin(), field.end(), is_hex))
-      return malformed(fmt::format("'{}' is not hex", printable(field)));
+      return malformed(fmt::format("'{}' is not hex", printable_bytes(field)));
     std::from_chars(field.data(), field.data() + field.size(), raw, 16);
     r.values.push_back(sign_extend_24(raw));
   }
@@ -352,7 +343,8 @@ ParsedReply parse_peek(std::string_view frame) {
   if (frame.empty()) return malformed("empty peek reply");
   if (frame.size() == 1) return single_character(frame.front(), "data");
   if (frame.size() != 3 || frame.front() != kAck || !is_hex(frame[1]) || !is_hex(frame[2]))
-    return malformed(fmt::format("expected '0' and two hex digits, got '{}'", printable(frame)));
+    return malformed(
+        fmt::format("expected '0' and two hex digits, got '{}'", printable_bytes(frame)));
   ParsedReply r;
   r.kind = ParsedReply::Kind::ok;
   r.code = kAck;

@@ -4,28 +4,14 @@
 
 #include <algorithm>
 
+#include "drivers/printable_bytes.hpp"
+
 namespace fieldgate {
 
 namespace {
 
 using whedco::EchoMode;
 using whedco::QueryKind;
-
-std::string printable(std::string_view bytes) {
-  std::string out;
-  for (const char c : bytes) {
-    const auto u = static_cast<unsigned char>(c);
-    if (c == '\r')
-      out += "\\r";
-    else if (c == '\n')
-      out += "\\n";
-    else if (u < 0x20 || u >= 0x7f)
-      out += fmt::format("\\x{:02x}", u);
-    else
-      out += c;
-  }
-  return out;
-}
 
 bool has_control_bytes(std::string_view s) {
   for (const char c : s) {
@@ -62,7 +48,7 @@ Reply rejected(std::string_view body, std::string_view line) {
   Reply r;
   r.status = Reply::Status::device_error;
   r.device_code = whedco::kRejected;
-  r.text = fmt::format("unit answered '{}' to '{}'", printable(body), line);
+  r.text = fmt::format("unit answered '{}' to '{}'", printable_bytes(body), line);
   return r;
 }
 
@@ -192,23 +178,23 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
   std::string_view body = whedco::strip_echo(frame, x.line, echoed);
   const auto prompt = body.rfind(whedco::kPrompt);
   if (prompt == std::string_view::npos)
-    return garbled("no '*' prompt in '" + printable(frame) + "'");
+    return garbled("no '*' prompt in '" + printable_bytes(frame) + "'");
   body = trim(body.substr(0, prompt));
   if (x.mode == EchoMode::echo && !echoed)
     return garbled(
         fmt::format("no echo of '{}' before '{}': is the unit set to non-echo "
                     "(SW2-5)?",
-                    x.line, printable(frame)));
+                    x.line, printable_bytes(frame)));
   if (x.mode == EchoMode::non_echo && echoed)
     return garbled(
         fmt::format("the unit echoed '{}': it is set to echo (SW2-5), the node to "
                     "non-echo",
                     x.line));
-  if (has_control_bytes(body)) return garbled("'" + printable(frame) + "'");
+  if (has_control_bytes(body)) return garbled("'" + printable_bytes(frame) + "'");
   // An echo that went wrong on the line: the unit's address followed by a mnemonic.
   if (!echoed && x.mode != EchoMode::non_echo && body.size() >= 2 && body[0] == x.line[0] &&
       ((body[1] >= 'A' && body[1] <= 'Z') || body[1] == '!'))
-    return garbled(fmt::format("corrupted echo '{}' of '{}'", printable(frame), x.line));
+    return garbled(fmt::format("corrupted echo '{}' of '{}'", printable_bytes(frame), x.line));
 
   Reply r;
   if (x.expect == Request::Expect::ack) {
@@ -225,7 +211,7 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
         code = numbers->front().mantissa;
       else if (const auto from_text = whedco::axis_fault_from_text(body))
         code = *from_text;
-      if (!code) return has_text(body) ? rejected(body, x.line) : garbled(printable(frame));
+      if (!code) return has_text(body) ? rejected(body, x.line) : garbled(printable_bytes(frame));
       r.status = Reply::Status::ok;
       r.values = {*code, *code != whedco::kAxisFunctional ? 1 : 0};
       return r;
@@ -241,7 +227,7 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
       } else {
         code = whedco::unit_fault_from_text(body);
       }
-      if (!code) return has_text(body) ? rejected(body, x.line) : garbled(printable(frame));
+      if (!code) return has_text(body) ? rejected(body, x.line) : garbled(printable_bytes(frame));
       found.unit_fault_number = number;
       bool functional = *code == whedco::kUnitFunctional;
       // Non-echo numbers: the excerpt gives no base numbers. 0 (base x 256 + axis byte) and 8
@@ -276,10 +262,10 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
   }
   const auto numbers = whedco::parse_numbers(body, x.format == NumberFormat::hex);
   if (!numbers || numbers->empty())
-    return has_text(body) ? rejected(body, x.line) : garbled("'" + printable(frame) + "'");
+    return has_text(body) ? rejected(body, x.line) : garbled("'" + printable_bytes(frame) + "'");
   for (const auto& n : *numbers) {
     const auto v = whedco::to_internal(n, x.unit_ratio);
-    if (!v) return garbled(fmt::format("value '{}' out of range", printable(body)));
+    if (!v) return garbled(fmt::format("value '{}' out of range", printable_bytes(body)));
     r.values.push_back(*v);
   }
   r.status = Reply::Status::ok;
@@ -371,7 +357,7 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const NodeAddress& nod
         resync_ = Resync::void_and_drain;
       } else {
         r.status = Reply::Status::garbled;
-        r.text = "incomplete reply '" + printable(read.partial) + "'";
+        r.text = "incomplete reply '" + printable_bytes(read.partial) + "'";
         resync_ = Resync::void_and_drain;
       }
       co_return r;
