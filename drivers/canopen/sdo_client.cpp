@@ -40,37 +40,32 @@ std::optional<TimePoint> SdoClient::deadline() const {
 }
 
 SdoStep SdoClient::upload(uint16_t index, uint8_t sub, TimePoint now) {
-  if (!idle()) {
-    SdoResult r;
-    r.status = SdoResult::Status::client_abort;
-    r.abort_code = sdo_abort::general;
-    r.text = "an SDO transfer to this node is already running";
-    return {std::nullopt, r};
-  }
-  index_ = index;
-  sub_ = sub;
-  toggle_ = false;
-  size_.reset();
-  data_.clear();
-  offset_ = 0;
+  if (!idle()) return busy();
+  begin(index, sub, {});
   return request(kUploadInitiate, sdo_upload_request(index, sub), now);
 }
 
 SdoStep SdoClient::download(uint16_t index, uint8_t sub, std::vector<uint8_t> data, TimePoint now) {
-  if (!idle()) {
-    SdoResult r;
-    r.status = SdoResult::Status::client_abort;
-    r.abort_code = sdo_abort::general;
-    r.text = "an SDO transfer to this node is already running";
-    return {std::nullopt, r};
-  }
+  if (!idle()) return busy();
+  begin(index, sub, std::move(data));
+  return request(kDownloadInitiate, sdo_download_request(index, sub, data_), now);
+}
+
+SdoStep SdoClient::busy() const {
+  SdoResult r;
+  r.status = SdoResult::Status::client_abort;
+  r.abort_code = sdo_abort::general;
+  r.text = "an SDO transfer to this node is already running";
+  return {std::nullopt, r};
+}
+
+void SdoClient::begin(uint16_t index, uint8_t sub, std::vector<uint8_t> data) {
   index_ = index;
   sub_ = sub;
   toggle_ = false;
   size_.reset();
   data_ = std::move(data);
   offset_ = 0;
-  return request(kDownloadInitiate, sdo_download_request(index, sub, data_), now);
 }
 
 SdoStep SdoClient::on_frame(const CanFrame& frame, TimePoint now) {
@@ -144,16 +139,28 @@ SdoStep SdoClient::idle_recv(const SdoPayload&, TimePoint) {
   return {};
 }
 
-SdoStep SdoClient::upload_initiate_recv(const SdoPayload& response, TimePoint now) {
+// What every response is checked for first: the server's abort of this transfer (one naming
+// another object is a late answer to an earlier transfer, and ignored), or a command specifier
+// other than the one `request` expects.
+std::optional<SdoStep> SdoClient::screen(const SdoPayload& response, uint8_t expected,
+                                         std::string_view request, TimePoint now) {
   const uint8_t cs = scs(response);
-  if (cs == kScsAbort) {
-    if (!same_object(response)) return idle_recv(response, now);
-    return server_abort(response);
-  }
-  if (cs != kScsInitiateUpload)
-    return client_abort(
-        sdo_abort::command_specifier,
-        fmt::format("unexpected response 0x{:02X} to an upload request", response[0]));
+  if (cs == kScsAbort)
+    return same_object(response) ? server_abort(response) : idle_recv(response, now);
+  if (cs != expected)
+    return client_abort(sdo_abort::command_specifier,
+                        fmt::format("unexpected response 0x{:02X} to {}", response[0], request));
+  return std::nullopt;
+}
+
+SdoStep SdoClient::toggle_mismatch() {
+  return client_abort(sdo_abort::toggle_bit, fmt::format("toggle bit {} where {} was due",
+                                                         toggle_ ? 0 : 1, toggle_ ? 1 : 0));
+}
+
+SdoStep SdoClient::upload_initiate_recv(const SdoPayload& response, TimePoint now) {
+  if (auto refused = screen(response, kScsInitiateUpload, "an upload request", now))
+    return std::move(*refused);
   if (!same_object(response)) return idle_recv(response, now);  // a late answer to another
   const bool expedited = response[0] & 0x02;
   const bool size_indicated = response[0] & 0x01;
@@ -175,19 +182,9 @@ SdoStep SdoClient::upload_initiate_recv(const SdoPayload& response, TimePoint no
 }
 
 SdoStep SdoClient::upload_segment_recv(const SdoPayload& response, TimePoint now) {
-  const uint8_t cs = scs(response);
-  if (cs == kScsAbort) {
-    if (!same_object(response)) return idle_recv(response, now);
-    return server_abort(response);
-  }
-  if (cs != kScsUploadSegment)
-    return client_abort(
-        sdo_abort::command_specifier,
-        fmt::format("unexpected response 0x{:02X} to an upload segment request", response[0]));
-  if (toggle_of(response) != toggle_)
-    return client_abort(sdo_abort::toggle_bit,
-                        fmt::format("toggle bit {} where {} was due", toggle_of(response) ? 1 : 0,
-                                    toggle_ ? 1 : 0));
+  if (auto refused = screen(response, kScsUploadSegment, "an upload segment request", now))
+    return std::move(*refused);
+  if (toggle_of(response) != toggle_) return toggle_mismatch();
   const std::size_t n = 7 - ((response[0] >> 1) & 0x07);
   const bool last = response[0] & 0x01;
   data_.insert(data_.end(), response.begin() + 1,
@@ -213,15 +210,8 @@ SdoStep SdoClient::upload_segment_recv(const SdoPayload& response, TimePoint now
 }
 
 SdoStep SdoClient::download_initiate_recv(const SdoPayload& response, TimePoint now) {
-  const uint8_t cs = scs(response);
-  if (cs == kScsAbort) {
-    if (!same_object(response)) return idle_recv(response, now);
-    return server_abort(response);
-  }
-  if (cs != kScsInitiateDownload)
-    return client_abort(
-        sdo_abort::command_specifier,
-        fmt::format("unexpected response 0x{:02X} to a download request", response[0]));
+  if (auto refused = screen(response, kScsInitiateDownload, "a download request", now))
+    return std::move(*refused);
   if (!same_object(response)) return idle_recv(response, now);
   if (!data_.empty() && data_.size() <= 4) return finish_ok();  // expedited: done
   toggle_ = false;
@@ -238,19 +228,9 @@ SdoStep SdoClient::next_download_segment(TimePoint now) {
 }
 
 SdoStep SdoClient::download_segment_recv(const SdoPayload& response, TimePoint now) {
-  const uint8_t cs = scs(response);
-  if (cs == kScsAbort) {
-    if (!same_object(response)) return idle_recv(response, now);
-    return server_abort(response);
-  }
-  if (cs != kScsDownloadSegment)
-    return client_abort(
-        sdo_abort::command_specifier,
-        fmt::format("unexpected response 0x{:02X} to a download segment", response[0]));
-  if (toggle_of(response) != toggle_)
-    return client_abort(sdo_abort::toggle_bit,
-                        fmt::format("toggle bit {} where {} was due", toggle_of(response) ? 1 : 0,
-                                    toggle_ ? 1 : 0));
+  if (auto refused = screen(response, kScsDownloadSegment, "a download segment", now))
+    return std::move(*refused);
+  if (toggle_of(response) != toggle_) return toggle_mismatch();
   if (offset_ >= data_.size()) return finish_ok();
   toggle_ = !toggle_;
   return next_download_segment(now);

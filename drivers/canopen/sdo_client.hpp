@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "drivers/canopen/can_frame.hpp"
@@ -79,6 +80,11 @@ class SdoClient {
   SdoStep download_segment_recv(const SdoPayload& response, TimePoint now);
 
   bool same_object(const SdoPayload& response) const;
+  std::optional<SdoStep> screen(const SdoPayload& response, uint8_t expected,
+                                std::string_view request, TimePoint now);
+  SdoStep toggle_mismatch();
+  SdoStep busy() const;
+  void begin(uint16_t index, uint8_t sub, std::vector<uint8_t> data);
   SdoStep request(const State& next, const SdoPayload& payload, TimePoint now);
   SdoStep next_download_segment(TimePoint now);
   SdoStep finish_ok();
