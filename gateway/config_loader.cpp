@@ -522,8 +522,9 @@ class ConfigParser {
     }
     bus.signature = YAML::Dump(node) + "\n--- link " + bus.transport.serial.device + " " +
                     bus.transport.host + " " + bus.transport.can_interface + "\n";
+    std::set<const Model*> models;  // each model's text once, however many nodes use it
     for (const auto& n : bus.nodes)
-      if (n.model)
+      if (n.model && models.insert(n.model.get()).second)
         bus.signature += "\n--- model " + n.model->name + "\n" + file_text(n.model->mark.file);
     config.buses.push_back(std::move(bus));
   }
