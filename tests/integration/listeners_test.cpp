@@ -3,6 +3,11 @@
 // clients.
 #include <gtest/gtest.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <csignal>
 #include <cstdio>
 #include <fstream>
@@ -19,7 +24,7 @@ const char* kNodes =
     "      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1}\n"
     "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 1, listener: line-b}\n";
 
-std::unique_ptr<Plant> plant(const std::string& line_b_extra = "") {
+std::unique_ptr<Plant> plant(const std::string& line_b_extra = "", const std::string& top = "") {
   SimulatedBus bus;
   bus.name = "copley";
   bus.protocol = "copley-ascii";
@@ -27,7 +32,7 @@ std::unique_ptr<Plant> plant(const std::string& line_b_extra = "") {
   bus.nodes = kNodes;
   return std::make_unique<Plant>(
       std::vector<SimulatedBus>{bus},
-      "listeners:\n  - {name: line-b, listen: 127.0.0.1:0" + line_b_extra + "}\n");
+      top + "listeners:\n  - {name: line-b, listen: 127.0.0.1:0" + line_b_extra + "}\n");
 }
 
 int listener_port(ChildProcess& daemon, const std::string& name) {
@@ -122,6 +127,50 @@ TEST(Listeners, ReloadKeepsAnUnchangedListenersClientsAndOpensANewOne) {
   EXPECT_EQ(a.read_input(1, 1000, 1).exception, 0x0A);
   ModbusClient c("127.0.0.1", port_c);
   EXPECT_TRUE(wait_until([&] { return c.read_input(9, 0, 2).ok(); }));
+}
+
+std::string http_get(int port, const std::string& target) {
+  const int s = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(s, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(s);
+    return {};
+  }
+  const std::string req = "GET " + target + " HTTP/1.1\r\nHost: localhost\r\n\r\n";
+  ::send(s, req.data(), req.size(), 0);
+  std::string response;
+  char buf[4096];
+  ssize_t n;
+  while ((n = ::recv(s, buf, sizeof buf, 0)) > 0) response.append(buf, static_cast<std::size_t>(n));
+  ::close(s);
+  return response;
+}
+
+TEST(Listeners, MetricsPerListener) {
+  auto p = plant("", "metrics:\n  listen: 127.0.0.1:0\n");
+  const int port_b = listener_port(p->daemon(), "line-b");
+  ASSERT_GT(port_b, 0) << p->daemon().log();
+  const std::regex listening("metrics: http://127.0.0.1:([0-9]+)/metrics");
+  std::smatch m;
+  const std::string log = p->daemon().log();
+  ASSERT_TRUE(std::regex_search(log, m, listening)) << log;
+  ModbusClient b("127.0.0.1", port_b);
+  wait_online(b, 1);
+  const std::string body = http_get(std::stoi(m[1]), "/metrics");
+  EXPECT_NE(body.find("\nfieldgate_modbus_clients{listener=\"line-b\"} 1\n"), std::string::npos)
+      << body;
+  EXPECT_NE(body.find("\nfieldgate_modbus_clients{listener=\"default\"} 0\n"), std::string::npos);
+  EXPECT_NE(body.find("fieldgate_modbus_requests_total{listener=\"line-b\",function=\"4\"}"),
+            std::string::npos);
+  EXPECT_EQ(body.find("fieldgate_modbus_requests_total{listener=\"default\",function=\"4\"}"),
+            std::string::npos);
+  EXPECT_NE(
+      body.find(
+          "fieldgate_node_online{bus=\"copley\",node=\"amp3\",unit=\"1\",listener=\"line-b\"} 1"),
+      std::string::npos);
 }
 
 TEST(Listeners, CheckAndMapShowEachListener) {
