@@ -40,12 +40,29 @@ LinkTiming node_link_timing(const BusConfig& bus, const NodeConfig& node) {
   return t;
 }
 
-std::vector<NodeBinding> GatewayConfig::node_bindings() const {
+const ModbusConfig& GatewayConfig::listener_modbus(std::size_t listener) const {
+  return listener == 0 ? modbus : listeners.at(listener - 1).modbus;
+}
+
+std::string GatewayConfig::listener_name(std::size_t listener) const {
+  return listener == 0 ? std::string(kDefaultListener) : listeners.at(listener - 1).name;
+}
+
+std::optional<std::size_t> GatewayConfig::find_listener(const std::string& name) const {
+  for (std::size_t i = 0; i < listener_count(); ++i)
+    if (listener_name(i) == name) return i;
+  return std::nullopt;
+}
+
+std::vector<NodeBinding> GatewayConfig::node_bindings(std::size_t listener) const {
   std::vector<NodeBinding> bindings;
   int index = 0;
   for (const auto& bus : buses)
-    for (const auto& node : bus.nodes)
-      bindings.push_back({node.unit_id, index++, node.name, bus.name, node.model});
+    for (const auto& node : bus.nodes) {
+      if (node.listener == listener)
+        bindings.push_back({node.unit_id, index, node.name, bus.name, node.model});
+      ++index;
+    }
   return bindings;
 }
 
@@ -60,10 +77,15 @@ class ConfigParser {
   std::optional<GatewayConfig> parse(const YAML::Node& root) {
     if (!root.IsDefined()) return std::nullopt;
     if (!r_.expect_map(root, "gateway configuration")) return std::nullopt;
-    r_.reject_unknown_keys(root, {"modbus", "metrics", "models", "buses"}, "gateway configuration");
+    r_.reject_unknown_keys(root, {"modbus", "listeners", "metrics", "models", "buses"},
+                           "gateway configuration");
     GatewayConfig config;
     config.file = r_.file();
-    if (root["modbus"]) parse_modbus(root["modbus"], config.modbus);
+    if (root["modbus"]) parse_modbus(root["modbus"], config.modbus, "modbus");
+    listener_marks_.push_back(root["modbus"] ? r_.mark(root["modbus"]) : r_.mark(root));
+    if (const auto listeners = root["listeners"];
+        listeners && r_.expect_sequence(listeners, "listeners"))
+      for (const auto& l : listeners) parse_listener(l, config);
     if (root["metrics"]) parse_metrics(root["metrics"], config.metrics);
     parse_model_dirs(root["models"], config);
     for (const auto& dir : config.model_dirs) library_.load_directory(dir, r_.diagnostics());
@@ -125,6 +147,50 @@ class ConfigParser {
     port_out = static_cast<uint16_t>(*port);
   }
 
+  void parse_listener(const YAML::Node& node, GatewayConfig& config) {
+    if (!r_.expect_map(node, "listener")) return;
+    ListenerConfig l;
+    l.mark = r_.mark(node);
+    std::string where = "listener";
+    if (auto n = r_.require(node, "name", where))
+      if (auto s = r_.string(*n, "listener name")) {
+        l.name = *s;
+        where = "listener " + *s;
+        if (config.find_listener(*s))
+          r_.error(*n, fmt::format("{}: listener name is already used{}", where,
+                                   *s == kDefaultListener ? " (by the modbus: section)" : ""));
+      }
+    if (!r_.require(node, "listen", where)) return;
+    parse_modbus(node, l.modbus, where, true);
+    for (std::size_t i = 0; i < config.listener_count(); ++i) {
+      const auto& other = config.listener_modbus(i);
+      if (other.port != l.modbus.port || l.modbus.port == 0) continue;
+      const auto unspecified = [](const std::string& a) { return a == "0.0.0.0" || a == "::"; };
+      if (other.address == l.modbus.address || unspecified(other.address) ||
+          unspecified(l.modbus.address))
+        r_.error(node["listen"],
+                 fmt::format("{}: {}:{} overlaps listener {} ({}:{}, {})", where, l.modbus.address,
+                             l.modbus.port, config.listener_name(i), other.address, other.port,
+                             to_string(listener_marks_[i])));
+    }
+    listener_marks_.push_back(l.mark);
+    config.listeners.push_back(std::move(l));
+  }
+
+  // A node's listener: its own `listener:` key, else its bus's, else the default.
+  std::size_t resolve_listener(const YAML::Node& key, const GatewayConfig& config,
+                               const std::string& where, std::size_t fallback) {
+    if (!key) return fallback;
+    const auto name = r_.string(key, where + " listener");
+    if (!name) return fallback;
+    if (const auto i = config.find_listener(*name)) return *i;
+    std::string known;
+    for (std::size_t i = 0; i < config.listener_count(); ++i)
+      known += (known.empty() ? "" : ", ") + config.listener_name(i);
+    r_.error(key, fmt::format("{}: unknown listener '{}' (listeners: {})", where, *name, known));
+    return fallback;
+  }
+
   void parse_metrics(const YAML::Node& node, MetricsConfig& m) {
     if (!r_.expect_map(node, "metrics")) return;
     r_.reject_unknown_keys(node, {"listen", "enabled"}, "metrics");
@@ -133,90 +199,97 @@ class ConfigParser {
     if (node["listen"]) parse_listen(node["listen"], "metrics listen", m.address, m.port);
   }
 
-  void parse_modbus(const YAML::Node& node, ModbusConfig& m) {
-    if (!r_.expect_map(node, "modbus")) return;
-    r_.reject_unknown_keys(node,
-                           {"listen", "max_clients", "when_full", "max_clients_per_address",
-                            "idle_timeout", "request_timeout", "word_order", "offline_reads",
-                            "writes_enabled", "allow", "read_only_units", "read_only_tables"},
-                           "modbus");
+  // `what` is "modbus" or "listener NAME"; a listener entry also has a name.
+  void parse_modbus(const YAML::Node& node, ModbusConfig& m, const std::string& what,
+                    bool named = false) {
+    if (!r_.expect_map(node, what)) return;
+    r_.reject_unknown_keys(
+        node,
+        {"listen", "max_clients", "when_full", "max_clients_per_address", "idle_timeout",
+         "request_timeout", "word_order", "offline_reads", "writes_enabled", "allow",
+         "read_only_units", "read_only_tables", "name"},
+        what);
+    if (!named && node["name"])
+      r_.error(node["name"], what + ": the default listener has no name (it is '" +
+                                 kDefaultListener + "'); further ones go under listeners:");
     if (const auto listen = node["listen"])
-      parse_listen(listen, "modbus listen", m.address, m.port);
+      parse_listen(listen, what + " listen", m.address, m.port);
     if (node["max_clients"])
       m.max_clients = static_cast<std::size_t>(
-          r_.integer(node["max_clients"], "modbus max_clients", 1, 1024).value_or(32));
+          r_.integer(node["max_clients"], what + " max_clients", 1, 1024).value_or(32));
     if (const auto wf = node["when_full"]) {
-      const auto text = r_.string(wf, "modbus when_full");
+      const auto text = r_.string(wf, what + " when_full");
       if (text && (*text == "evict_idle" || *text == "refuse"))
         m.evict_when_full = *text == "evict_idle";
       else if (text)
-        r_.error(wf,
-                 fmt::format("modbus when_full: expected evict_idle or refuse, found '{}'", *text));
+        r_.error(wf, fmt::format("{} when_full: expected evict_idle or refuse, found '{}'", what,
+                                 *text));
     }
     if (node["max_clients_per_address"])
       m.max_clients_per_address = static_cast<std::size_t>(
-          r_.integer(node["max_clients_per_address"], "modbus max_clients_per_address", 0, 1024)
+          r_.integer(node["max_clients_per_address"], what + " max_clients_per_address", 0, 1024)
               .value_or(0));
     if (node["idle_timeout"])
       m.idle_timeout =
-          r_.duration(node["idle_timeout"], "modbus idle_timeout").value_or(m.idle_timeout);
+          r_.duration(node["idle_timeout"], what + " idle_timeout").value_or(m.idle_timeout);
     if (const auto wo = node["word_order"]) {
-      auto text = r_.string(wo, "modbus word_order");
+      auto text = r_.string(wo, what + " word_order");
       if (text) {
         if (auto order = parse_word_order(*text))
           m.word_order = *order;
         else
-          r_.error(wo, fmt::format("modbus word_order: expected high_first or low_first, found "
+          r_.error(wo, fmt::format("{} word_order: expected high_first or low_first, found "
                                    "'{}'",
-                                   *text));
+                                   what, *text));
       }
     }
     if (const auto o = node["offline_reads"]) {
-      auto text = r_.string(o, "modbus offline_reads");
+      auto text = r_.string(o, what + " offline_reads");
       if (text && *text == "exception")
         m.offline_reads = OfflineReads::exception;
       else if (text && *text == "last_value")
         m.offline_reads = OfflineReads::last_value;
       else if (text)
-        r_.error(o, fmt::format("modbus offline_reads: expected exception or last_value, found "
+        r_.error(o, fmt::format("{} offline_reads: expected exception or last_value, found "
                                 "'{}'",
-                                *text));
+                                what, *text));
     }
     if (node["writes_enabled"])
-      m.writes_enabled = r_.boolean(node["writes_enabled"], "modbus writes_enabled").value_or(true);
+      m.writes_enabled =
+          r_.boolean(node["writes_enabled"], what + " writes_enabled").value_or(true);
     if (node["request_timeout"])
-      m.request_timeout = r_.duration(node["request_timeout"], "modbus request_timeout")
+      m.request_timeout = r_.duration(node["request_timeout"], what + " request_timeout")
                               .value_or(m.request_timeout);
-    if (const auto allow = node["allow"]; allow && r_.expect_sequence(allow, "modbus allow")) {
+    if (const auto allow = node["allow"]; allow && r_.expect_sequence(allow, what + " allow")) {
       std::vector<Cidr> entries;
       for (const auto& item : allow) {
-        auto text = r_.string(item, "modbus allow");
+        auto text = r_.string(item, what + " allow");
         if (!text) continue;
         std::string error;
         if (auto c = Cidr::parse(*text, error))
           entries.push_back(*c);
         else
-          r_.error(item, "modbus allow: " + error);
+          r_.error(item, what + " allow: " + error);
       }
       m.allow = ClientAllowList(std::move(entries));
     }
     if (const auto units = node["read_only_units"];
-        units && r_.expect_sequence(units, "modbus read_only_units"))
+        units && r_.expect_sequence(units, what + " read_only_units"))
       for (const auto& item : units)
-        if (auto u = r_.integer(item, "modbus read_only_units", 1, 247))
+        if (auto u = r_.integer(item, what + " read_only_units", 1, 247))
           m.read_only_units.push_back(static_cast<uint8_t>(*u));
     if (const auto tables = node["read_only_tables"];
-        tables && r_.expect_sequence(tables, "modbus read_only_tables"))
+        tables && r_.expect_sequence(tables, what + " read_only_tables"))
       for (const auto& item : tables) {
-        const auto t = r_.string(item, "modbus read_only_tables");
+        const auto t = r_.string(item, what + " read_only_tables");
         if (t && *t == "coils")
           m.read_only_coils = true;
         else if (t && *t == "holding_registers")
           m.read_only_holding = true;
         else if (t)
-          r_.error(item, fmt::format("modbus read_only_tables: expected coils or "
+          r_.error(item, fmt::format("{} read_only_tables: expected coils or "
                                      "holding_registers (the only writable tables), found '{}'",
-                                     *t));
+                                     what, *t));
       }
   }
 
@@ -367,8 +440,9 @@ class ConfigParser {
         for (const auto& other : config.buses)
           if (other.name == *s) r_.error(*n, fmt::format("{}: bus name is already used", where));
       }
-    r_.reject_unknown_keys(node, {"name", "protocol", "serial", "tcp", "can", "timing", "nodes"},
-                           where);
+    r_.reject_unknown_keys(
+        node, {"name", "protocol", "serial", "tcp", "can", "timing", "nodes", "listener"}, where);
+    bus_listener_ = resolve_listener(node["listener"], config, where, 0);
     if (auto p = r_.require(node, "protocol", where)) {
       if (auto s = r_.string(*p, where + " protocol")) {
         bus.protocol = *s;
@@ -448,8 +522,9 @@ class ConfigParser {
     }
     bus.signature = YAML::Dump(node) + "\n--- link " + bus.transport.serial.device + " " +
                     bus.transport.host + " " + bus.transport.can_interface + "\n";
+    std::set<const Model*> models;  // each model's text once, however many nodes use it
     for (const auto& n : bus.nodes)
-      if (n.model)
+      if (n.model && models.insert(n.model.get()).second)
         bus.signature += "\n--- model " + n.model->name + "\n" + file_text(n.model->mark.file);
     config.buses.push_back(std::move(bus));
   }
@@ -474,10 +549,11 @@ class ConfigParser {
         if (!node_names_.insert(*s).second)
           r_.error(*name, fmt::format("{}: node name is already used", where));
       }
-    r_.reject_unknown_keys(
-        node,
-        {"name", "address", "model", "unit_id", "poll", "setpoints", "limits", "reply_timeout"},
-        where);
+    r_.reject_unknown_keys(node,
+                           {"name", "address", "model", "unit_id", "poll", "setpoints", "limits",
+                            "reply_timeout", "listener"},
+                           where);
+    n.listener = resolve_listener(node["listener"], config, where, bus_listener_);
     if (node["reply_timeout"]) {
       n.reply_timeout = r_.duration(node["reply_timeout"], where + " reply_timeout");
       if (n.reply_timeout && n.reply_timeout->count() <= 0)
@@ -518,9 +594,12 @@ class ConfigParser {
     if (auto u = r_.require(node, "unit_id", where)) {
       if (auto id = r_.integer(*u, where + " unit_id", 1, 247)) {
         n.unit_id = static_cast<uint8_t>(*id);
-        if (auto [it, fresh] = unit_ids_.emplace(n.unit_id, n.name); !fresh)
-          r_.error(
-              *u, fmt::format("{}: unit_id {} is already used by node {}", where, *id, it->second));
+        const auto [it, fresh] =
+            unit_ids_.try_emplace({n.listener, n.unit_id}, UnitOwner{n.name, r_.mark(*u)});
+        if (!fresh)
+          r_.error(*u, fmt::format("{}: unit_id {} is already used by node {} ({}) on listener {}",
+                                   where, *id, it->second.node, to_string(it->second.mark),
+                                   config.listener_name(n.listener)));
       }
     }
     if (const auto poll = node["poll"]; poll && r_.expect_map(poll, where + " poll")) {
@@ -580,14 +659,19 @@ class ConfigParser {
         n.limits[name] = l;
       }
     }
-    (void)config;
     bus.nodes.push_back(std::move(n));
   }
 
   YamlReader& r_;
   ModelLibrary library_;
   std::set<std::string> node_names_;
-  std::map<uint8_t, std::string> unit_ids_;
+  struct UnitOwner {
+    std::string node;
+    SourceMark mark;
+  };
+  std::map<std::pair<std::size_t, uint8_t>, UnitOwner> unit_ids_;  // by (listener, unit ID)
+  std::vector<SourceMark> listener_marks_;                         // by listener index
+  std::size_t bus_listener_ = 0;  // the listener of the bus being parsed
   std::set<const Model*> validated_;
 };
 
@@ -598,9 +682,15 @@ std::optional<LoadedConfig> load_gateway_config(const std::string& path, Diagnos
   ConfigParser parser(reader);
   auto gateway = parser.parse(reader.load_file());
   if (!gateway || !diagnostics.ok()) return std::nullopt;
-  auto map = RegisterMap::build(gateway->node_bindings(), gateway->modbus.word_order, diagnostics);
+  LoadedConfig loaded;
+  loaded.register_map =
+      RegisterMap::build(gateway->node_bindings(0), gateway->modbus.word_order, diagnostics);
+  for (std::size_t i = 1; i < gateway->listener_count(); ++i)
+    loaded.listener_maps.push_back(RegisterMap::build(
+        gateway->node_bindings(i), gateway->listener_modbus(i).word_order, diagnostics));
   if (!diagnostics.ok()) return std::nullopt;
-  return LoadedConfig{std::move(*gateway), std::move(map)};
+  loaded.gateway = std::move(*gateway);
+  return loaded;
 }
 
 }  // namespace fieldgate

@@ -1,5 +1,7 @@
 #include "gateway/gateway.hpp"
 
+#include <algorithm>
+
 #include <boost/asio/co_spawn.hpp>
 #include <boost/asio/detached.hpp>
 #include <boost/asio/ip/address.hpp>
@@ -52,12 +54,29 @@ std::shared_ptr<Gateway::Generation> Gateway::build(std::shared_ptr<const Loaded
         static_cast<std::size_t>(raw->bus_of_node.at(static_cast<std::size_t>(n))));
   };
   g->actions = std::make_unique<ActionRunner>(io_.get_executor(), g->image, bus_of);
-  g->handler = std::make_shared<RegisterMapHandler>(config, g->image, *g->actions, bus_of);
+  for (std::size_t l = 0; l < config->gateway.listener_count(); ++l)
+    g->handlers.push_back(make_handler(*g, l));
   return g;
 }
 
-modbus::ModbusTcpServerOptions Gateway::server_options(const GatewayConfig& config) const {
-  const auto& m = config.modbus;
+std::shared_ptr<RegisterMapHandler> Gateway::make_handler(Generation& g, std::size_t listener) {
+  Generation* raw = &g;
+  const auto bus_of = [raw](int n) -> Bus& {
+    return *raw->buses.at(
+        static_cast<std::size_t>(raw->bus_of_node.at(static_cast<std::size_t>(n))));
+  };
+  return std::make_shared<RegisterMapHandler>(g.config, listener, g.image, *g.actions, bus_of);
+}
+
+std::shared_ptr<modbus::RequestHandler> Gateway::handler(std::string_view listener) const {
+  const auto index = current_->config->gateway.find_listener(std::string(listener));
+  if (!index) return nullptr;
+  return current_->handlers.at(*index);
+}
+
+modbus::ModbusTcpServerOptions Gateway::server_options(const GatewayConfig& config,
+                                                       std::size_t listener) {
+  const auto& m = config.listener_modbus(listener);
   modbus::ModbusTcpServerOptions options;
   options.endpoint = asio::ip::tcp::endpoint(asio::ip::make_address(m.address), m.port);
   options.max_clients = m.max_clients;
@@ -66,10 +85,12 @@ modbus::ModbusTcpServerOptions Gateway::server_options(const GatewayConfig& conf
   options.idle_timeout = m.idle_timeout;
   options.request_timeout = m.request_timeout;
   if (!m.allow.empty()) {
-    options.allow_client = [allow = m.allow](const asio::ip::address& peer) {
+    options.allow_client = [allow = m.allow,
+                            name = config.listener_name(listener)](const asio::ip::address& peer) {
       const bool allowed = allow.allows(peer);
       if (!allowed)
-        log::warning("modbus: refused client {} (not in the allow list)", peer.to_string());
+        log::warning("modbus {}: refused client {} (not in the allow list)", name,
+                     peer.to_string());
       return allowed;
     };
   }
@@ -82,12 +103,24 @@ void Gateway::spawn(const std::shared_ptr<Bus>& bus) {
       io_, [bus]() -> asio::awaitable<void> { co_await bus->run(); }, asio::detached);
 }
 
+std::unique_ptr<modbus::ModbusTcpServer> Gateway::open_listener(const Generation& g,
+                                                                std::size_t listener) {
+  const auto& config = g.config->gateway;
+  auto server = std::make_unique<modbus::ModbusTcpServer>(
+      io_.get_executor(), server_options(config, listener), g.handlers.at(listener));
+  server->start();
+  const auto ep = server->local_endpoint();
+  if (listener == 0)  // as with a single listener, which scripts and tests look for
+    log::notice("modbus: listening on {}:{}", ep.address().to_string(), ep.port());
+  else
+    log::notice("modbus {}: listening on {}:{} ({} unit(s))", config.listener_name(listener),
+                ep.address().to_string(), ep.port(), g.config->map_of(listener).units().size());
+  return server;
+}
+
 void Gateway::start() {
-  server_ = std::make_unique<modbus::ModbusTcpServer>(
-      io_.get_executor(), server_options(current_->config->gateway), current_->handler);
-  server_->start();
-  const auto ep = server_->local_endpoint();
-  log::notice("modbus: listening on {}:{}", ep.address().to_string(), ep.port());
+  for (std::size_t l = 0; l < current_->config->gateway.listener_count(); ++l)
+    listeners_.push_back({current_->config->gateway.listener_name(l), open_listener(*current_, l)});
   start_metrics();
   for (auto& bus : pending_start_) spawn(bus);
   pending_start_.clear();
@@ -125,18 +158,7 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
       ++stopped;
     }
   }
-  auto options = server_options(next->config->gateway);
-  if (server_) {
-    server_->set_handler(next->handler);
-    if (!server_->reconfigure(options)) {
-      log::warning(
-          "modbus: the listen address changed; reopening the listener (clients reconnect)");
-      server_->stop();
-      server_ =
-          std::make_unique<modbus::ModbusTcpServer>(io_.get_executor(), options, next->handler);
-      server_->start();
-    }
-  }
+  const std::string listener_summary = apply_listeners(*next);
   const auto& old_metrics = current_->config->gateway.metrics;
   const auto& new_metrics = next->config->gateway.metrics;
   const bool metrics_changed = old_metrics.enabled != new_metrics.enabled ||
@@ -146,12 +168,57 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
   current_ = next;
   if (metrics_changed) start_metrics();
   for (auto& bus : fresh) spawn(bus);
-  return fmt::format("{} bus(es) kept running, {} started, {} stopped", kept, fresh.size(),
-                     stopped);
+  return fmt::format("{} bus(es) kept running, {} started, {} stopped{}", kept, fresh.size(),
+                     stopped, listener_summary);
+}
+
+// A listener of the same name keeps its socket and clients (new requests get the new handler);
+// one whose address changed is reopened; a new one is opened, a removed one closed.
+std::string Gateway::apply_listeners(const Generation& next) {
+  if (listeners_.empty()) return "";  // not started
+  const auto& config = next.config->gateway;
+  std::vector<Listener> kept;
+  std::size_t opened = 0, closed = 0;
+  for (std::size_t l = 0; l < config.listener_count(); ++l) {
+    const std::string name = config.listener_name(l);
+    auto old = std::find_if(listeners_.begin(), listeners_.end(),
+                            [&](const Listener& x) { return x.name == name && x.server; });
+    if (old != listeners_.end()) {
+      old->server->set_handler(next.handlers.at(l));
+      if (old->server->reconfigure(server_options(config, l))) {
+        kept.push_back(std::move(*old));
+        continue;
+      }
+      log::warning(
+          "modbus {}: the listen address changed; reopening the listener (clients "
+          "reconnect)",
+          name);
+      old->server->stop();
+      old->server.reset();
+    }
+    try {
+      kept.push_back({name, open_listener(next, l)});
+      ++opened;
+    } catch (const boost::system::system_error& e) {
+      const auto& m = config.listener_modbus(l);
+      log::error("modbus {}: cannot listen on {}:{}: {}", name, m.address, m.port,
+                 e.code().message());
+    }
+  }
+  for (auto& old : listeners_)
+    if (old.server) {
+      log::notice("modbus {}: listener removed; closing it", old.name);
+      old.server->stop();
+      ++closed;
+    }
+  listeners_ = std::move(kept);
+  if (opened == 0 && closed == 0) return "";
+  return fmt::format("; {} listener(s) opened, {} closed", opened, closed);
 }
 
 void Gateway::stop() {
-  if (server_) server_->stop();
+  for (auto& l : listeners_)
+    if (l.server) l.server->stop();
   if (metrics_) metrics_->stop();
   if (current_) {
     for (auto& bus : current_->buses) bus->stop();
@@ -166,8 +233,11 @@ std::string Gateway::status_line() const {
   const auto& image = current_->image;
   for (std::size_t i = 0; i < image.size(); ++i)
     online += image.node(static_cast<int>(i)).state == NodeState::online ? 1 : 0;
+  std::size_t clients = 0;
+  for (const auto& l : listeners_)
+    if (l.server) clients += l.server->stats().clients_connected;
   return fmt::format("buses up {}/{}, nodes online {}/{}, clients {}", up, current_->buses.size(),
-                     online, image.size(), server_ ? server_->stats().clients_connected : 0);
+                     online, image.size(), clients);
 }
 
 bool Gateway::all_buses_attempted() const {

@@ -16,7 +16,8 @@
 
 namespace fieldgate {
 
-// The running gateway: buses, process image, actions and the Modbus server on one io_context.
+// The running gateway: buses, process image, actions and the Modbus listeners (one TCP server
+// per listener, each with its own unit-ID space) on one io_context.
 // A configuration in force is a generation; a reload builds the next one, keeping every bus
 // whose configuration did not change (and its nodes' state) and the Modbus clients.
 class Gateway {
@@ -24,7 +25,7 @@ class Gateway {
   Gateway(asio::io_context& io, std::shared_ptr<const LoadedConfig> config);
   ~Gateway();
 
-  // Binds the Modbus listener (throws boost::system::system_error if it cannot) and starts
+  // Binds every Modbus listener (throws boost::system::system_error if one cannot) and starts
   // every bus.
   void start();
   void stop();
@@ -33,7 +34,17 @@ class Gateway {
 
   const LoadedConfig& config() const { return *current_->config; }
   const ProcessImage& image() const { return current_->image; }
-  const modbus::ModbusTcpServer& server() const { return *server_; }
+  struct Listener {
+    std::string name;
+    std::unique_ptr<modbus::ModbusTcpServer> server;
+  };
+  // In the configuration's order; the first is the default listener (`modbus:`).
+  const std::vector<Listener>& listeners() const { return listeners_; }
+  const modbus::ModbusTcpServer& server() const { return *listeners_.at(0).server; }
+  // The request handler serving a listener's unit-ID space in the configuration in force, for
+  // any server attached to that listener (TCP here; a serial port could take the same); null
+  // if no listener has that name.
+  std::shared_ptr<modbus::RequestHandler> handler(std::string_view listener) const;
   const std::vector<std::shared_ptr<Bus>>& buses() const { return current_->buses; }
   std::string status_line() const;
   // Every bus has finished its first attempt to open its link (READY=1 waits for this).
@@ -46,13 +57,18 @@ class Gateway {
     std::vector<int> bus_of_node;
     ProcessImage image;
     std::unique_ptr<ActionRunner> actions;
-    std::shared_ptr<RegisterMapHandler> handler;
+    std::vector<std::shared_ptr<RegisterMapHandler>> handlers;  // by listener index
   };
 
   // Builds a generation, taking buses from `previous` whose signature is unchanged.
   std::shared_ptr<Generation> build(std::shared_ptr<const LoadedConfig> config,
                                     Generation* previous, std::vector<std::shared_ptr<Bus>>& fresh);
-  modbus::ModbusTcpServerOptions server_options(const GatewayConfig& config) const;
+  // The one place a listener's handler is made (every server of the listener shares it).
+  std::shared_ptr<RegisterMapHandler> make_handler(Generation& g, std::size_t listener);
+  static modbus::ModbusTcpServerOptions server_options(const GatewayConfig& config,
+                                                       std::size_t listener);
+  std::unique_ptr<modbus::ModbusTcpServer> open_listener(const Generation& g, std::size_t listener);
+  std::string apply_listeners(const Generation& next);
   void spawn(const std::shared_ptr<Bus>& bus);
   void start_metrics();
 
@@ -60,7 +76,7 @@ class Gateway {
   std::shared_ptr<Generation> current_;
   // Older generations whose action watches may still run; kept until the daemon stops.
   std::vector<std::shared_ptr<Generation>> retired_;
-  std::unique_ptr<modbus::ModbusTcpServer> server_;
+  std::vector<Listener> listeners_;
   std::unique_ptr<MetricsServer> metrics_;
   std::vector<std::shared_ptr<Bus>> pending_start_;
 };

@@ -41,6 +41,16 @@ struct ModbusConfig {
   bool unit_read_only(uint8_t unit) const;
 };
 
+// A further Modbus TCP endpoint with its own unit-ID space 1..247 (`listeners:`); the
+// `modbus:` section is the default listener, named "default".
+struct ListenerConfig {
+  std::string name;
+  ModbusConfig modbus;
+  SourceMark mark;
+};
+
+inline constexpr const char* kDefaultListener = "default";
+
 struct BusTiming {
   LinkTiming link;
   bool reply_timeout_set = false;  // given in the config (not the default)
@@ -81,6 +91,7 @@ struct NodeConfig {
   std::map<std::string, int64_t> setpoints;          // initial values, overriding defaults
   std::map<std::string, WriteLimits> limits;         // by point or setpoint name
   std::optional<microseconds> reply_timeout;         // overrides the bus's for this node
+  std::size_t listener = 0;  // index of GatewayConfig::listener_modbus: 0 is `modbus:`
   SourceMark mark;
 
   microseconds period_of(const std::string& poll_class) const;
@@ -111,13 +122,19 @@ struct MetricsConfig {
 
 struct GatewayConfig {
   std::string file;
-  ModbusConfig modbus;
+  ModbusConfig modbus;                    // the default listener
+  std::vector<ListenerConfig> listeners;  // further listeners: listener index 1, 2, ...
   MetricsConfig metrics;
   std::vector<std::string> model_dirs;
   std::vector<BusConfig> buses;
   std::vector<std::string> warnings;  // e.g. poll budgets that cannot be met
 
-  std::vector<NodeBinding> node_bindings() const;
+  std::size_t listener_count() const { return 1 + listeners.size(); }
+  const ModbusConfig& listener_modbus(std::size_t listener) const;
+  std::string listener_name(std::size_t listener) const;
+  std::optional<std::size_t> find_listener(const std::string& name) const;
+  // The nodes served on one listener, with the gateway's global node numbers.
+  std::vector<NodeBinding> node_bindings(std::size_t listener = 0) const;
 };
 
 }  // namespace fieldgate

@@ -14,12 +14,31 @@ namespace {
 int run_check(const std::string& path) {
   auto config = load_config_or_report(path);
   if (!config) return 1;
+  const auto& gateway = config->gateway;
   std::size_t nodes = 0;
-  for (const auto& b : config->gateway.buses) nodes += b.nodes.size();
+  for (const auto& b : gateway.buses) nodes += b.nodes.size();
+  std::size_t units = 0;
+  for (std::size_t l = 0; l < gateway.listener_count(); ++l)
+    units += config->map_of(l).units().size();
   std::cout << fmt::format("{}: ok ({} bus(es), {} node(s), {} unit ID(s))\n", path,
-                           config->gateway.buses.size(), nodes,
-                           config->register_map.units().size());
+                           gateway.buses.size(), nodes, units);
+  if (gateway.listener_count() > 1)
+    for (std::size_t l = 0; l < gateway.listener_count(); ++l) {
+      const auto& m = gateway.listener_modbus(l);
+      std::cout << fmt::format("  listener {} on {}:{}: {} unit ID(s)\n", gateway.listener_name(l),
+                               m.address, m.port, config->map_of(l).units().size());
+    }
   return 0;
+}
+
+std::vector<ListenerMap> listener_maps(const LoadedConfig& config) {
+  std::vector<ListenerMap> maps;
+  for (std::size_t l = 0; l < config.gateway.listener_count(); ++l) {
+    const auto& m = config.gateway.listener_modbus(l);
+    maps.push_back({config.gateway.listener_name(l), fmt::format("{}:{}", m.address, m.port),
+                    &config.map_of(l)});
+  }
+  return maps;
 }
 
 }  // namespace
@@ -43,7 +62,8 @@ int main(int argc, char** argv) {
     auto config = load_config_or_report(map_path);
     if (!config) return 1;
     std::cout << write_register_map_document(
-        config->register_map, map_format == "csv" ? DocumentFormat::csv : DocumentFormat::markdown);
+        listener_maps(*config),
+        map_format == "csv" ? DocumentFormat::csv : DocumentFormat::markdown);
     return 0;
   }
   if (verbose) log::set_verbosity(log::Level::debug);

@@ -114,8 +114,9 @@ std::string render_metrics(const Gateway& gateway) {
   std::vector<std::string> node_labels;
   for (const auto& bus : config.gateway.buses)
     for (const auto& node : bus.nodes)
-      node_labels.push_back(fmt::format("bus=\"{}\",node=\"{}\",unit=\"{}\"", label(bus.name),
-                                        label(node.name), node.unit_id));
+      node_labels.push_back(fmt::format("bus=\"{}\",node=\"{}\",unit=\"{}\",listener=\"{}\"",
+                                        label(bus.name), label(node.name), node.unit_id,
+                                        label(config.gateway.listener_name(node.listener))));
   const auto& image = gateway.image();
   w.family("fieldgate_node_online", "gauge", "1 while the node answers.");
   for (std::size_t i = 0; i < node_labels.size(); ++i)
@@ -147,30 +148,44 @@ std::string render_metrics(const Gateway& gateway) {
                static_cast<double>(image.node(static_cast<int>(i)).counters.*c.field));
   }
 
-  const auto& stats = gateway.server().stats();
+  // Per listener; each has its own clients, allow list and unit-ID space.
+  struct ListenerStats {
+    std::string label;
+    const modbus::ModbusTcpServerStats* stats;
+  };
+  std::vector<ListenerStats> listeners;
+  for (const auto& l : gateway.listeners())
+    if (l.server)
+      listeners.push_back({fmt::format("listener=\"{}\"", label(l.name)), &l.server->stats()});
   w.family("fieldgate_modbus_requests_total", "counter", "Modbus requests by function code.");
-  for (std::size_t f = 0; f < stats.functions.size(); ++f)
-    if (stats.functions[f].requests > 0)
-      w.sample("fieldgate_modbus_requests_total", fmt::format("function=\"{}\"", f),
-               static_cast<double>(stats.functions[f].requests));
+  for (const auto& [l, stats] : listeners)
+    for (std::size_t f = 0; f < stats->functions.size(); ++f)
+      if (stats->functions[f].requests > 0)
+        w.sample("fieldgate_modbus_requests_total", fmt::format("{},function=\"{}\"", l, f),
+                 static_cast<double>(stats->functions[f].requests));
   w.family("fieldgate_modbus_exceptions_total", "counter",
            "Modbus exception responses by function code.");
-  for (std::size_t f = 0; f < stats.functions.size(); ++f)
-    if (stats.functions[f].requests > 0)
-      w.sample("fieldgate_modbus_exceptions_total", fmt::format("function=\"{}\"", f),
-               static_cast<double>(stats.functions[f].exceptions));
+  for (const auto& [l, stats] : listeners)
+    for (std::size_t f = 0; f < stats->functions.size(); ++f)
+      if (stats->functions[f].requests > 0)
+        w.sample("fieldgate_modbus_exceptions_total", fmt::format("{},function=\"{}\"", l, f),
+                 static_cast<double>(stats->functions[f].exceptions));
   w.family("fieldgate_modbus_clients", "gauge", "Modbus clients connected now.");
-  w.sample("fieldgate_modbus_clients", "", static_cast<double>(stats.clients_connected));
+  for (const auto& [l, stats] : listeners)
+    w.sample("fieldgate_modbus_clients", l, static_cast<double>(stats->clients_connected));
   w.family("fieldgate_modbus_clients_refused_total", "counter",
            "Connections closed at once: client limit or allow list.");
-  w.sample("fieldgate_modbus_clients_refused_total", "reason=\"max_clients\"",
-           static_cast<double>(stats.clients_refused));
-  w.sample("fieldgate_modbus_clients_refused_total", "reason=\"allow_list\"",
-           static_cast<double>(stats.clients_denied));
+  for (const auto& [l, stats] : listeners) {
+    w.sample("fieldgate_modbus_clients_refused_total", l + ",reason=\"max_clients\"",
+             static_cast<double>(stats->clients_refused));
+    w.sample("fieldgate_modbus_clients_refused_total", l + ",reason=\"allow_list\"",
+             static_cast<double>(stats->clients_denied));
+  }
   w.family("fieldgate_modbus_clients_evicted_total", "counter",
            "Idle connections closed to make room for a new one (when_full: evict_idle).");
-  w.sample("fieldgate_modbus_clients_evicted_total", "",
-           static_cast<double>(stats.clients_evicted));
+  for (const auto& [l, stats] : listeners)
+    w.sample("fieldgate_modbus_clients_evicted_total", l,
+             static_cast<double>(stats->clients_evicted));
   return std::move(w).text();
 }
 

@@ -63,8 +63,14 @@ std::optional<ExceptionCode> exception_for(const Reply& reply) {
 }
 
 RegisterMapHandler::RegisterMapHandler(std::shared_ptr<const LoadedConfig> config,
-                                       ProcessImage& image, ActionRunner& actions, BusOf bus_of)
-    : config_(std::move(config)), image_(image), actions_(actions), bus_of_(std::move(bus_of)) {
+                                       std::size_t listener, ProcessImage& image,
+                                       ActionRunner& actions, BusOf bus_of)
+    : config_(std::move(config)),
+      map_(config_->map_of(listener)),
+      modbus_(config_->gateway.listener_modbus(listener)),
+      image_(image),
+      actions_(actions),
+      bus_of_(std::move(bus_of)) {
   for (const auto& bus : config_->gateway.buses)
     for (const auto& node : bus.nodes) nodes_.push_back(&node);
 }
@@ -79,7 +85,7 @@ std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit
       const auto& pv = node.points[static_cast<std::size_t>(e.index)];
       const bool offline = node.state != NodeState::online;
       if (!pv.valid) return ExceptionCode::gateway_target_failed;
-      if (offline && config_->gateway.modbus.offline_reads == OfflineReads::exception)
+      if (offline && modbus_.offline_reads == OfflineReads::exception)
         return ExceptionCode::gateway_target_failed;
       value = held_line_view(unit, node, e, pv.value);
       value = e.kind == RegisterEntry::Kind::point ? value : ((value >> e.bit) & 1);
@@ -110,7 +116,7 @@ std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit
 
 modbus::ReadBitsResult RegisterMapHandler::read_bits(uint8_t unit_id, modbus::BitTable table,
                                                      uint16_t address, uint16_t count) {
-  const UnitMap* unit = config_->register_map.unit(unit_id);
+  const UnitMap* unit = unit_of(unit_id);
   if (!unit) return ExceptionCode::gateway_path_unavailable;
   std::vector<bool> bits;
   bits.reserve(count);
@@ -125,7 +131,7 @@ modbus::ReadBitsResult RegisterMapHandler::read_bits(uint8_t unit_id, modbus::Bi
 }
 
 modbus::DeviceIdentificationResult RegisterMapHandler::device_identification(uint8_t unit_id) {
-  const UnitMap* unit = config_->register_map.unit(unit_id);
+  const UnitMap* unit = unit_of(unit_id);
   if (!unit) return ExceptionCode::gateway_path_unavailable;
   return identify(*unit, image_.node(unit->node_index));
 }
@@ -133,9 +139,9 @@ modbus::DeviceIdentificationResult RegisterMapHandler::device_identification(uin
 modbus::ReadRegistersResult RegisterMapHandler::read_registers(uint8_t unit_id,
                                                                modbus::RegisterTable table,
                                                                uint16_t address, uint16_t count) {
-  const UnitMap* unit = config_->register_map.unit(unit_id);
+  const UnitMap* unit = unit_of(unit_id);
   if (!unit) return ExceptionCode::gateway_path_unavailable;
-  const WordOrder order = config_->register_map.word_order();
+  const WordOrder order = map_.word_order();
   std::vector<uint16_t> words;
   words.reserve(count);
   uint32_t a = address;
@@ -155,10 +161,10 @@ modbus::ReadRegistersResult RegisterMapHandler::read_registers(uint8_t unit_id,
 
 asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
     uint8_t unit_id, uint16_t address, std::span<const uint16_t> values) {
-  const UnitMap* unit = config_->register_map.unit(unit_id);
+  const UnitMap* unit = unit_of(unit_id);
   if (!unit) co_return ExceptionCode::gateway_path_unavailable;
-  const WordOrder order = config_->register_map.word_order();
-  const auto& modbus_config = config_->gateway.modbus;
+  const WordOrder order = map_.word_order();
+  const auto& modbus_config = modbus_;
   if (modbus_config.read_only_holding || modbus_config.unit_read_only(unit_id))
     co_return ExceptionCode::illegal_function;
   const NodeConfig& node_config = *nodes_.at(static_cast<std::size_t>(unit->node_index));
@@ -240,8 +246,8 @@ asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
 
 asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_coils(uint8_t unit_id, uint16_t,
                                                                      std::vector<bool>) {
-  if (!config_->register_map.unit(unit_id)) co_return ExceptionCode::gateway_path_unavailable;
-  const auto& m = config_->gateway.modbus;
+  if (!unit_of(unit_id)) co_return ExceptionCode::gateway_path_unavailable;
+  const auto& m = modbus_;
   if (m.read_only_coils || m.unit_read_only(unit_id)) co_return ExceptionCode::illegal_function;
   co_return ExceptionCode::illegal_data_address;
 }

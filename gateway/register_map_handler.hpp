@@ -12,13 +12,15 @@ namespace fieldgate {
 
 class Bus;
 
-// Serves the register map: reads from the process image, writes confirmed through the buses.
+// Serves one listener's register map (its unit-ID space and access options): reads from the
+// process image, writes confirmed through the buses. Every listener has its own handler over
+// the one process image.
 class RegisterMapHandler final : public modbus::RequestHandler {
  public:
   using BusOf = std::function<Bus&(int node_index)>;
 
-  RegisterMapHandler(std::shared_ptr<const LoadedConfig> config, ProcessImage& image,
-                     ActionRunner& actions, BusOf bus_of);
+  RegisterMapHandler(std::shared_ptr<const LoadedConfig> config, std::size_t listener,
+                     ProcessImage& image, ActionRunner& actions, BusOf bus_of);
 
   modbus::ReadBitsResult read_bits(uint8_t unit, modbus::BitTable table, uint16_t address,
                                    uint16_t count) override;
@@ -32,10 +34,14 @@ class RegisterMapHandler final : public modbus::RequestHandler {
 
  private:
   struct EntryValue;
+  // The node a unit ID names on this listener: the one place a unit ID is resolved.
+  const UnitMap* unit_of(uint8_t unit_id) const { return map_.unit(unit_id); }
   std::optional<modbus::ExceptionCode> entry_value(const UnitMap& unit, const RegisterEntry& e,
                                                    int64_t& value) const;
 
   std::shared_ptr<const LoadedConfig> config_;
+  const RegisterMap& map_;
+  const ModbusConfig& modbus_;
   ProcessImage& image_;
   ActionRunner& actions_;
   BusOf bus_of_;

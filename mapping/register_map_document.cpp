@@ -76,21 +76,28 @@ std::string md_cell(const std::string& s) {
   return out;
 }
 
+constexpr const char* kCsvHeader =
+    "unit,node,bus,model,table,address,reference,name,type,word_order,units,scale,access,"
+    "description\n";
+
+// prefix: the listener column ("NAME,") or nothing.
+void append_csv_rows(std::string& out, const RegisterMap& map, const std::string& prefix) {
+  for (const auto& [id, unit] : map.units())
+    for (const auto& r : rows_of(unit, map.word_order()))
+      out += fmt::format("{}{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", prefix, id,
+                         csv_field(unit.node_name), csv_field(unit.bus_name),
+                         csv_field(unit.model->name), csv_field(r.table), r.address, r.reference,
+                         csv_field(r.name), r.type, r.word_order, csv_field(r.units), r.scale,
+                         r.access, csv_field(r.description));
+}
+
 }  // namespace
 
 std::string write_register_map_document(const RegisterMap& map, DocumentFormat format) {
   std::string out;
   if (format == DocumentFormat::csv) {
-    out +=
-        "unit,node,bus,model,table,address,reference,name,type,word_order,units,scale,access,"
-        "description\n";
-    for (const auto& [id, unit] : map.units())
-      for (const auto& r : rows_of(unit, map.word_order()))
-        out += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", id,
-                           csv_field(unit.node_name), csv_field(unit.bus_name),
-                           csv_field(unit.model->name), csv_field(r.table), r.address, r.reference,
-                           csv_field(r.name), r.type, r.word_order, csv_field(r.units), r.scale,
-                           r.access, csv_field(r.description));
+    out += kCsvHeader;
+    append_csv_rows(out, map, "");
     return out;
   }
   out +=
@@ -116,6 +123,37 @@ std::string write_register_map_document(const RegisterMap& map, DocumentFormat f
         out += fmt::format("| {} | {} | {}{} |\n", a.code, a.name, md_cell(a.description),
                            a.bus_wide ? " (affects every node on the bus)" : "");
     }
+  }
+  return out;
+}
+
+std::string write_register_map_document(const std::vector<ListenerMap>& listeners,
+                                        DocumentFormat format) {
+  if (listeners.size() == 1) return write_register_map_document(*listeners[0].map, format);
+  std::string out;
+  if (format == DocumentFormat::csv) {
+    out += std::string("listener,") + kCsvHeader;
+    for (const auto& l : listeners) append_csv_rows(out, *l.map, csv_field(l.name) + ",");
+    return out;
+  }
+  out +=
+      "# Modbus listeners\n\nEach listener is its own Modbus TCP endpoint with its own unit IDs "
+      "1..247.\n\n| listener | endpoint | units |\n|---|---|---|\n";
+  for (const auto& l : listeners)
+    out += fmt::format("| {} | {} | {} |\n", md_cell(l.name), l.endpoint, l.map->units().size());
+  for (const auto& l : listeners) {
+    std::string doc = write_register_map_document(*l.map, format);
+    // Each listener's document one level down, under its own heading.
+    std::string shifted;
+    std::size_t line = 0;
+    while (line < doc.size()) {
+      const auto end = doc.find('\n', line);
+      const auto text = doc.substr(line, end == std::string::npos ? end : end - line);
+      shifted += (text.starts_with("#") ? "#" + text : text) + "\n";
+      line = end == std::string::npos ? doc.size() : end + 1;
+    }
+    out += fmt::format("\n# Listener {} ({})\n\n", l.name, l.endpoint) +
+           shifted.substr(shifted.find('\n') + 1);  // without the per-listener title
   }
   return out;
 }

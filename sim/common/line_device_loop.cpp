@@ -61,14 +61,17 @@ void LineExchange::receive(SimTime now, std::string_view bytes) {
   if (rx_.empty()) receive_wire_.first_byte(now);
   if (hooks_.echo && !faults_.silence) {
     const std::string echoed = hooks_.echo(bytes);
+    echoed_ += echoed.size();
     transmitter_.enqueue(now, echoed, options_.wire.enabled ? &options_.wire.timing : nullptr);
   }
   rx_.append(bytes);
   while (!rx_.empty()) {
     const std::size_t length = hooks_.frame(rx_);
     if (length == 0) break;
+    const SimTime started = receive_wire_.started();
     const SimTime arrived = receive_wire_.complete(length, now, options_.wire);
-    requests_.push_back({rx_.substr(0, length), arrived});
+    requests_.push_back({rx_.substr(0, length), arrived, started, echoed_});
+    echoed_ = 0;
     rx_.erase(0, length);
   }
   if (rx_.size() > options_.max_pending) {
@@ -103,6 +106,17 @@ void LineExchange::execute(const PendingRequest& request, SimTime now) {
   }
   log(now, "rx", request.bytes);
   const DeviceReply reply = hooks_.respond(request.bytes, now);
+  if (options_.wire_log) {
+    const auto ns = [](SimTime t) {
+      return static_cast<long long>(
+          std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count());
+    };
+    std::fprintf(options_.wire_log, "%lld %lld %zu %zu %zu %lld %s\n", ns(request.started),
+                 ns(request.arrived), request.bytes.size(), request.echoed, reply.bytes.size(),
+                 static_cast<long long>((options_.wire.turnaround + reply.extra_delay).count()),
+                 escape_bytes(request.bytes).c_str());
+    std::fflush(options_.wire_log);
+  }
   if (reply.new_baud) {
     options_.wire.timing.set_baud(*reply.new_baud);
     log(now, "baud " + std::to_string(*reply.new_baud), {});

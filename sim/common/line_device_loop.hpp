@@ -48,6 +48,11 @@ struct LineDeviceOptions {
   // <reply as the device produced it> [<fault applied on the way out>]", flushed at once, so a
   // test can check what the device really did. nullptr: none.
   std::FILE* journal = nullptr;
+  // Wire log, for benchmarks: one line per executed request, "<first byte> <arrived> <request
+  // bytes> <echoed bytes> <reply bytes> <device delay µs> <request escaped>", the two instants in
+  // ns on CLOCK_MONOTONIC (std::chrono::steady_clock), the reply as the device produced it and the
+  // delay being the turnaround plus the device's own extra latency. nullptr: none.
+  std::FILE* wire_log = nullptr;
   std::string name = "sim";
 };
 
@@ -75,6 +80,8 @@ class LineExchange {
   struct PendingRequest {
     std::string bytes;
     SimTime arrived;
+    SimTime started;         // its first byte on the wire
+    std::size_t echoed = 0;  // bytes echoed while it arrived
   };
 
   void execute(const PendingRequest& request, SimTime now);
@@ -95,6 +102,7 @@ class LineExchange {
   std::mt19937 chaos_random_;
   unsigned chaos_generation_ = 0;
   std::optional<SimTime> log_epoch_;
+  std::size_t echoed_ = 0;  // echoed bytes of the request being received
 };
 
 // Serves `exchange` on `port` and `control` until the control channel says quit or SIGINT,

@@ -63,6 +63,9 @@ class ReceiveWire {
   // The request has `characters` bytes (terminator included) and its last byte was read at
   // `read_at`; returns when it would have fully arrived. The next request starts from there.
   SimTime complete(std::size_t characters, SimTime read_at, const WireEmulation& wire);
+  // When the request being received started: its first byte was seen, or the line was freed
+  // by the request before it.
+  SimTime started() const { return first_byte_; }
 
  private:
   SimTime first_byte_{};

@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
   std::string zero_prefix = "gateway";
   long can_timeout_ms = 0;
   std::string journal_path;
+  std::string wire_log_path;
   app.add_option("--link", link, "symlink to create for the PTY slave, e.g. /tmp/copley0");
   app.add_option("--nodes", nodes,
                  "CAN node IDs, e.g. 0,3,5 (0 = the RS-232 gateway amplifier, "
@@ -68,6 +69,9 @@ int main(int argc, char** argv) {
   app.add_option("--can-timeout-ms", can_timeout_ms,
                  "the gateway amplifier's CAN timeout: e 32 for an absent node comes this late")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--wire-log", wire_log_path,
+                 "append a line per request: first byte and arrival (CLOCK_MONOTONIC ns), "
+                 "request, echo and reply bytes, device delay (for benchmarks)");
   app.add_option("--journal", journal_path,
                  "append every executed request and the device's reply to this file");
   app.add_option("--seed", seed, "seed for garbage replies");
@@ -108,6 +112,12 @@ int main(int argc, char** argv) {
       journal.reset(std::fopen(journal_path.c_str(), "a"));
       if (!journal) throw std::runtime_error("cannot open journal " + journal_path);
       line_options.journal = journal.get();
+    }
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> wire_log(nullptr, &std::fclose);
+    if (!wire_log_path.empty()) {
+      wire_log.reset(std::fopen(wire_log_path.c_str(), "a"));
+      if (!wire_log) throw std::runtime_error("cannot open wire log " + wire_log_path);
+      line_options.wire_log = wire_log.get();
     }
 
     sim::FaultInjection faults;

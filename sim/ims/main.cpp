@@ -6,6 +6,8 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
+#include <memory>
+#include <stdexcept>
 #include <string>
 
 #include "sim/common/control_channel.hpp"
@@ -21,6 +23,7 @@ int main(int argc, char** argv) {
       "IMS indexer party-line simulator: serves named axes on a pseudo-terminal; control "
       "commands on stdin (type help)."};
   std::string link;
+  std::string wire_log_path;
   std::string axes = "A";
   std::uint32_t baud = 9600;
   bool emulate_wire = false;
@@ -38,6 +41,9 @@ int main(int argc, char** argv) {
   bool verbose = false;
   std::uint32_t seed = 1;
   app.add_option("--link", link, "symlink to create for the PTY slave, e.g. /tmp/ims0");
+  app.add_option("--wire-log", wire_log_path,
+                 "append a line per request: first byte and arrival (CLOCK_MONOTONIC ns), "
+                 "request, echo and reply bytes, device delay (for benchmarks)");
   app.add_option("--axes", axes, "unit names on the chain, e.g. A,B,C (A-Z, a-z, [\\]^_`)");
   app.add_option("--baud", baud, "line rate for --emulate-wire (the manual documents 9600 only)")
       ->check(CLI::Range(300u, 115200u));
@@ -106,6 +112,12 @@ int main(int argc, char** argv) {
     line_options.terminators = "\r\n";
     line_options.seed = seed;
     line_options.verbose = verbose;
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> wire_log(nullptr, &std::fclose);
+    if (!wire_log_path.empty()) {
+      wire_log.reset(std::fopen(wire_log_path.c_str(), "a"));
+      if (!wire_log) throw std::runtime_error("cannot open wire log " + wire_log_path);
+      line_options.wire_log = wire_log.get();
+    }
     line_options.name = "ims";
 
     sim::LineExchange exchange(chain.hooks(), line_options, faults);

@@ -6,6 +6,8 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
+#include <memory>
+#include <stdexcept>
 #include <string>
 
 #include "sim/common/control_channel.hpp"
@@ -21,6 +23,7 @@ int main(int argc, char** argv) {
       "Whedco CMC simulator: serves CMC-0 units on a pseudo-terminal; control commands on "
       "stdin (type help)."};
   std::string link;
+  std::string wire_log_path;
   std::string units = "4";
   std::string axes = "WXYZ";
   std::string non_echo;
@@ -38,6 +41,9 @@ int main(int argc, char** argv) {
   bool verbose = false;
   std::uint32_t seed = 1;
   app.add_option("--link", link, "symlink to create for the PTY slave, e.g. /tmp/whedco0");
+  app.add_option("--wire-log", wire_log_path,
+                 "append a line per request: first byte and arrival (CLOCK_MONOTONIC ns), "
+                 "request, echo and reply bytes, device delay (for benchmarks)");
   app.add_option("--units", units, "CMC-0 addresses on the line, e.g. 4,5 (0-7; factory 4)");
   app.add_option("--axes", axes, "axes present: WXYZ for every unit, or ADDR:AXES,... e.g. 4:XY");
   app.add_option("--non-echo", non_echo,
@@ -101,6 +107,12 @@ int main(int argc, char** argv) {
     line_options.terminators = "*\r\n";
     line_options.seed = seed;
     line_options.verbose = verbose;
+    std::unique_ptr<std::FILE, int (*)(std::FILE*)> wire_log(nullptr, &std::fclose);
+    if (!wire_log_path.empty()) {
+      wire_log.reset(std::fopen(wire_log_path.c_str(), "a"));
+      if (!wire_log) throw std::runtime_error("cannot open wire log " + wire_log_path);
+      line_options.wire_log = wire_log.get();
+    }
     line_options.name = "whedco";
 
     sim::FaultInjection faults;

@@ -93,21 +93,29 @@ TEST(Metrics, ScrapedAndParsed) {
   // more ran by now depends on how fast the machine is.
   EXPECT_GE(s.at("fieldgate_bus_transactions_total{bus=\"copley\"}"), 4);
   EXPECT_EQ(s.at("fieldgate_bus_transactions_total{bus=\"copley\"}"),
-            s.at("fieldgate_node_transactions_total{bus=\"copley\",node=\"amp0\",unit=\"1\"}") +
-                s.at("fieldgate_node_transactions_total{bus=\"copley\",node=\"amp9\",unit=\"2\"}"));
+            s.at("fieldgate_node_transactions_total{bus=\"copley\",node=\"amp0\",unit=\"1\","
+                 "listener=\"default\"}") +
+                s.at("fieldgate_node_transactions_total{bus=\"copley\",node=\"amp9\",unit=\"2\","
+                     "listener=\"default\"}"));
   EXPECT_GT(s.at("fieldgate_bus_sent_bytes_total{bus=\"copley\"}"), 50);
-  EXPECT_EQ(s.at("fieldgate_node_online{bus=\"copley\",node=\"amp0\",unit=\"1\"}"), 1);
-  EXPECT_EQ(s.at("fieldgate_node_online{bus=\"copley\",node=\"amp9\",unit=\"2\"}"), 0);
-  EXPECT_GE(s.at("fieldgate_node_timeouts_total{bus=\"copley\",node=\"amp9\",unit=\"2\"}"), 3);
-  EXPECT_LT(
-      s.at("fieldgate_node_last_good_poll_age_seconds{bus=\"copley\",node=\"amp0\",unit=\"1\"}"),
-      2);
   EXPECT_EQ(
-      s.count("fieldgate_node_last_good_poll_age_seconds{bus=\"copley\",node=\"amp9\",unit=\"2\"}"),
-      0u);
-  EXPECT_GE(s.at("fieldgate_modbus_requests_total{function=\"4\"}"), 9);
-  EXPECT_GE(s.at("fieldgate_modbus_exceptions_total{function=\"4\"}"), 1);
-  EXPECT_EQ(s.at("fieldgate_modbus_clients"), 1);
+      s.at("fieldgate_node_online{bus=\"copley\",node=\"amp0\",unit=\"1\",listener=\"default\"}"),
+      1);
+  EXPECT_EQ(
+      s.at("fieldgate_node_online{bus=\"copley\",node=\"amp9\",unit=\"2\",listener=\"default\"}"),
+      0);
+  EXPECT_GE(s.at("fieldgate_node_timeouts_total{bus=\"copley\",node=\"amp9\",unit=\"2\",listener="
+                 "\"default\"}"),
+            3);
+  EXPECT_LT(s.at("fieldgate_node_last_good_poll_age_seconds{bus=\"copley\",node=\"amp0\",unit="
+                 "\"1\",listener=\"default\"}"),
+            2);
+  EXPECT_EQ(s.count("fieldgate_node_last_good_poll_age_seconds{bus=\"copley\",node=\"amp9\",unit="
+                    "\"2\",listener=\"default\"}"),
+            0u);
+  EXPECT_GE(s.at("fieldgate_modbus_requests_total{listener=\"default\",function=\"4\"}"), 9);
+  EXPECT_GE(s.at("fieldgate_modbus_exceptions_total{listener=\"default\",function=\"4\"}"), 1);
+  EXPECT_EQ(s.at("fieldgate_modbus_clients{listener=\"default\"}"), 1);
   // Histogram: cumulative buckets, +Inf equals the count.
   double previous = 0;
   for (const char* le :

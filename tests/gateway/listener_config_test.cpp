@@ -1,0 +1,174 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "gateway/config_loader.hpp"
+
+// Several Modbus listeners, each with its own unit-ID space.
+namespace fieldgate {
+namespace {
+
+namespace fs = std::filesystem;
+
+class ListenerConfigTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("fieldgate-listeners-" + std::to_string(::getpid()) + "-" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string load(const std::string& yaml, std::optional<LoadedConfig>* out = nullptr) {
+    const auto path = dir_ / "gw.yaml";
+    std::ofstream(path) << "models: " FIELDGATE_SOURCE_DIR "/config/models\n" << yaml;
+    Diagnostics d;
+    auto loaded = load_gateway_config(path.string(), d);
+    if (out) *out = std::move(loaded);
+    return d.to_text();
+  }
+
+  fs::path dir_;
+};
+
+// Line 1 is models:; the listeners begin on line 2.
+const std::string kListeners =
+    "modbus: {listen: 127.0.0.1:1502}\n"
+    "listeners:\n"
+    "  - {name: line-a, listen: 127.0.0.1:1503, allow: [10.0.0.0/8], writes_enabled: false}\n"
+    "  - name: line-b\n"
+    "    listen: 127.0.0.1:1504\n"
+    "    word_order: low_first\n";
+
+std::string copley_bus(const std::string& name, const std::string& device, const std::string& extra,
+                       const std::string& nodes) {
+  return "  - name: " + name + "\n    protocol: copley-ascii\n    serial: {device: " + device +
+         ", baud: 115200}\n" + extra + "    nodes:\n" + nodes;
+}
+
+TEST_F(ListenerConfigTest, SameUnitIdOnTwoListeners) {
+  std::optional<LoadedConfig> c;
+  ASSERT_EQ(load(kListeners + "buses:\n" +
+                     copley_bus("b1", "/dev/null", "    listener: line-a\n",
+                                "      - {name: a1, address: 0, model: copley-amplifier, "
+                                "unit_id: 1}\n"
+                                "      - {name: d1, address: 2, model: copley-amplifier, "
+                                "unit_id: 1, listener: default}\n") +
+                     copley_bus("b2", "/dev/zero", "",
+                                "      - {name: b1, address: 0, model: copley-amplifier, "
+                                "unit_id: 1, listener: line-b}\n"),
+                 &c),
+            "");
+  ASSERT_TRUE(c);
+  const auto& g = c->gateway;
+  ASSERT_EQ(g.listener_count(), 3u);
+  EXPECT_EQ(g.listener_name(0), "default");
+  EXPECT_EQ(g.listener_name(1), "line-a");
+  EXPECT_EQ(g.listener_name(2), "line-b");
+  EXPECT_EQ(g.listener_modbus(1).port, 1503);
+  EXPECT_FALSE(g.listener_modbus(1).writes_enabled);
+  EXPECT_TRUE(g.listener_modbus(0).writes_enabled);
+  EXPECT_FALSE(g.listener_modbus(1).allow.empty());
+  EXPECT_TRUE(g.listener_modbus(2).allow.empty());
+  EXPECT_EQ(c->map_of(2).word_order(), WordOrder::low_first);
+  EXPECT_EQ(c->map_of(0).word_order(), WordOrder::high_first);
+  // The bus's listener applies to its nodes unless a node names its own.
+  EXPECT_EQ(g.buses[0].nodes[0].listener, 1u);
+  EXPECT_EQ(g.buses[0].nodes[1].listener, 0u);
+  EXPECT_EQ(g.buses[1].nodes[0].listener, 2u);
+  // Unit 1 names a different node (global node number) on each listener.
+  ASSERT_TRUE(c->map_of(0).unit(1));
+  ASSERT_TRUE(c->map_of(1).unit(1));
+  ASSERT_TRUE(c->map_of(2).unit(1));
+  EXPECT_EQ(c->map_of(1).unit(1)->node_name, "a1");
+  EXPECT_EQ(c->map_of(1).unit(1)->node_index, 0);
+  EXPECT_EQ(c->map_of(0).unit(1)->node_name, "d1");
+  EXPECT_EQ(c->map_of(0).unit(1)->node_index, 1);
+  EXPECT_EQ(c->map_of(2).unit(1)->node_name, "b1");
+  EXPECT_EQ(c->map_of(2).unit(1)->node_index, 2);
+  EXPECT_EQ(c->map_of(0).units().size(), 1u);
+  EXPECT_EQ(&c->map_of(0), &c->register_map);
+}
+
+TEST_F(ListenerConfigTest, DuplicateUnitIdOnOneListenerNamesBoth) {
+  const auto e = load(kListeners + "buses:\n" +
+                      copley_bus("b1", "/dev/null", "    listener: line-a\n",
+                                 "      - {name: x, address: 0, model: copley-amplifier, "
+                                 "unit_id: 7}\n") +
+                      copley_bus("b2", "/dev/zero", "",
+                                 "      - {name: y, address: 0, model: copley-amplifier, "
+                                 "unit_id: 7, listener: line-a}\n"));
+  // x's unit_id is on line 14, column 65; y's on line 19.
+  EXPECT_NE(e.find("gw.yaml:19:65: error: node y: unit_id 7 is already used by node x ("),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("gw.yaml:14:65) on listener line-a"), std::string::npos) << e;
+}
+
+TEST_F(ListenerConfigTest, UnknownListenerListsKnownOnes) {
+  const auto e = load(kListeners + "buses:\n" +
+                      copley_bus("b1", "/dev/null", "    listener: line-c\n",
+                                 "      - {name: x, address: 0, model: copley-amplifier, "
+                                 "unit_id: 7}\n"));
+  EXPECT_NE(e.find("gw.yaml:12:15: error: bus b1: unknown listener 'line-c' (listeners: "
+                   "default, line-a, line-b)"),
+            std::string::npos)
+      << e;
+}
+
+TEST_F(ListenerConfigTest, ListenerErrors) {
+  const std::string nodes =
+      "buses:\n" + copley_bus("b1", "/dev/null", "",
+                              "      - {name: x, address: 0, model: copley-amplifier, "
+                              "unit_id: 7}\n");
+  // Same endpoint as another listener, including the wildcard address.
+  auto e =
+      load("modbus: {listen: 0.0.0.0:1502}\nlisteners:\n  - {name: a, listen: 127.0.0.1:1502}\n" +
+           nodes);
+  EXPECT_NE(e.find("gw.yaml:4:23: error: listener a: 127.0.0.1:1502 overlaps listener default "
+                   "(0.0.0.0:1502, "),
+            std::string::npos)
+      << e;
+  // A name is required, unique and not "default"; listen is required.
+  e = load(
+      "listeners:\n  - {listen: 127.0.0.1:1503}\n  - {name: default, listen: "
+      "127.0.0.1:1504}\n  - {name: a, listen: 127.0.0.1:1505}\n  - {name: a, listen: "
+      "127.0.0.1:1506}\n  - {name: b}\n" +
+      nodes);
+  EXPECT_NE(e.find("listener: missing required key 'name'"), std::string::npos) << e;
+  EXPECT_NE(e.find("listener default: listener name is already used (by the modbus: section)"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("gw.yaml:6:12: error: listener a: listener name is already used"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("listener b: missing required key 'listen'"), std::string::npos) << e;
+  // Listener options are checked as modbus: ones are, under the listener's name.
+  e = load("listeners:\n  - {name: a, listen: 127.0.0.1:1503, when_full: drop, max_clent: 3}\n" +
+           nodes);
+  EXPECT_NE(e.find("listener a when_full: expected evict_idle or refuse, found 'drop'"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("listener a: unknown key 'max_clent'"), std::string::npos) << e;
+  // The default listener has no name.
+  e = load("modbus: {name: x}\n" + nodes);
+  EXPECT_NE(e.find("modbus: the default listener has no name"), std::string::npos) << e;
+}
+
+TEST_F(ListenerConfigTest, WithoutListenersEverythingIsOnTheDefault) {
+  std::optional<LoadedConfig> c;
+  ASSERT_EQ(load("buses:\n" + copley_bus("b1", "/dev/null", "",
+                                         "      - {name: x, address: 0, model: copley-amplifier, "
+                                         "unit_id: 7}\n"),
+                 &c),
+            "");
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->gateway.listener_count(), 1u);
+  EXPECT_TRUE(c->listener_maps.empty());
+  EXPECT_TRUE(c->register_map.unit(7));
+}
+
+}  // namespace
+}  // namespace fieldgate
