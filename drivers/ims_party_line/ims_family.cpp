@@ -602,7 +602,10 @@ std::optional<bool> parse_bool(std::string_view s) {
 
 ModelOptions read_options(const Model& model, Diagnostics& diagnostics) {
   ModelOptions o;
-  for (const auto& [key, value] : model.options) {
+  for (const auto& option : model.options) {
+    // Named references, not a structured binding: clang before 16 cannot capture bindings.
+    const std::string& key = option.first;
+    const std::string& value = option.second;
     const auto bad = [&](std::string_view expected) {
       diagnostics.error(model.mark, fmt::format("model {}: option {}: expected {}, found '{}'",
                                                 model.name, key, expected, value));
