@@ -11,6 +11,7 @@
 
 #include <boost/asio/ip/address.hpp>
 
+#include "gateway/modbus_rtu_config.hpp"
 #include "gateway/poll_budget.hpp"
 #include "mapping/model_loader.hpp"
 #include "mapping/yaml_reader.hpp"
@@ -60,7 +61,8 @@ class ConfigParser {
   std::optional<GatewayConfig> parse(const YAML::Node& root) {
     if (!root.IsDefined()) return std::nullopt;
     if (!r_.expect_map(root, "gateway configuration")) return std::nullopt;
-    r_.reject_unknown_keys(root, {"modbus", "metrics", "models", "buses"}, "gateway configuration");
+    r_.reject_unknown_keys(root, {"modbus", "modbus_rtu", "metrics", "models", "buses"},
+                           "gateway configuration");
     GatewayConfig config;
     config.file = r_.file();
     if (root["modbus"]) parse_modbus(root["modbus"], config.modbus);
@@ -71,6 +73,13 @@ class ConfigParser {
         buses && r_.expect_sequence(*buses, "buses")) {
       for (const auto& bus : *buses) parse_bus(bus, config);
     }
+    if (root["modbus_rtu"])
+      config.modbus_rtu = parse_modbus_rtu(
+          r_, root["modbus_rtu"], config,
+          {[this](const YAML::Node& n, SerialSettings& s, const std::string& w) {
+             parse_serial(n, s, w, false);
+           },
+           [this](const YAML::Node& n, std::string_view what) { return expand(n, what); }});
     return config;
   }
 

@@ -88,6 +88,7 @@ void Gateway::start() {
   server_->start();
   const auto ep = server_->local_endpoint();
   log::notice("modbus: listening on {}:{}", ep.address().to_string(), ep.port());
+  rtu_.apply(*current_->config, current_->handler);
   start_metrics();
   for (auto& bus : pending_start_) spawn(bus);
   pending_start_.clear();
@@ -137,6 +138,7 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
       server_->start();
     }
   }
+  rtu_.apply(*next->config, next->handler);
   const auto& old_metrics = current_->config->gateway.metrics;
   const auto& new_metrics = next->config->gateway.metrics;
   const bool metrics_changed = old_metrics.enabled != new_metrics.enabled ||
@@ -152,6 +154,7 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
 
 void Gateway::stop() {
   if (server_) server_->stop();
+  rtu_.stop();
   if (metrics_) metrics_->stop();
   if (current_) {
     for (auto& bus : current_->buses) bus->stop();

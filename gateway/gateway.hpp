@@ -11,6 +11,7 @@
 #include "gateway/config_loader.hpp"
 #include "gateway/metrics_server.hpp"
 #include "gateway/modbus/tcp_server.hpp"
+#include "gateway/modbus_rtu_port.hpp"
 #include "gateway/process_image.hpp"
 #include "gateway/register_map_handler.hpp"
 
@@ -34,6 +35,8 @@ class Gateway {
   const LoadedConfig& config() const { return *current_->config; }
   const ProcessImage& image() const { return current_->image; }
   const modbus::ModbusTcpServer& server() const { return *server_; }
+  // Null without a modbus_rtu: section.
+  const modbus::ModbusRtuServer* rtu_server() const { return rtu_.server(); }
   const std::vector<std::shared_ptr<Bus>>& buses() const { return current_->buses; }
   std::string status_line() const;
   // Every bus has finished its first attempt to open its link (READY=1 waits for this).
@@ -61,6 +64,7 @@ class Gateway {
   // Older generations whose action watches may still run; kept until the daemon stops.
   std::vector<std::shared_ptr<Generation>> retired_;
   std::unique_ptr<modbus::ModbusTcpServer> server_;
+  ModbusRtuPort rtu_{io_};
   std::unique_ptr<MetricsServer> metrics_;
   std::vector<std::shared_ptr<Bus>> pending_start_;
 };
