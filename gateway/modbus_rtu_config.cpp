@@ -37,11 +37,11 @@ std::optional<ModbusRtuConfig> parse_modbus_rtu(YamlReader& r, const YAML::Node&
                                                 GatewayConfig& config, const RtuParseHooks& hooks) {
   const std::string where = "modbus_rtu";
   if (!r.expect_map(node, where)) return std::nullopt;
-  r.reject_unknown_keys(
-      node,
-      {"device", "baud", "allow_nonstandard_baud", "data_bits", "parity", "stop_bits", "rs485",
-       "frame_gap", "response_timeout", "slow_writes", "units", "broadcast_stop"},
-      where);
+  r.reject_unknown_keys(node,
+                        {"device", "baud", "allow_nonstandard_baud", "data_bits", "parity",
+                         "stop_bits", "rs485", "frame_gap", "incomplete_frame_wait",
+                         "response_timeout", "slow_writes", "units", "broadcast_stop"},
+                        where);
   ModbusRtuConfig rtu;
   rtu.mark = r.mark(node);
   rtu.serial.baud = 19200;
@@ -82,6 +82,13 @@ std::optional<ModbusRtuConfig> parse_modbus_rtu(YamlReader& r, const YAML::Node&
     rtu.frame_gap = r.duration(gap, where + " frame_gap").value_or(rtu.frame_gap);
     if (rtu.frame_gap.count() <= 0 || rtu.frame_gap > std::chrono::milliseconds(500))
       r.error(gap, where + " frame_gap: expected more than 0 and at most 500ms");
+  }
+  if (const auto w = node["incomplete_frame_wait"]) {
+    rtu.incomplete_frame_wait =
+        r.duration(w, where + " incomplete_frame_wait").value_or(rtu.incomplete_frame_wait);
+    if (rtu.incomplete_frame_wait.count() < 0 ||
+        rtu.incomplete_frame_wait > std::chrono::milliseconds(500))
+      r.error(w, where + " incomplete_frame_wait: expected from 0 to 500ms");
   }
   if (const auto t = node["response_timeout"]) {
     rtu.response_timeout =

@@ -28,6 +28,7 @@ struct ModbusRtuConfig {
   std::chrono::milliseconds delay_before_send{0};
   std::chrono::milliseconds delay_after_send{0};
   std::chrono::microseconds frame_gap{0};  // 0: t3.5 (1750 us above 19200 baud)
+  std::chrono::microseconds incomplete_frame_wait{std::chrono::milliseconds(20)};
   std::chrono::microseconds response_timeout{std::chrono::seconds(1)};
   modbus::SlowWrites slow_writes = modbus::SlowWrites::acknowledge;
   std::vector<uint8_t> units;  // empty: every unit of the register map

@@ -23,6 +23,7 @@ modbus::ModbusRtuServerOptions rtu_server_options(const LoadedConfig& config) {
               rtu.serial.stop_bits};
   o.rs485 = {rtu.rs485, rtu.rts_high_on_send, rtu.delay_before_send, rtu.delay_after_send};
   o.frame_gap = rtu.frame_gap;
+  o.incomplete_frame_wait = rtu.incomplete_frame_wait;
   o.response_timeout = rtu.response_timeout;
   o.slow_writes = rtu.slow_writes;
   if (rtu.units.empty()) {
@@ -44,6 +45,7 @@ modbus::ModbusRtuServerOptions rtu_server_options(const LoadedConfig& config) {
   }
   o.notice = [](const std::string& text) { log::notice("{}", text); };
   o.warning = [](const std::string& text) { log::warning("{}", text); };
+  o.debug = [](const std::string& text) { log::debug("{}", text); };
   return o;
 }
 

@@ -75,6 +75,26 @@ std::optional<std::size_t> rtu_request_size(std::span<const std::uint8_t> adu) {
   }
 }
 
+bool rtu_request_incomplete(std::span<const std::uint8_t> bytes) {
+  if (bytes.size() < 2) return true;
+  if (bytes.size() >= rtu_min_adu_size && decode_rtu_adu(bytes).error == RtuFrameError::none)
+    return false;
+  const auto size = rtu_request_size(bytes);
+  if (size) return bytes.size() < *size;
+  // The function codes whose size is in a byte that has not arrived yet.
+  switch (bytes[1]) {
+    case 0x0F:
+    case 0x10:
+      return bytes.size() < 7;
+    case 0x17:
+      return bytes.size() < 11;
+    case 0x2B:
+      return bytes.size() < 3;
+    default:
+      return false;
+  }
+}
+
 RtuDecodeResult decode_rtu_adu(std::span<const std::uint8_t> adu) {
   if (adu.size() < rtu_min_adu_size) return {RtuFrameError::too_short, {}};
   if (adu.size() > rtu_max_adu_size) return {RtuFrameError::too_long, {}};

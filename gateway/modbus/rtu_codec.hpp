@@ -53,6 +53,11 @@ RtuDecodeResult decode_rtu_adu(std::span<const std::uint8_t> adu);
 // tell the size have not arrived.
 std::optional<std::size_t> rtu_request_size(std::span<const std::uint8_t> adu_prefix);
 
+// Whether these bytes are a request still missing bytes by its own length fields (fewer than
+// two bytes, or fewer than rtu_request_size says) and do not already form a frame with a good
+// CRC (another slave's short answer on a shared line is complete as it is).
+bool rtu_request_incomplete(std::span<const std::uint8_t> bytes);
+
 // Character time for bits_per_character bits (start, data, parity, stop) at baud.
 std::chrono::nanoseconds rtu_character_time(unsigned baud, unsigned bits_per_character);
 // The inter-frame silence t3.5: 3.5 character times up to 19200 baud, 1750 us above, as the

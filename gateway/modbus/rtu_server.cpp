@@ -226,6 +226,11 @@ class ModbusRtuServer::Impl : public std::enable_shared_from_this<Impl> {
       if (state.cancelled() != asio::cancellation_type::none || stopped_) co_return;
       if (ec) continue;  // a new byte moved the deadline
       if (rx_.empty() || Clock::now() < last_rx_ + options_.silent_interval()) continue;
+      if (!overflow_ && rtu_request_incomplete(rx_) &&
+          Clock::now() < last_rx_ + options_.incomplete_frame_wait) {
+        frame_timer_.expires_at(last_rx_ + options_.incomplete_frame_wait);
+        continue;
+      }
       // Bytes the kernel holds but the reader has not been woken for are part of this frame.
       int pending = 0;
       if (::ioctl(port_.native_handle(), FIONREAD, &pending) == 0 && pending > 0) {
@@ -250,6 +255,15 @@ class ModbusRtuServer::Impl : public std::enable_shared_from_this<Impl> {
     ++frame_number_;  // whatever it is, the master is not waiting for an earlier answer now
     const RtuDecodeResult decoded =
         overflow ? RtuDecodeResult{RtuFrameError::too_long, {}} : decode_rtu_adu(bytes);
+    if (decoded.error != RtuFrameError::none && options_.debug) {
+      static constexpr char hex[] = "0123456789abcdef";
+      std::string text;
+      for (std::size_t i = 0; i < bytes.size() && i < 64; ++i)
+        text += std::string(i ? " " : "") + hex[bytes[i] >> 4] + hex[bytes[i] & 15];
+      options_.debug("modbus rtu: dropped a " + std::to_string(bytes.size()) + "-byte frame (" +
+                     std::string(to_string(decoded.error)) + "): " + text +
+                     (bytes.size() > 64 ? " ..." : ""));
+    }
     if (decoded.error == RtuFrameError::bad_crc) {
       ++stats_.crc_errors;
       return;

@@ -78,6 +78,10 @@ struct ModbusRtuServerOptions {
   RtuSerialSettings serial;
   Rs485Settings rs485;
   Duration frame_gap{0};  // silence that ends a frame; zero: t3.5 from the baud rate
+  // A frame whose own length fields say bytes are missing is given this long after its last
+  // byte before it is dropped as truncated: USB adapters and loaded hosts deliver a frame's
+  // bytes with gaps longer than t3.5. Never shorter than the frame gap.
+  Duration incomplete_frame_wait = std::chrono::milliseconds(20);
   // What the master waits for an answer; answers are sent by response_timeout - guard, the
   // guard being a tenth of it (at least 5 ms and the answer's first character).
   Duration response_timeout = std::chrono::seconds(1);
@@ -89,6 +93,8 @@ struct ModbusRtuServerOptions {
   // Reports: the port opened or failed, broadcast writes that failed.
   std::function<void(const std::string&)> notice;
   std::function<void(const std::string&)> warning;
+  // Each dropped frame, for a verbose log.
+  std::function<void(const std::string&)> debug;
 
   Duration silent_interval() const;
   Duration answer_window() const;

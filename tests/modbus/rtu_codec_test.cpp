@@ -85,6 +85,18 @@ TEST(RtuCodec, RequestSizes) {
   EXPECT_EQ(rtu_request_size(Bytes{0x01, 0x41}), std::nullopt);
 }
 
+TEST(RtuCodec, IncompleteRequests) {
+  const Bytes read = with_crc({0x01, 0x03, 0x00, 0x00, 0x00, 0x0A});
+  EXPECT_TRUE(rtu_request_incomplete(std::span(read).first(1)));
+  EXPECT_TRUE(rtu_request_incomplete(std::span(read).first(7)));
+  EXPECT_FALSE(rtu_request_incomplete(read));
+  EXPECT_TRUE(rtu_request_incomplete(Bytes{0x01, 0x10, 0x00, 0x00}));
+  // An exception answer of another slave is shorter than a request but complete.
+  EXPECT_FALSE(rtu_request_incomplete(with_crc({0x01, 0x83, 0x02})));
+  // Unknown function codes: the silence decides.
+  EXPECT_FALSE(rtu_request_incomplete(Bytes{0x01, 0x41, 0x00}));
+}
+
 TEST(RtuCodec, SilentInterval) {
   // 9600 8E1: 11 bits, 1145.8 us a character, t3.5 = 4010.4 us rounded up.
   EXPECT_EQ(rtu_silent_interval(9600, 11), std::chrono::microseconds(4011));

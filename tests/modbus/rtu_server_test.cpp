@@ -192,6 +192,19 @@ TEST_F(RtuServerTest, ASilentGapSplitsAFrame) {
   EXPECT_EQ(server->stats().crc_errors + server->stats().framing_errors, 2u);
 }
 
+TEST_F(RtuServerTest, AnIncompleteRequestWaitsForItsLastBytes) {
+  start();
+  const Bytes answer = with_master([&] {
+    const Bytes frame = adu({0x01, 0x03, 0x00, 0x00, 0x00, 0x01});
+    send(Bytes(frame.begin(), frame.begin() + 3));
+    std::this_thread::sleep_for(6ms);  // over t3.5 (2 ms), within incomplete_frame_wait
+    send(Bytes(frame.begin() + 3, frame.end()));
+    return receive(1000ms);
+  });
+  EXPECT_EQ(answer, adu({0x01, 0x03, 0x02, 0x03, 0xE8}));
+  EXPECT_EQ(server->stats().crc_errors + server->stats().framing_errors, 0u);
+}
+
 TEST_F(RtuServerTest, ASlowWriteDoesNotStallOtherUnitsAndItsLateAnswerIsDropped) {
   options.slow_writes = SlowWrites::silent;
   options.response_timeout = 2s;
