@@ -247,11 +247,24 @@ class ModbusRtuServer::Impl : public std::enable_shared_from_this<Impl> {
       const bool overflow = overflow_;
       overflow_ = false;
       frame_timer_.expires_at(Clock::time_point::max());
-      handle_frame(frame, overflow, last_rx_);
+      // A host too busy to read in time sees back-to-back requests as one: a leading request
+      // that is complete by its own length and CRC is taken apart from the rest.
+      std::span<const std::uint8_t> rest(frame);
+      while (!overflow) {
+        const auto size = rtu_request_size(rest);
+        if (!size || *size >= rest.size() ||
+            decode_rtu_adu(rest.first(*size)).error != RtuFrameError::none)
+          break;
+        // Followed by another request: the master no longer waits for its answer.
+        handle_frame(rest.first(*size), false, last_rx_, false);
+        rest = rest.subspan(*size);
+      }
+      handle_frame(rest, overflow, last_rx_);
     }
   }
 
-  void handle_frame(const Bytes& bytes, bool overflow, Clock::time_point end) {
+  void handle_frame(std::span<const std::uint8_t> bytes, bool overflow, Clock::time_point end,
+                    bool answerable = true) {
     ++frame_number_;  // whatever it is, the master is not waiting for an earlier answer now
     const RtuDecodeResult decoded =
         overflow ? RtuDecodeResult{RtuFrameError::too_long, {}} : decode_rtu_adu(bytes);
@@ -286,7 +299,9 @@ class ModbusRtuServer::Impl : public std::enable_shared_from_this<Impl> {
     ++stats_.functions[pdu[0]].requests;
     auto self = shared_from_this();
     const Clock::time_point answer_by = end + options_.answer_window();
-    asio::co_spawn(executor_, answer(self, frame_number_, unit, pdu, answer_by), asio::detached);
+    // Frame 0 is never the latest: a request that is not answerable runs, unanswered.
+    const std::uint64_t frame = answerable ? frame_number_ : 0;
+    asio::co_spawn(executor_, answer(self, frame, unit, pdu, answer_by), asio::detached);
   }
 
   // The master still waits for this frame's answer: it sent nothing since and its time is
