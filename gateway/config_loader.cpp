@@ -11,6 +11,7 @@
 
 #include <boost/asio/ip/address.hpp>
 
+#include "gateway/modbus_rtu_config.hpp"
 #include "gateway/poll_budget.hpp"
 #include "mapping/model_loader.hpp"
 #include "mapping/yaml_reader.hpp"
@@ -77,7 +78,8 @@ class ConfigParser {
   std::optional<GatewayConfig> parse(const YAML::Node& root) {
     if (!root.IsDefined()) return std::nullopt;
     if (!r_.expect_map(root, "gateway configuration")) return std::nullopt;
-    r_.reject_unknown_keys(root, {"modbus", "listeners", "metrics", "models", "buses"},
+    r_.reject_unknown_keys(root,
+                           {"modbus", "listeners", "modbus_rtu", "metrics", "models", "buses"},
                            "gateway configuration");
     GatewayConfig config;
     config.file = r_.file();
@@ -93,6 +95,13 @@ class ConfigParser {
         buses && r_.expect_sequence(*buses, "buses")) {
       for (const auto& bus : *buses) parse_bus(bus, config);
     }
+    if (root["modbus_rtu"])
+      config.modbus_rtu = parse_modbus_rtu(
+          r_, root["modbus_rtu"], config,
+          {[this](const YAML::Node& n, SerialSettings& s, const std::string& w) {
+             parse_serial(n, s, w, false);
+           },
+           [this](const YAML::Node& n, std::string_view what) { return expand(n, what); }});
     return config;
   }
 

@@ -97,6 +97,12 @@ modbus::ModbusTcpServerOptions Gateway::server_options(const GatewayConfig& conf
   return options;
 }
 
+std::shared_ptr<modbus::RequestHandler> Gateway::rtu_handler(const Generation& g) const {
+  const auto& rtu = g.config->gateway.modbus_rtu;
+  if (!rtu) return nullptr;
+  return g.handlers.at(rtu->listener);
+}
+
 void Gateway::spawn(const std::shared_ptr<Bus>& bus) {
   // The coroutine holds the bus, so a bus dropped by a reload lives until its loop has ended.
   asio::co_spawn(
@@ -121,6 +127,7 @@ std::unique_ptr<modbus::ModbusTcpServer> Gateway::open_listener(const Generation
 void Gateway::start() {
   for (std::size_t l = 0; l < current_->config->gateway.listener_count(); ++l)
     listeners_.push_back({current_->config->gateway.listener_name(l), open_listener(*current_, l)});
+  rtu_.apply(*current_->config, rtu_handler(*current_));
   start_metrics();
   for (auto& bus : pending_start_) spawn(bus);
   pending_start_.clear();
@@ -159,6 +166,7 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
     }
   }
   const std::string listener_summary = apply_listeners(*next);
+  rtu_.apply(*next->config, rtu_handler(*next));
   const auto& old_metrics = current_->config->gateway.metrics;
   const auto& new_metrics = next->config->gateway.metrics;
   const bool metrics_changed = old_metrics.enabled != new_metrics.enabled ||
@@ -219,6 +227,7 @@ std::string Gateway::apply_listeners(const Generation& next) {
 void Gateway::stop() {
   for (auto& l : listeners_)
     if (l.server) l.server->stop();
+  rtu_.stop();
   if (metrics_) metrics_->stop();
   if (current_) {
     for (auto& bus : current_->buses) bus->stop();

@@ -11,6 +11,7 @@
 #include "gateway/config_loader.hpp"
 #include "gateway/metrics_server.hpp"
 #include "gateway/modbus/tcp_server.hpp"
+#include "gateway/modbus_rtu_port.hpp"
 #include "gateway/process_image.hpp"
 #include "gateway/register_map_handler.hpp"
 
@@ -45,6 +46,8 @@ class Gateway {
   // any server attached to that listener (TCP here; a serial port could take the same); null
   // if no listener has that name.
   std::shared_ptr<modbus::RequestHandler> handler(std::string_view listener) const;
+  // Null without a modbus_rtu: section.
+  const modbus::ModbusRtuServer* rtu_server() const { return rtu_.server(); }
   const std::vector<std::shared_ptr<Bus>>& buses() const { return current_->buses; }
   std::string status_line() const;
   // Every bus has finished its first attempt to open its link (READY=1 waits for this).
@@ -65,6 +68,8 @@ class Gateway {
                                     Generation* previous, std::vector<std::shared_ptr<Bus>>& fresh);
   // The one place a listener's handler is made (every server of the listener shares it).
   std::shared_ptr<RegisterMapHandler> make_handler(Generation& g, std::size_t listener);
+  // The handler of the listener whose unit-ID space the RTU port serves (null without one).
+  std::shared_ptr<modbus::RequestHandler> rtu_handler(const Generation& g) const;
   static modbus::ModbusTcpServerOptions server_options(const GatewayConfig& config,
                                                        std::size_t listener);
   std::unique_ptr<modbus::ModbusTcpServer> open_listener(const Generation& g, std::size_t listener);
@@ -77,6 +82,7 @@ class Gateway {
   // Older generations whose action watches may still run; kept until the daemon stops.
   std::vector<std::shared_ptr<Generation>> retired_;
   std::vector<Listener> listeners_;
+  ModbusRtuPort rtu_{io_};
   std::unique_ptr<MetricsServer> metrics_;
   std::vector<std::shared_ptr<Bus>> pending_start_;
 };

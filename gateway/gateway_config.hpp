@@ -11,6 +11,7 @@
 #include "drivers/protocol_family.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "gateway/access_control.hpp"
+#include "gateway/modbus_rtu_config.hpp"
 #include "mapping/diagnostics.hpp"
 #include "mapping/model.hpp"
 #include "mapping/register_map.hpp"
@@ -125,6 +126,7 @@ struct GatewayConfig {
   ModbusConfig modbus;                    // the default listener
   std::vector<ListenerConfig> listeners;  // further listeners: listener index 1, 2, ...
   MetricsConfig metrics;
+  std::optional<ModbusRtuConfig> modbus_rtu;
   std::vector<std::string> model_dirs;
   std::vector<BusConfig> buses;
   std::vector<std::string> warnings;  // e.g. poll budgets that cannot be met

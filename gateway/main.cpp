@@ -5,6 +5,7 @@
 #include "gateway/config_loader.hpp"
 #include "gateway/daemon.hpp"
 #include "gateway/log.hpp"
+#include "gateway/modbus_rtu_port.hpp"
 #include "mapping/register_map_document.hpp"
 
 using namespace fieldgate;
@@ -64,6 +65,7 @@ int main(int argc, char** argv) {
     std::cout << write_register_map_document(
         listener_maps(*config),
         map_format == "csv" ? DocumentFormat::csv : DocumentFormat::markdown);
+    if (map_format == "md") std::cout << describe_modbus_rtu(*config);
     return 0;
   }
   if (verbose) log::set_verbosity(log::Level::debug);

@@ -186,6 +186,68 @@ std::string render_metrics(const Gateway& gateway) {
   for (const auto& [l, stats] : listeners)
     w.sample("fieldgate_modbus_clients_evicted_total", l,
              static_cast<double>(stats->clients_evicted));
+  if (const auto* rtu = gateway.rtu_server()) {
+    const auto& r = rtu->stats();
+    const std::string port = fmt::format("port=\"{}\"", label(rtu->options().serial.device));
+    w.family("fieldgate_modbus_rtu_up", "gauge", "1 while the Modbus RTU port is open.");
+    w.sample("fieldgate_modbus_rtu_up", port, r.link_up ? 1 : 0);
+    struct RtuCounter {
+      const char* name;
+      const char* help;
+      uint64_t modbus::ModbusRtuServerStats::*field;
+    };
+    const RtuCounter rtu_counters[] = {
+        {"fieldgate_modbus_rtu_frames_total", "Good frames for a unit served on the RTU port.",
+         &modbus::ModbusRtuServerStats::frames_ok},
+        {"fieldgate_modbus_rtu_crc_errors_total", "Frames dropped for a bad CRC.",
+         &modbus::ModbusRtuServerStats::crc_errors},
+        {"fieldgate_modbus_rtu_framing_errors_total",
+         "Frames dropped as too short, too long or truncated.",
+         &modbus::ModbusRtuServerStats::framing_errors},
+        {"fieldgate_modbus_rtu_other_unit_frames_total",
+         "Good frames for unit IDs not served here (other slaves on the line).",
+         &modbus::ModbusRtuServerStats::other_units},
+        {"fieldgate_modbus_rtu_broadcasts_accepted_total", "Broadcast stops carried out.",
+         &modbus::ModbusRtuServerStats::broadcasts_accepted},
+        {"fieldgate_modbus_rtu_broadcasts_dropped_total",
+         "Broadcasts dropped: anything but the configured stop.",
+         &modbus::ModbusRtuServerStats::broadcasts_dropped},
+        {"fieldgate_modbus_rtu_broadcast_write_failures_total",
+         "Writes of a broadcast stop that a unit refused or did not confirm.",
+         &modbus::ModbusRtuServerStats::broadcast_write_failures},
+        {"fieldgate_modbus_rtu_acknowledged_total",
+         "Slow confirmed writes answered with exception 0x05 before the master's timeout.",
+         &modbus::ModbusRtuServerStats::acknowledged},
+        {"fieldgate_modbus_rtu_answers_dropped_total",
+         "Answers ready after the master had moved on or given up (not sent).",
+         &modbus::ModbusRtuServerStats::answers_dropped},
+        {"fieldgate_modbus_rtu_retries_joined_total",
+         "Repeated writes attached to the same write still running.",
+         &modbus::ModbusRtuServerStats::retries_joined},
+        {"fieldgate_modbus_rtu_received_bytes_total", "Bytes read from the RTU port.",
+         &modbus::ModbusRtuServerStats::bytes_received},
+        {"fieldgate_modbus_rtu_sent_bytes_total", "Bytes written to the RTU port.",
+         &modbus::ModbusRtuServerStats::bytes_sent},
+        {"fieldgate_modbus_rtu_opens_total", "Times the RTU port was opened.",
+         &modbus::ModbusRtuServerStats::opens},
+    };
+    for (const auto& c : rtu_counters) {
+      w.family(c.name, "counter", c.help);
+      w.sample(c.name, port, static_cast<double>(r.*c.field));
+    }
+    w.family("fieldgate_modbus_rtu_requests_total", "counter",
+             "Modbus RTU requests by function code.");
+    for (std::size_t f = 0; f < r.functions.size(); ++f)
+      if (r.functions[f].requests > 0)
+        w.sample("fieldgate_modbus_rtu_requests_total", fmt::format("{},function=\"{}\"", port, f),
+                 static_cast<double>(r.functions[f].requests));
+    w.family("fieldgate_modbus_rtu_exceptions_total", "counter",
+             "Modbus RTU exception responses by exception code.");
+    for (std::size_t code = 0; code < r.exceptions_by_code.size(); ++code)
+      if (r.exceptions_by_code[code] > 0)
+        w.sample("fieldgate_modbus_rtu_exceptions_total", fmt::format("{},code=\"{}\"", port, code),
+                 static_cast<double>(r.exceptions_by_code[code]));
+  }
   return std::move(w).text();
 }
 

@@ -1,0 +1,207 @@
+#!/usr/bin/env bash
+# Modbus RTU masters this project did not write (mbpoll, Debian's pymodbus) and raw frames
+# against the real daemon's RTU port, through a relay that paces bytes at the line's baud
+# rate. Ten units on two Copley simulators; the second answers 1.5 s late, so a write to it
+# outlasts the master's response timeout.
+# Usage: rtu_masters.sh FIELDGATE SIM_COPLEY MODELS_DIR BAUD
+set -euo pipefail
+fieldgate=$1 sim=$2 models=$3 baud=$4
+here=$(cd "$(dirname "$0")" && pwd)
+dir=$(mktemp -d)
+trap 'exec 7>&- 2>/dev/null; kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+
+"$sim" --link "$dir/copley0" --nodes 0,1,2,3,4,5,6,7,8 </dev/null >"$dir/fast.log" 2>&1 &
+mkfifo "$dir/slow.ctl"
+"$sim" --link "$dir/copley1" --nodes 0 <"$dir/slow.ctl" >"$dir/slow.log" 2>&1 &
+exec 7>"$dir/slow.ctl"
+echo "delay 1500" >&7
+# 8N1 on the emulated line: 10 bits a character.
+"$here/rtu_wire_relay.py" "$dir/gw-rtu" "$dir/master" "$baud" 10 >"$dir/relay.log" 2>&1 &
+for _ in $(seq 50); do
+  [ -e "$dir/copley0" ] && [ -e "$dir/copley1" ] && [ -e "$dir/master" ] && break
+  sleep 0.1
+done
+
+nodes=""
+for n in 0 1 2 3 4 5 6 7 8; do
+  nodes+="      - {name: a$n, address: $n, model: copley-amplifier, unit_id: $((n + 1))}"$'\n'
+done
+cat >"$dir/gw.yaml" <<YAML
+modbus: {listen: 127.0.0.1:0}
+metrics: {listen: 127.0.0.1:0}
+models: $models
+modbus_rtu:
+  device: $dir/gw-rtu
+  baud: $baud
+  parity: none
+  response_timeout: 500ms
+  broadcast_stop: {actions: {copley-amplifier: abort}}
+buses:
+  - name: fast
+    protocol: copley-ascii
+    serial: {device: $dir/copley0, baud: 115200}
+    timing: {reply_timeout: 100ms, probe_interval: 300ms}
+    nodes:
+$nodes  - name: slow
+    protocol: copley-ascii
+    serial: {device: $dir/copley1, baud: 115200}
+    timing: {reply_timeout: 4s}
+    nodes:
+      - {name: s0, address: 0, model: copley-amplifier, unit_id: 10}
+YAML
+: >"$dir/daemon.log"
+"$fieldgate" ${FIELDGATE_VERBOSE:+-v} --config "$dir/gw.yaml" >"$dir/daemon.log" 2>&1 &
+metrics=""
+for _ in $(seq 100); do
+  grep -q "modbus rtu: serving on" "$dir/daemon.log" &&
+    metrics=$(sed -n 's|.*metrics: http://127.0.0.1:\([0-9]*\)/metrics.*|\1|p' "$dir/daemon.log") &&
+    [ -n "$metrics" ] && break
+  sleep 0.1
+done
+[ -n "$metrics" ] || { echo "daemon did not start"; cat "$dir/daemon.log"; exit 1; }
+
+fail=0
+check() {  # check NAME EXPECTED ACTUAL
+  if [ "$2" == "$3" ]; then echo "ok: $1"; else echo "FAIL: $1: expected '$2', got '$3'"; fail=1; fi
+}
+# mb OPTIONS... [-- WRITE_VALUES...]
+mb() {
+  local opts=() values=()
+  while [ $# -gt 0 ] && [ "$1" != "--" ]; do opts+=("$1"); shift; done
+  [ $# -gt 0 ] && { shift; values=("$@"); }
+  mbpoll -m rtu -b "$baud" -P none -o 1 -0 -1 -q "${opts[@]}" -- "$dir/master" "${values[@]}" 2>&1
+}
+
+# Wait until unit 2 is polled.
+for _ in $(seq 100); do mb -a 2 -t 3:int -B -r 0 | grep -q '^\[0\]' && break; sleep 0.1; done
+
+check "mbpoll rtu reads unit 1 position" "0" "$(mb -a 1 -t 3:int -B -r 0 | sed -n 's/^\[0\]:[[:space:]]*//p')"
+check "mbpoll rtu reads the online flag" "1" "$(mb -a 2 -t 1 -r 1000 | sed -n 's/^\[1000\]:[[:space:]]*//p')"
+mb -a 2 -t 4:int -B -r 110 -- -1500 >/dev/null || true
+check "mbpoll rtu writes a 32-bit setpoint" "-1500" "$(mb -a 2 -t 4:int -B -r 110 | sed -n 's/^\[110\]:[[:space:]]*//p')"
+check "mbpoll rtu sees 0x02 for an unmapped address" "1" "$(mb -a 1 -t 3 -r 600 | grep -c 'Illegal data address')"
+check "mbpoll rtu gets no answer for a unit nobody serves" "1" "$(mb -a 33 -t 3 -r 0 | grep -c 'timed out')"
+
+/usr/bin/python3 - "$dir/master" "$baud" "$metrics" <<'PY' || fail=1
+import sys, time, urllib.request
+import serial
+from pymodbus.client import ModbusSerialClient
+from pymodbus.pdu import ExceptionResponse
+
+device, baud, metrics_port = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+failed = False
+def ok(name, cond):
+    global failed
+    print(("ok: " if cond else "FAIL: ") + name)
+    failed = failed or not cond
+
+c = ModbusSerialClient(port=device, baudrate=baud, parity="N", stopbits=1, bytesize=8, timeout=1)
+assert c.connect(), "pymodbus cannot open " + device
+r = c.write_register(100, 1, slave=2)           # enable
+ok("pymodbus rtu: enable confirmed", not r.isError())
+r = c.write_registers(110, [0, 2500], slave=2)  # target 2500
+ok("pymodbus rtu: target written", not r.isError())
+r = c.write_register(100, 3, slave=2)           # move_absolute
+ok("pymodbus rtu: move confirmed", not r.isError())
+for _ in range(200):
+    r = c.read_holding_registers(101, 1, slave=2)
+    if not r.isError() and r.registers[0] == 2: break
+    time.sleep(0.05)
+pos = c.read_input_registers(0, 2, slave=2).registers
+ok("pymodbus rtu: position reached 2500 (%s)" % pos, pos == [0, 2500])
+r = c.write_register(110, 7, slave=2)           # half of the 32-bit target
+ok("pymodbus rtu: half a 32-bit value gives 0x03", isinstance(r, ExceptionResponse) and r.exception_code == 3)
+c.close()
+
+# A master polling ten units; unit 10's write is confirmed only after 1.5-3 s. The gateway
+# answers by 450 ms (response_timeout 500ms less its guard); the master waits 1 s, the margin
+# being for this test host's scheduling, not the gateway's. Every request must get an answer.
+c = ModbusSerialClient(port=device, baudrate=baud, parity="N", stopbits=1, bytesize=8, timeout=1,
+                       retries=0)
+assert c.connect()
+unanswered, answered, slow_write, last, max_gap = 0, 0, None, time.monotonic(), 0.0
+for cycle in range(4):
+    for unit in range(1, 11):
+        if cycle == 1 and unit == 10:
+            r = c.write_register(100, 1, slave=10)  # enable on the slow bus
+            slow_write = r
+        else:
+            r = c.read_input_registers(1000, 1, slave=unit)  # online flag
+        now = time.monotonic()
+        if r.isError() and not isinstance(r, ExceptionResponse):
+            unanswered += 1
+        else:
+            answered += 1
+            max_gap, last = max(max_gap, now - last), now
+ok("pymodbus rtu: the slow write was acknowledged (0x05) or confirmed (%s)" % slow_write,
+   isinstance(slow_write, ExceptionResponse) and slow_write.exception_code == 5 or
+   (slow_write is not None and not slow_write.isError()))
+ok("pymodbus rtu: 40 requests to 10 units, none unanswered (%d unanswered)" % unanswered,
+   unanswered == 0 and answered == 40)
+print("info: longest gap between answers %.0f ms at %d baud" % (max_gap * 1000, baud))
+for _ in range(200):
+    r = c.read_holding_registers(100, 4, slave=10)
+    if not r.isError() and r.registers[1] == 2: break
+    time.sleep(0.05)
+ok("pymodbus rtu: the acknowledged enable completed on unit 10 (%s)" % getattr(r, "registers", r),
+   not r.isError() and r.registers[0] == 1 and r.registers[1] == 2)
+c.close()
+
+def crc(b):
+    v = 0xFFFF
+    for x in b:
+        v ^= x
+        for _ in range(8):
+            v = (v >> 1) ^ 0xA001 if v & 1 else v >> 1
+    return bytes(b) + bytes([v & 0xFF, v >> 8])
+
+s = serial.Serial(device, baud, timeout=0.6)
+def exchange(frame):
+    s.reset_input_buffer()
+    s.write(frame)
+    return s.read(64)
+
+good = crc([1, 3, 0, 0, 0, 2])
+ok("raw: a good frame is answered", exchange(good)[:3] == bytes([1, 3, 4]))
+bad = bytearray(good); bad[4] ^= 0x40
+ok("raw: bad CRC, no answer", exchange(bytes(bad)) == b"")
+ok("raw: truncated frame, no answer", exchange(good[:5]) == b"")
+other = crc([2, 3, 0, 0, 0, 2])
+interleaved = bytes(x for pair in zip(good, other) for x in pair)
+ok("raw: two masters' frames interleaved, no answer", exchange(interleaved) == b"")
+ok("raw: answered again after the garbage", exchange(good)[:3] == bytes([1, 3, 4]))
+ok("raw: a broadcast read is dropped", exchange(crc([0, 3, 0, 0, 0, 1])) == b"")
+ok("raw: the broadcast stop is not answered", exchange(crc([0, 6, 0, 100, 0xFF, 0xFF])) == b"")
+s.close()
+
+c = ModbusSerialClient(port=device, baudrate=baud, parity="N", stopbits=1, bytesize=8, timeout=1)
+assert c.connect()
+codes = {}
+for _ in range(100):
+    codes = {u: c.read_holding_registers(100, 1, slave=u) for u in (1, 2, 10)}
+    if all(not r.isError() and r.registers[0] == 6 for r in codes.values()): break
+    time.sleep(0.05)
+ok("broadcast stop ran abort (6) on units 1, 2 and 10 (%s)" %
+   {u: getattr(r, "registers", r) for u, r in codes.items()},
+   all(not r.isError() and r.registers[0] == 6 for r in codes.values()))
+c.close()
+
+text = urllib.request.urlopen("http://127.0.0.1:%s/metrics" % metrics_port).read().decode()
+def metric(name):
+    for line in text.splitlines():
+        if line.startswith(name + "{") or line.startswith(name + " "):
+            return float(line.rsplit(" ", 1)[1])
+    return None
+ok("metrics: CRC errors counted (%s)" % metric("fieldgate_modbus_rtu_crc_errors_total"),
+   metric("fieldgate_modbus_rtu_crc_errors_total") >= 2)
+ok("metrics: framing errors counted (%s)" % metric("fieldgate_modbus_rtu_framing_errors_total"),
+   metric("fieldgate_modbus_rtu_framing_errors_total") >= 1)
+ok("metrics: one broadcast stop accepted", metric("fieldgate_modbus_rtu_broadcasts_accepted_total") == 1)
+ok("metrics: one broadcast dropped", metric("fieldgate_modbus_rtu_broadcasts_dropped_total") == 1)
+exceptions = [l for l in text.splitlines() if l.startswith("fieldgate_modbus_rtu_exceptions_total{")]
+ok("metrics: exceptions by code 2, 3 and 5 (%s)" % exceptions,
+   all(any('code="%d"' % code in l for l in exceptions) for code in (2, 3, 5)))
+sys.exit(1 if failed else 0)
+PY
+[ $fail -eq 0 ] || { echo "--- daemon log"; grep -v "reply_timeout .* is below" "$dir/daemon.log" | tail -n 40; }
+exit $fail
