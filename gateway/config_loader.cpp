@@ -367,8 +367,9 @@ class ConfigParser {
         for (const auto& other : config.buses)
           if (other.name == *s) r_.error(*n, fmt::format("{}: bus name is already used", where));
       }
-    r_.reject_unknown_keys(node, {"name", "protocol", "serial", "tcp", "can", "timing", "nodes"},
-                           where);
+    r_.reject_unknown_keys(
+        node, {"name", "protocol", "serial", "tcp", "can", "timing", "nodes", "trace"}, where);
+    if (node["trace"]) bus.trace = r_.boolean(node["trace"], where + " trace").value_or(false);
     if (auto p = r_.require(node, "protocol", where)) {
       if (auto s = r_.string(*p, where + " protocol")) {
         bus.protocol = *s;

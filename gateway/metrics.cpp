@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "gateway/gateway.hpp"
+#include "gateway/process_metrics.hpp"
 
 #ifndef FIELDGATE_VERSION
 #define FIELDGATE_VERSION "unknown"
@@ -58,6 +59,9 @@ std::string render_metrics(const Gateway& gateway) {
   const BusCounter counters[] = {
       {"fieldgate_bus_transactions_total", "Transactions on the bus.", &BusCounters::transactions},
       {"fieldgate_bus_timeouts_total", "Transactions that timed out.", &BusCounters::timeouts},
+      {"fieldgate_bus_unreachable_total",
+       "Transactions a forwarding device answered 'node unreachable' (Copley e 32).",
+       &BusCounters::unreachable},
       {"fieldgate_bus_errors_total", "Device error and garbled replies.", &BusCounters::errors},
       {"fieldgate_bus_retries_total", "Poll retries.", &BusCounters::retries},
       {"fieldgate_bus_commands_total", "Commands from Modbus writes.", &BusCounters::commands},
@@ -81,10 +85,12 @@ std::string render_metrics(const Gateway& gateway) {
        &BusCounters::tx_dropped},
   };
   for (const auto& c : counters) {
+    const bool can_only = std::string_view(c.name).starts_with("fieldgate_bus_can_");
     w.family(c.name, "counter", c.help);
     for (const auto& bus : buses)
-      w.sample(c.name, fmt::format("bus=\"{}\"", label(bus->config().name)),
-               static_cast<double>(bus->counters().*c.field));
+      if (!can_only || bus->config().transport.kind == TransportConfig::Kind::can)
+        w.sample(c.name, fmt::format("bus=\"{}\"", label(bus->config().name)),
+                 static_cast<double>(bus->counters().*c.field));
   }
   w.family("fieldgate_bus_up", "gauge", "1 while the bus's link is open.");
   for (const auto& bus : buses)
@@ -138,6 +144,9 @@ std::string render_metrics(const Gateway& gateway) {
       {"fieldgate_node_transactions_total", "Transactions with the node.",
        &NodeCounters::transactions},
       {"fieldgate_node_timeouts_total", "Transactions that timed out.", &NodeCounters::timeouts},
+      {"fieldgate_node_unreachable_total",
+       "Transactions a forwarding device reported the node unreachable for (Copley e 32).",
+       &NodeCounters::unreachable},
       {"fieldgate_node_errors_total", "Device errors and garbled replies.", &NodeCounters::errors},
   };
   for (const auto& c : node_counters) {
@@ -171,7 +180,7 @@ std::string render_metrics(const Gateway& gateway) {
            "Idle connections closed to make room for a new one (when_full: evict_idle).");
   w.sample("fieldgate_modbus_clients_evicted_total", "",
            static_cast<double>(stats.clients_evicted));
-  return std::move(w).text();
+  return std::move(w).text() + render_process_metrics();
 }
 
 }  // namespace fieldgate
