@@ -225,7 +225,17 @@ class ConfigParser {
     auto add = [&](const YAML::Node& item) {
       if (auto dir = expand(item, "models")) {
         fs::path p(*dir);
-        if (p.is_relative()) p = base / p;
+        const bool relative = p.is_relative();
+        if (relative) p = base / p;
+        std::error_code ec;
+        if (!fs::is_directory(p, ec)) {
+          r_.error(item, fmt::format("models: no directory {}{}", p.lexically_normal().string(),
+                                     relative ? fmt::format(" ('{}' is resolved from the directory "
+                                                            "of this file)",
+                                                            *dir)
+                                              : std::string()));
+          return;
+        }
         config.model_dirs.push_back(p.lexically_normal().string());
       }
     };

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "gateway/gateway.hpp"
 #include "gateway/process_metrics.hpp"
 
@@ -86,6 +88,10 @@ std::string render_metrics(const Gateway& gateway) {
   };
   for (const auto& c : counters) {
     const bool can_only = std::string_view(c.name).starts_with("fieldgate_bus_can_");
+    if (can_only && std::none_of(buses.begin(), buses.end(), [](const auto& bus) {
+          return bus->config().transport.kind == TransportConfig::Kind::can;
+        }))
+      continue;
     w.family(c.name, "counter", c.help);
     for (const auto& bus : buses)
       if (!can_only || bus->config().transport.kind == TransportConfig::Kind::can)
