@@ -169,11 +169,13 @@ std::string render_metrics(const Gateway& gateway) {
       w.sample("fieldgate_modbus_requests_total", fmt::format("function=\"{}\"", f),
                static_cast<double>(stats.functions[f].requests));
   w.family("fieldgate_modbus_exceptions_total", "counter",
-           "Modbus exception responses by function code.");
+           "Modbus exception responses by function code and exception code (code 0: other).");
   for (std::size_t f = 0; f < stats.functions.size(); ++f)
-    if (stats.functions[f].requests > 0)
-      w.sample("fieldgate_modbus_exceptions_total", fmt::format("function=\"{}\"", f),
-               static_cast<double>(stats.functions[f].exceptions));
+    for (std::size_t code = 0; code < stats.functions[f].exception_codes.size(); ++code)
+      if (stats.functions[f].exception_codes[code] > 0)
+        w.sample("fieldgate_modbus_exceptions_total",
+                 fmt::format("function=\"{}\",code=\"{}\"", f, code),
+                 static_cast<double>(stats.functions[f].exception_codes[code]));
   w.family("fieldgate_modbus_clients", "gauge", "Modbus clients connected now.");
   w.sample("fieldgate_modbus_clients", "", static_cast<double>(stats.clients_connected));
   w.family("fieldgate_modbus_clients_refused_total", "counter",

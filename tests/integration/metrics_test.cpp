@@ -112,7 +112,8 @@ TEST(Metrics, ScrapedAndParsed) {
       s.count("fieldgate_node_last_good_poll_age_seconds{bus=\"copley\",node=\"amp9\",unit=\"2\"}"),
       0u);
   EXPECT_GE(s.at("fieldgate_modbus_requests_total{function=\"4\"}"), 9);
-  EXPECT_GE(s.at("fieldgate_modbus_exceptions_total{function=\"4\"}"), 1);
+  EXPECT_GE(s.at("fieldgate_modbus_exceptions_total{function=\"4\",code=\"2\"}"),
+            1);  // 600 unmapped
   EXPECT_EQ(s.at("fieldgate_modbus_clients"), 1);
   // Histogram: cumulative buckets, +Inf equals the count.
   double previous = 0;
