@@ -35,6 +35,7 @@ asio::awaitable<std::error_code> Link::send(std::string_view bytes) {
   if (!ec) {
     stats_.bytes_sent += bytes.size();
     tx_done_ = wire_free_at() + wire;
+    if (tap_) tap_(true, bytes);
   }
   co_return ec;
 }
@@ -75,10 +76,12 @@ asio::awaitable<LinkResync> Link::resync(std::chrono::microseconds guard,
   stats_.resync_bytes += result.drained.size();
   stats_.bytes_discarded += result.drained.size();
   result.waited = std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - started);
+  if (tap_ && !result.drained.empty()) tap_(false, result.drained);
   co_return result;
 }
 
 void Link::discard_input() {
+  if (tap_ && !buffer_.empty()) tap_(false, buffer_);
   stats_.bytes_discarded += buffer_.size();
   buffer_.clear();
   transport_.discard_input();
@@ -101,12 +104,14 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
       result.status = LinkRead::Status::frame;
       result.frame = buffer_.substr(0, n);
       buffer_.erase(0, n);
+      if (tap_) tap_(false, result.frame);
       co_return result;
     }
     if (buffer_.size() > max_frame_) {
       result.status = LinkRead::Status::overflow;
       result.partial = std::move(buffer_);
       buffer_.clear();
+      if (tap_) tap_(false, result.partial);
       co_return result;
     }
     if (first)
@@ -127,6 +132,7 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
       result.status = LinkRead::Status::timeout;
       result.partial = std::move(buffer_);
       buffer_.clear();
+      if (tap_ && !result.partial.empty()) tap_(false, result.partial);
       co_return result;
     }
     auto [ec, n] = std::get<0>(outcome);
@@ -135,6 +141,7 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
       result.error = ec;
       result.partial = std::move(buffer_);
       buffer_.clear();
+      if (tap_ && !result.partial.empty()) tap_(false, result.partial);
       co_return result;
     }
     stats_.bytes_received += n;

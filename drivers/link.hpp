@@ -87,6 +87,11 @@ class Link {
   void note(std::string message) { notes_.push_back(std::move(message)); }
   std::vector<std::string> take_notes() { return std::exchange(notes_, {}); }
 
+  // Sees every byte the link sends (tx) and every frame, partial frame or drained run it
+  // receives (rx), for the wire trace.
+  using Tap = std::function<void(bool tx, std::string_view bytes)>;
+  void set_tap(Tap tap) { tap_ = std::move(tap); }
+
   ByteTransport& transport() { return transport_; }
   const LinkStats& stats() const { return stats_; }
   double char_time_us() const { return transport_.char_time_us(); }
@@ -101,6 +106,7 @@ class Link {
   std::string buffer_;
   LinkStats stats_;
   std::vector<std::string> notes_;
+  Tap tap_;
 };
 
 }  // namespace fieldgate

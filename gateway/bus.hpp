@@ -34,6 +34,7 @@ struct BusCounters {
   double latency_sum = 0;                                                 // seconds
   uint64_t transactions = 0;
   uint64_t timeouts = 0;
+  uint64_t unreachable = 0;  // a forwarding device said the node is not reachable
   uint64_t errors = 0;
   uint64_t retries = 0;
   uint64_t reconnects = 0;
@@ -69,6 +70,7 @@ class Bus {
                                         CommandOptions options = {}) = 0;
   virtual const BusConfig& config() const = 0;
   virtual const BusCounters& counters() const = 0;
+  virtual class WireTrace& trace() = 0;
   virtual const NodeConfig& node_config(int node_index) const = 0;
   // The bus's nodes' images, in config order; the process image points at them, so they
   // survive a reload that keeps the bus.

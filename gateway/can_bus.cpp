@@ -113,7 +113,8 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
       on_update_(std::move(on_update)),
       channel_(std::move(channel)),
       wake_(executor),
-      supervisor_wake_(executor) {
+      supervisor_wake_(executor),
+      trace_(config.name, config.trace) {
   if (!channel_)
     channel_ = std::make_unique<SocketCanTransport>(executor, config.transport.can_interface);
   int index = 0;
@@ -381,10 +382,38 @@ asio::awaitable<void> CanBus::read_loop() {
   }
 }
 
-asio::awaitable<bool> CanBus::send_frame(const CanFrame& frame) {
+namespace {
+std::string_view to_string(SdoResult::Status status) {
+  switch (status) {
+    case SdoResult::Status::ok:
+      return "ok";
+    case SdoResult::Status::server_abort:
+      return "device_error";
+    case SdoResult::Status::client_abort:
+      return "garbled";
+    case SdoResult::Status::timeout:
+      return "timeout";
+  }
+  return "garbled";
+}
+}  // namespace
+
+void CanBus::trace_frame(const CanFrame& frame, TraceDirection direction, SteadyTime at,
+                         std::string_view outcome) {
+  if (!trace_.enabled()) return;
+  // NMT names its node in the data; every other COB-ID in its low seven bits.
+  const unsigned id = frame.id == 0 ? (frame.len > 1 ? frame.data[1] : 0) : (frame.id & 0x7f);
+  std::string node = frame.error ? "-" : (frame.id == 0 && id == 0) ? "*" : std::to_string(id);
+  for (const auto& n : nodes_)
+    if (!frame.error && n->id == id) node = n->config->name;
+  trace_.emit(at, node, direction, outcome, to_string(frame));
+}
+
+asio::awaitable<bool> CanBus::send_frame(const CanFrame& frame, std::string_view outcome) {
   if (!link_up_) co_return false;
   const auto ec = co_await channel_->send(frame, config_.timing.link.reply_timeout);
   if (!ec) {
+    trace_frame(frame, TraceDirection::tx, BusClock::now(), outcome);
     ++counters_.frames_sent;
     counters_.bytes_sent += frame.len;
     co_return true;
@@ -402,29 +431,39 @@ asio::awaitable<bool> CanBus::send_frame(const CanFrame& frame) {
 
 void CanBus::dispatch(const CanFrame& frame, SteadyTime now) {
   if (frame.error) {
+    trace_frame(frame, TraceDirection::rx, now, "error_frame");
     on_error_frame(frame, now);
     return;
   }
   ++counters_.frames_received;
   counters_.bytes_received += frame.len;
   const auto it = by_cob_.find(frame.id);
-  if (it == by_cob_.end() || frame.rtr) return;
+  if (it == by_cob_.end() || frame.rtr) {
+    trace_frame(frame, TraceDirection::rx, now, {});
+    return;
+  }
   NodeRuntime& n = *it->second;
   if (frame.id == cob::sdo_tx + n.id) {
     if (n.sdo.idle()) {
+      trace_frame(frame, TraceDirection::rx, now, "late");
       n.sdo.on_frame(frame, now);  // counted as ignored: a late answer
       return;
     }
     auto step = n.sdo.on_frame(frame, now);
+    trace_frame(frame, TraceDirection::rx, now, step.done ? to_string(step.done->status) : "");
     if (step.send || step.done) {
       n.sdo_step = std::move(step);
       n.step_time = now;
       n.wake.cancel();
     }
   } else if (frame.id == cob::heartbeat + n.id) {
+    trace_frame(frame, TraceDirection::rx, now, {});
     if (auto hb = parse_heartbeat(frame)) on_heartbeat(n, hb->state, now);
   } else if (frame.id == cob::emcy + n.id) {
+    trace_frame(frame, TraceDirection::rx, now, {});
     if (auto e = parse_emergency(frame)) on_emergency(n, *e);
+  } else {
+    trace_frame(frame, TraceDirection::rx, now, {});
   }
   if (n.tpdo_points.count(frame.id)) on_tpdo(n, frame, now);
 }
@@ -755,7 +794,7 @@ void CanBus::record_latency(double seconds) {
 
 asio::awaitable<std::optional<SdoResult>> CanBus::sdo_exchange(NodeRuntime& n, SdoStep step) {
   for (;;) {
-    if (step.send) co_await send_frame(*step.send);
+    if (step.send) co_await send_frame(*step.send, step.done ? to_string(step.done->status) : "");
     if (step.done) co_return std::move(*step.done);
     n.sdo_step.reset();
     while (!n.sdo_step) {

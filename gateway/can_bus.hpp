@@ -18,6 +18,7 @@
 #include "gateway/gateway_config.hpp"
 #include "gateway/poll_plan.hpp"
 #include "gateway/process_image.hpp"
+#include "gateway/wire_trace.hpp"
 
 namespace fieldgate {
 
@@ -44,6 +45,7 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
 
   const BusConfig& config() const override { return config_; }
   const BusCounters& counters() const override { return counters_; }
+  WireTrace& trace() override { return trace_; }
   const NodeConfig& node_config(int node_index) const override;
   std::vector<std::shared_ptr<NodeImage>> node_images() const override;
   void rebind(int first_node_index, NodeUpdated on_update) override;
@@ -92,7 +94,10 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
   // One SDO transfer from its first step to its result; nullopt when the link went down.
   asio::awaitable<std::optional<canopen::SdoResult>> sdo_exchange(NodeRuntime& n,
                                                                   canopen::SdoStep step);
-  asio::awaitable<bool> send_frame(const canopen::CanFrame& frame);
+  // `outcome`: how the SDO transfer this frame ends came out, for the wire trace.
+  asio::awaitable<bool> send_frame(const canopen::CanFrame& frame, std::string_view outcome = {});
+  void trace_frame(const canopen::CanFrame& frame, TraceDirection direction, SteadyTime at,
+                   std::string_view outcome);
   asio::awaitable<void> run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now);
   asio::awaitable<void> probe(NodeRuntime& n, SteadyTime now);
   // Bring-up (CiA 302): the heartbeat producer time the consumer expects, written to 0x1017.
@@ -155,6 +160,7 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
   int workers_running_ = 0;
   SteadyTime error_frames_logged_{};
   uint64_t error_frames_unlogged_ = 0;
+  WireTrace trace_;
 };
 
 }  // namespace fieldgate

@@ -307,7 +307,17 @@ class ConfigParser {
     auto add = [&](const YAML::Node& item) {
       if (auto dir = expand(item, "models")) {
         fs::path p(*dir);
-        if (p.is_relative()) p = base / p;
+        const bool relative = p.is_relative();
+        if (relative) p = base / p;
+        std::error_code ec;
+        if (!fs::is_directory(p, ec)) {
+          r_.error(item, fmt::format("models: no directory {}{}", p.lexically_normal().string(),
+                                     relative ? fmt::format(" ('{}' is resolved from the directory "
+                                                            "of this file)",
+                                                            *dir)
+                                              : std::string()));
+          return;
+        }
         config.model_dirs.push_back(p.lexically_normal().string());
       }
     };
@@ -450,8 +460,10 @@ class ConfigParser {
           if (other.name == *s) r_.error(*n, fmt::format("{}: bus name is already used", where));
       }
     r_.reject_unknown_keys(
-        node, {"name", "protocol", "serial", "tcp", "can", "timing", "nodes", "listener"}, where);
+        node, {"name", "protocol", "serial", "tcp", "can", "timing", "nodes", "listener", "trace"},
+        where);
     bus_listener_ = resolve_listener(node["listener"], config, where, 0);
+    if (node["trace"]) bus.trace = r_.boolean(node["trace"], where + " trace").value_or(false);
     if (auto p = r_.require(node, "protocol", where)) {
       if (auto s = r_.string(*p, where + " protocol")) {
         bus.protocol = *s;

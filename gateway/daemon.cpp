@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "gateway/log.hpp"
+#include "gateway/wire_trace.hpp"
 
 namespace fieldgate {
 
@@ -24,7 +25,9 @@ Daemon::Daemon(std::string config_path, std::shared_ptr<const LoadedConfig> conf
       notifier_(
           io_.get_executor(), [this] { return gateway_->status_line(); },
           [this] { return gateway_->all_buses_attempted(); }),
-      signals_(io_, SIGINT, SIGTERM, SIGHUP) {}
+      signals_(io_, SIGINT, SIGTERM, SIGHUP) {
+  signals_.add(SIGUSR2);
+}
 
 Daemon::~Daemon() = default;
 
@@ -46,6 +49,12 @@ void Daemon::wait_for_signal() {
     if (ec) return;
     if (signal == SIGHUP) {
       reload();
+      wait_for_signal();
+      return;
+    }
+    if (signal == SIGUSR2) {
+      log::notice("SIGUSR2: wire trace now {} for every bus",
+                  WireTrace::toggle_all() ? "on" : "off");
       wait_for_signal();
       return;
     }

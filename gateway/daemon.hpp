@@ -14,7 +14,7 @@ namespace fieldgate {
 
 // The process: one io_context, the gateway, systemd notification and signals. SIGINT/SIGTERM
 // stop; SIGHUP reloads the configuration file (validated in full first; on any error the old
-// configuration stays in force).
+// configuration stays in force); SIGUSR2 toggles the wire trace of every bus.
 class Daemon {
  public:
   Daemon(std::string config_path, std::shared_ptr<const LoadedConfig> config);

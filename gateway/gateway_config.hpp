@@ -105,6 +105,7 @@ struct BusConfig {
   TransportConfig transport;
   BusTiming timing;
   std::vector<NodeConfig> nodes;
+  bool trace = false;  // wire trace on from the start (gateway/wire_trace.hpp)
   SourceMark mark;
   // The bus's YAML and the text of the models it uses: equal signatures across a reload mean
   // the bus can keep running untouched.

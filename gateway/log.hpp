@@ -2,12 +2,17 @@
 
 #include <fmt/format.h>
 
+#include <optional>
 #include <string_view>
 
 namespace fieldgate::log {
 
-// syslog priorities; on stderr each line starts with <N> so journald files it correctly.
+// syslog priorities; when stderr is the journal (JOURNAL_STREAM names it) each line starts with
+// <N> so journald files it correctly; on a terminal or a file the lines are plain.
 enum class Level { error = 3, warning = 4, notice = 5, info = 6, debug = 7 };
+
+// Whether lines carry <N> prefixes (detected once from JOURNAL_STREAM); `force` overrides it.
+bool journal_prefixes(std::optional<bool> force = std::nullopt);
 
 void set_verbosity(Level most_verbose);
 bool enabled(Level level);

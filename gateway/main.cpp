@@ -46,17 +46,18 @@ std::vector<ListenerMap> listener_maps(const LoadedConfig& config) {
 
 int main(int argc, char** argv) {
   CLI::App app{"fieldgate: field links to a Modbus register map"};
-  std::string config_path;
+  std::string config_path = FIELDGATE_DEFAULT_CONFIG;
   bool verbose = false;
-  app.add_option("-c,--config", config_path, "gateway configuration (YAML)");
+  app.set_version_flag("--version", "fieldgate " FIELDGATE_VERSION_TEXT);
+  app.add_option("-c,--config", config_path, "gateway configuration (YAML)")->capture_default_str();
   app.add_flag("-v,--verbose", verbose, "log debug detail");
   auto* check = app.add_subcommand("check", "validate a configuration without opening any port");
-  std::string check_path;
-  check->add_option("config", check_path, "gateway configuration (YAML)")->required();
+  std::string check_path = FIELDGATE_DEFAULT_CONFIG;
+  check->add_option("config", check_path, "gateway configuration (YAML)")->capture_default_str();
   auto* map = app.add_subcommand("map", "write the register map document for the PLC programmer");
-  std::string map_path;
+  std::string map_path = FIELDGATE_DEFAULT_CONFIG;
   std::string map_format = "md";
-  map->add_option("config", map_path, "gateway configuration (YAML)")->required();
+  map->add_option("config", map_path, "gateway configuration (YAML)")->capture_default_str();
   map->add_option("--format", map_format, "md or csv")->check(CLI::IsMember({"md", "csv"}));
   CLI11_PARSE(app, argc, argv);
   if (*map) {
@@ -70,10 +71,6 @@ int main(int argc, char** argv) {
   }
   if (verbose) log::set_verbosity(log::Level::debug);
   if (*check) return run_check(check_path);
-  if (config_path.empty()) {
-    std::cerr << "fieldgate: --config FILE is required (or 'fieldgate check FILE')\n" << app.help();
-    return 2;
-  }
   auto config = load_config_or_report(config_path);
   if (!config) {
     std::cerr << "nothing was started\n";

@@ -2,7 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 #include "gateway/gateway.hpp"
+#include "gateway/process_metrics.hpp"
 
 #ifndef FIELDGATE_VERSION
 #define FIELDGATE_VERSION "unknown"
@@ -58,6 +61,9 @@ std::string render_metrics(const Gateway& gateway) {
   const BusCounter counters[] = {
       {"fieldgate_bus_transactions_total", "Transactions on the bus.", &BusCounters::transactions},
       {"fieldgate_bus_timeouts_total", "Transactions that timed out.", &BusCounters::timeouts},
+      {"fieldgate_bus_unreachable_total",
+       "Transactions a forwarding device answered 'node unreachable' (Copley e 32).",
+       &BusCounters::unreachable},
       {"fieldgate_bus_errors_total", "Device error and garbled replies.", &BusCounters::errors},
       {"fieldgate_bus_retries_total", "Poll retries.", &BusCounters::retries},
       {"fieldgate_bus_commands_total", "Commands from Modbus writes.", &BusCounters::commands},
@@ -81,10 +87,16 @@ std::string render_metrics(const Gateway& gateway) {
        &BusCounters::tx_dropped},
   };
   for (const auto& c : counters) {
+    const bool can_only = std::string_view(c.name).starts_with("fieldgate_bus_can_");
+    if (can_only && std::none_of(buses.begin(), buses.end(), [](const auto& bus) {
+          return bus->config().transport.kind == TransportConfig::Kind::can;
+        }))
+      continue;
     w.family(c.name, "counter", c.help);
     for (const auto& bus : buses)
-      w.sample(c.name, fmt::format("bus=\"{}\"", label(bus->config().name)),
-               static_cast<double>(bus->counters().*c.field));
+      if (!can_only || bus->config().transport.kind == TransportConfig::Kind::can)
+        w.sample(c.name, fmt::format("bus=\"{}\"", label(bus->config().name)),
+                 static_cast<double>(bus->counters().*c.field));
   }
   w.family("fieldgate_bus_up", "gauge", "1 while the bus's link is open.");
   for (const auto& bus : buses)
@@ -139,6 +151,9 @@ std::string render_metrics(const Gateway& gateway) {
       {"fieldgate_node_transactions_total", "Transactions with the node.",
        &NodeCounters::transactions},
       {"fieldgate_node_timeouts_total", "Transactions that timed out.", &NodeCounters::timeouts},
+      {"fieldgate_node_unreachable_total",
+       "Transactions a forwarding device reported the node unreachable for (Copley e 32).",
+       &NodeCounters::unreachable},
       {"fieldgate_node_errors_total", "Device errors and garbled replies.", &NodeCounters::errors},
   };
   for (const auto& c : node_counters) {
@@ -164,12 +179,14 @@ std::string render_metrics(const Gateway& gateway) {
         w.sample("fieldgate_modbus_requests_total", fmt::format("{},function=\"{}\"", l, f),
                  static_cast<double>(stats->functions[f].requests));
   w.family("fieldgate_modbus_exceptions_total", "counter",
-           "Modbus exception responses by function code.");
+           "Modbus exception responses by function code and exception code (code 0: other).");
   for (const auto& [l, stats] : listeners)
     for (std::size_t f = 0; f < stats->functions.size(); ++f)
-      if (stats->functions[f].requests > 0)
-        w.sample("fieldgate_modbus_exceptions_total", fmt::format("{},function=\"{}\"", l, f),
-                 static_cast<double>(stats->functions[f].exceptions));
+      for (std::size_t code = 0; code < stats->functions[f].exception_codes.size(); ++code)
+        if (stats->functions[f].exception_codes[code] > 0)
+          w.sample("fieldgate_modbus_exceptions_total",
+                   fmt::format("{},function=\"{}\",code=\"{}\"", l, f, code),
+                   static_cast<double>(stats->functions[f].exception_codes[code]));
   w.family("fieldgate_modbus_clients", "gauge", "Modbus clients connected now.");
   for (const auto& [l, stats] : listeners)
     w.sample("fieldgate_modbus_clients", l, static_cast<double>(stats->clients_connected));
@@ -248,7 +265,7 @@ std::string render_metrics(const Gateway& gateway) {
         w.sample("fieldgate_modbus_rtu_exceptions_total", fmt::format("{},code=\"{}\"", port, code),
                  static_cast<double>(r.exceptions_by_code[code]));
   }
-  return std::move(w).text();
+  return std::move(w).text() + render_process_metrics();
 }
 
 }  // namespace fieldgate

@@ -8,6 +8,8 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 
+#include "gateway/wire_trace.hpp"
+
 namespace fieldgate {
 
 namespace beast = boost::beast;
@@ -44,7 +46,12 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, MetricsServer::State& 
   res.version(req.version());
   res.keep_alive(false);
   res.set(http::field::server, "fieldgate");
-  if (req.method() != http::verb::get && req.method() != http::verb::head) {
+  if (req.method() == http::verb::post && req.target().starts_with("/trace")) {
+    const auto r = trace_control(std::string_view(req.target().data(), req.target().size()));
+    res.result(static_cast<http::status>(r.status));
+    res.set(http::field::content_type, "text/plain; charset=utf-8");
+    res.body() = r.body;
+  } else if (req.method() != http::verb::get && req.method() != http::verb::head) {
     res.result(http::status::method_not_allowed);
     res.set(http::field::allow, "GET, HEAD");
   } else if (req.target() != "/metrics") {

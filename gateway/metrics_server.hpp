@@ -20,7 +20,8 @@ struct MetricsServerStats {
 };
 
 // A minimal HTTP/1.1 endpoint (Boost.Beast) answering GET /metrics with the text the callback
-// renders; anything else gets 404 or 405. One short-lived coroutine per connection.
+// renders, and POST /trace?bus=NAME&on=1 (the wire trace switch); anything else gets 404 or 405.
+// One short-lived coroutine per connection.
 class MetricsServer {
  public:
   using Render = std::function<std::string()>;

@@ -51,6 +51,8 @@ int64_t ProcessImage::diagnostic(int index, DiagnosticField field, SteadyTime no
       return static_cast<uint16_t>(n.state);
     case DiagnosticField::unknown_writes:
       return clamp32(n.counters.unknown_writes);
+    case DiagnosticField::unreachable:
+      return clamp32(n.counters.unreachable);
     case DiagnosticField::data_age_ms: {
       // The oldest polled value: what a PLC reading this node's points may be served.
       SteadyTime oldest = SteadyTime::max();

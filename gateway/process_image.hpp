@@ -28,6 +28,7 @@ std::string_view to_string(NodeState state);
 struct NodeCounters {
   uint64_t transactions = 0;
   uint64_t timeouts = 0;
+  uint64_t unreachable = 0;  // a forwarding device answered that the node is not reachable
   uint64_t errors = 0;
   uint64_t retries = 0;
   uint32_t consecutive_timeouts = 0;

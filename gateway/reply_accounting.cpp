@@ -22,8 +22,16 @@ ReplyOutcome count_reply(NodeCounters& c, BusCounters& bus, const Reply& reply, 
       ++bus.errors;
       c.last_error_text = reply.text;
       return ReplyOutcome::garbled;
-    case Reply::Status::timeout:
     case Reply::Status::unreachable:
+      // An answer from a forwarding device (Copley e 32), not silence: counted apart from
+      // timeouts, with its code, and toward offline like them.
+      ++c.unreachable;
+      ++bus.unreachable;
+      ++c.consecutive_timeouts;
+      if (reply.device_code != 0) c.last_device_error = reply.device_code;
+      c.last_error_text = reply.text;
+      return ReplyOutcome::failed;
+    case Reply::Status::timeout:
     case Reply::Status::link_down:
       ++c.timeouts;
       ++bus.timeouts;

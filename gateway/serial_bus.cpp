@@ -41,7 +41,22 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
       on_update_(std::move(on_update)),
       transport_(make_transport(executor, config.transport)),
       link_(*transport_),
-      wake_(executor) {
+      wake_(executor),
+      trace_(config.name, config.trace) {
+  link_.set_tap([this](bool tx, std::string_view bytes) {
+    if (!trace_.enabled()) return;
+    if (trace_collecting_) {
+      traced_.push_back({Clock::now(), tx, std::string(bytes)});
+      return;
+    }
+    // Outside a transaction: link-open procedures, urgent commands, discarded input.
+    trace_.emit(Clock::now(), {}, tx ? TraceDirection::tx : TraceDirection::rx, {},
+                printable_bytes(bytes));
+  });
+  config_.family->route_log([bus = config.name](int level, std::string_view text) {
+    log::write(static_cast<log::Level>(std::clamp(level, 3, 7)),
+               fmt::format("bus {}: {}", bus, text));
+  });
   int index = 0;  // local: position on this bus; the gateway's number is first_node_index_ + index
   for (const auto& n : config.nodes) {
     NodeRuntime rt;
@@ -248,7 +263,10 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
       ++(*n.image).counters.retries;
     }
     const auto started = Clock::now();
+    trace_collecting_ = trace_.enabled();
     reply = co_await config_.family->transact(link_, n.config->address, request, n.timing);
+    trace_collecting_ = false;
+    trace_transaction(n, to_string(reply.status));
     record_latency(std::chrono::duration<double>(Clock::now() - started).count());
     for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
     ++counters_.transactions;
@@ -273,9 +291,19 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
   co_return reply;
 }
 
+void SerialBus::trace_transaction(const NodeRuntime& n, std::string_view outcome) {
+  for (const auto& t : traced_)
+    trace_.emit(t.at, n.config->name, t.tx ? TraceDirection::tx : TraceDirection::rx, outcome,
+                printable_bytes(t.bytes));
+  traced_.clear();
+}
+
 asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
   if (!transport_->is_open()) co_return;
+  trace_collecting_ = trace_.enabled();
   const auto found = co_await config_.family->resync_after_failure(link_, n.timing);
+  trace_collecting_ = false;
+  trace_transaction(n, "resync");
   ++counters_.resyncs;
   counters_.resync_bytes += found.drained.size();
   const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(found.waited).count();

@@ -17,6 +17,7 @@
 #include "gateway/gateway_config.hpp"
 #include "gateway/poll_plan.hpp"
 #include "gateway/process_image.hpp"
+#include "gateway/wire_trace.hpp"
 
 namespace fieldgate {
 
@@ -42,6 +43,7 @@ class SerialBus final : public Bus {
   const BusConfig& config() const override { return config_; }
   const BusCounters& counters() const override { return counters_; }
   const LinkStats& link_stats() const { return link_.stats(); }
+  WireTrace& trace() override { return trace_; }
   bool owns_node(int node_index) const;
   const NodeConfig& node_config(int node_index) const override;
   std::vector<std::shared_ptr<NodeImage>> node_images() const override;
@@ -94,6 +96,16 @@ class SerialBus final : public Bus {
   int polls_in_row_ = 0;
   int last_command_node_ = -1;
   bool link_error_logged_ = false;
+  // Wire trace: during a transaction the link's bytes wait here for its outcome.
+  struct TracedBytes {
+    SteadyTime at;
+    bool tx;
+    std::string bytes;
+  };
+  WireTrace trace_;
+  bool trace_collecting_ = false;
+  std::vector<TracedBytes> traced_;
+  void trace_transaction(const NodeRuntime& node, std::string_view outcome);
   SteadyTime opened_at_{};
 };
 

@@ -65,6 +65,9 @@ constexpr DiagnosticLayout kDiagnostics[] = {
      "commands sent without a valid reply: outcome unknown, answered 0x0B, not retried"},
     {DiagnosticField::data_age_ms, "diag.data_age", ValueType::uint32,
      "ms since the oldest polled value was read (0xffffffff: one never was)"},
+    {DiagnosticField::unreachable, "diag.unreachable", ValueType::uint32,
+     "transactions a forwarding device answered 'node unreachable' (Copley e 32); not in "
+     "timeouts"},
 };
 
 RegisterEntry make_entry(RegisterEntry::Kind kind, uint16_t address, ValueType type,

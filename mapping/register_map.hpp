@@ -38,6 +38,7 @@ enum class DiagnosticField {
   node_state,      // 0 starting, 1 online, 2 offline, 3 faulted
   unknown_writes,  // uint32: commands sent that got no valid reply (outcome unknown)
   data_age_ms,     // uint32: age of the oldest polled value, 0xffffffff if one was never read
+  unreachable,     // uint32: a forwarding device said the node is not reachable (Copley e 32)
 };
 
 enum class ActionStatus : uint16_t { idle = 0, busy = 1, done = 2, error = 3 };

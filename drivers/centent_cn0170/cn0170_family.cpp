@@ -224,9 +224,9 @@ void CententFamily::adopt_options() {
 
 void CententFamily::flush_log(Link& link) {
   if (chain_.events.empty()) return;
-  const std::string where = link.transport().describe();
+  const std::string where = routed_ ? "" : " on " + link.transport().describe();
   for (const auto& e : chain_.events)
-    if (log_sink_) log_sink_(e.level, fmt::format("centent-cn0170 chain on {}: {}", where, e.text));
+    if (log_sink_) log_sink_(e.level, fmt::format("centent-cn0170 chain{}: {}", where, e.text));
   chain_.events.clear();
 }
 

@@ -34,6 +34,10 @@ class CententFamily final : public ProtocolFamily {
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
 
   void set_log_sink(LogSink sink) { log_sink_ = std::move(sink); }
+  void route_log(LogRoute route) override {
+    log_sink_ = std::move(route);
+    routed_ = true;
+  }
   void set_options(const cn0170::Options& options);
   const cn0170::Chain& chain() const { return chain_; }
   const cn0170::Options& options() const { return options_; }
@@ -63,6 +67,7 @@ class CententFamily final : public ProtocolFamily {
   mutable bool own_options_ = false;
   bool options_adopted_ = false;
   LogSink log_sink_;
+  bool routed_ = false;  // the sink names the bus: lines need not name the device
 };
 
 FamilyPtr make_centent_cn0170_family();

@@ -44,6 +44,11 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   const ims::LateReplies& late_replies() const { return late_; }
   void pin(char name, ims::ReadingPins pins) { readings_.pin(name, pins); }
   void set_log_sink(LogSink sink) { log_ = std::move(sink); }
+  void route_log(LogRoute route) override {
+    log_ = [route = std::move(route)](int level, const std::string& text) {
+      route(level, "ims-party-line: " + text);
+    };
+  }
 
   // How long a debt of late replies is kept (README "Late replies").
   static std::chrono::microseconds late_window(const LinkTiming& timing);

@@ -248,7 +248,11 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
     }
     FunctionCounters& counters = stats_.functions[function];
     ++counters.requests;
-    if (response[0] & 0x80) ++counters.exceptions;
+    if (response[0] & 0x80) {
+      ++counters.exceptions;
+      const std::size_t code = response.size() > 1 ? response[1] : 0;
+      ++counters.exception_codes[code < counters.exception_codes.size() ? code : 0];
+    }
 
     s.out.clear();
     encode_adu(frame.header.transaction_id, frame.header.unit_id, response, s.out);

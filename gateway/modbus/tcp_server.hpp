@@ -48,6 +48,8 @@ struct ModbusTcpServerOptions {
 struct FunctionCounters {
   std::uint64_t requests = 0;
   std::uint64_t exceptions = 0;  // exception responses sent
+  // The same by exception code (0x01..0x0B; 0 counts any other code).
+  std::array<std::uint64_t, 12> exception_codes{};
 };
 
 struct ModbusTcpServerStats {

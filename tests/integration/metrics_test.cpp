@@ -104,9 +104,17 @@ TEST(Metrics, ScrapedAndParsed) {
   EXPECT_EQ(
       s.at("fieldgate_node_online{bus=\"copley\",node=\"amp9\",unit=\"2\",listener=\"default\"}"),
       0);
-  EXPECT_GE(s.at("fieldgate_node_timeouts_total{bus=\"copley\",node=\"amp9\",unit=\"2\",listener="
-                 "\"default\"}"),
+  // The gateway amplifier answers e 32 for amp9 (absent from its CAN network): unreachable, not
+  // timeouts, and no CAN series on this serial bus.
+  EXPECT_GE(s.at("fieldgate_node_unreachable_total{bus=\"copley\",node=\"amp9\",unit=\"2\","
+                 "listener=\"default\"}"),
             3);
+  EXPECT_EQ(s.at("fieldgate_node_timeouts_total{bus=\"copley\",node=\"amp9\",unit=\"2\","
+                 "listener=\"default\"}"),
+            0);
+  EXPECT_EQ(s.count("fieldgate_bus_can_frames_sent_total{bus=\"copley\"}"), 0u);
+  EXPECT_GT(s.at("process_resident_memory_bytes"), 0);
+  EXPECT_GT(s.at("process_open_fds"), 0);
   EXPECT_LT(s.at("fieldgate_node_last_good_poll_age_seconds{bus=\"copley\",node=\"amp0\",unit="
                  "\"1\",listener=\"default\"}"),
             2);
@@ -114,7 +122,9 @@ TEST(Metrics, ScrapedAndParsed) {
                     "\"2\",listener=\"default\"}"),
             0u);
   EXPECT_GE(s.at("fieldgate_modbus_requests_total{listener=\"default\",function=\"4\"}"), 9);
-  EXPECT_GE(s.at("fieldgate_modbus_exceptions_total{listener=\"default\",function=\"4\"}"), 1);
+  EXPECT_GE(
+      s.at("fieldgate_modbus_exceptions_total{listener=\"default\",function=\"4\",code=\"2\"}"),
+      1);  // 600 unmapped
   EXPECT_EQ(s.at("fieldgate_modbus_clients{listener=\"default\"}"), 1);
   // Histogram: cumulative buckets, +Inf equals the count.
   double previous = 0;

@@ -625,3 +625,33 @@ TEST_F(CanBusTest, NodeStayingPreOperationalWithoutAnErrorIsReportedOnce) {
 
 }  // namespace
 }  // namespace fieldgate
+
+namespace fieldgate {
+namespace {
+
+TEST_F(CanBusTest, WireTraceShowsFramesWithNodeAndSdoOutcome) {
+  std::vector<std::string> lines;
+  WireTrace::set_sink([&](std::string_view line) { lines.emplace_back(line); });
+  start("2,3", kTwoDrives);
+  ASSERT_TRUE(run_until([&] { return online(0); }));
+  bus_->trace().set_enabled(true);
+  auto r = submit(0, "write modes_of_operation 3");  // refused by the simulator: an SDO abort
+  EXPECT_EQ(r.status, Reply::Status::device_error);
+  bus_->trace().set_enabled(false);
+  WireTrace::set_sink({});
+  // The download request to node 2 (0x602) and the abort answering it (0x582, 0x80 first).
+  const std::regex tx(R"(^trace can \(\d+\.\d{6}\) axis2 tx - '602#2F606000.*'$)");
+  const std::regex rx(R"(^trace can \(\d+\.\d{6}\) axis2 rx device_error '582#80606000.*'$)");
+  bool saw_tx = false, saw_rx = false;
+  for (const auto& l : lines) {
+    saw_tx = saw_tx || std::regex_match(l, tx);
+    saw_rx = saw_rx || std::regex_match(l, rx);
+  }
+  std::string all;
+  for (const auto& l : lines) all += l + "\n";
+  EXPECT_TRUE(saw_tx) << all;
+  EXPECT_TRUE(saw_rx) << all;
+}
+
+}  // namespace
+}  // namespace fieldgate
