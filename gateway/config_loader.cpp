@@ -12,6 +12,7 @@
 #include <boost/asio/ip/address.hpp>
 
 #include "gateway/poll_budget.hpp"
+#include "gateway/sparkplug/sparkplug_config.hpp"
 #include "mapping/model_loader.hpp"
 #include "mapping/yaml_reader.hpp"
 
@@ -60,11 +61,13 @@ class ConfigParser {
   std::optional<GatewayConfig> parse(const YAML::Node& root) {
     if (!root.IsDefined()) return std::nullopt;
     if (!r_.expect_map(root, "gateway configuration")) return std::nullopt;
-    r_.reject_unknown_keys(root, {"modbus", "metrics", "models", "buses"}, "gateway configuration");
+    r_.reject_unknown_keys(root, {"modbus", "metrics", "models", "buses", "sparkplug"},
+                         "gateway configuration");
     GatewayConfig config;
     config.file = r_.file();
     if (root["modbus"]) parse_modbus(root["modbus"], config.modbus);
     if (root["metrics"]) parse_metrics(root["metrics"], config.metrics);
+    if (root["sparkplug"]) sparkplug::parse_sparkplug_config(r_, root["sparkplug"], config.sparkplug);
     parse_model_dirs(root["models"], config);
     for (const auto& dir : config.model_dirs) library_.load_directory(dir, r_.diagnostics());
     if (auto buses = r_.require(root, "buses", "gateway configuration");

@@ -6,6 +6,7 @@
 
 #include "gateway/log.hpp"
 #include "gateway/metrics.hpp"
+#include "gateway/sparkplug/edge_node.hpp"
 
 namespace fieldgate {
 
@@ -89,8 +90,23 @@ void Gateway::start() {
   const auto ep = server_->local_endpoint();
   log::notice("modbus: listening on {}:{}", ep.address().to_string(), ep.port());
   start_metrics();
+  start_sparkplug();
   for (auto& bus : pending_start_) spawn(bus);
   pending_start_.clear();
+}
+
+void Gateway::start_sparkplug() {
+  if (sparkplug_) sparkplug_->stop();
+  sparkplug_.reset();
+  const auto& s = current_->config->gateway.sparkplug;
+  if (!s.enabled) return;
+  sparkplug_ = std::make_unique<sparkplug::EdgeNode>(io_.get_executor(), s);
+  sparkplug_->bind(current_->config, current_->image, current_->handler);
+  sparkplug_->start();
+}
+
+const sparkplug::SessionStats* Gateway::sparkplug_stats() const {
+  return sparkplug_ ? &sparkplug_->stats() : nullptr;
 }
 
 void Gateway::start_metrics() {
@@ -145,6 +161,10 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
   retired_.push_back(current_);
   current_ = next;
   if (metrics_changed) start_metrics();
+  if (!sparkplug_ || sparkplug_->config() != current_->config->gateway.sparkplug)
+    start_sparkplug();
+  else
+    sparkplug_->bind(current_->config, current_->image, current_->handler);
   for (auto& bus : fresh) spawn(bus);
   return fmt::format("{} bus(es) kept running, {} started, {} stopped", kept, fresh.size(),
                      stopped);
@@ -153,6 +173,7 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
 void Gateway::stop() {
   if (server_) server_->stop();
   if (metrics_) metrics_->stop();
+  if (sparkplug_) sparkplug_->stop();
   if (current_) {
     for (auto& bus : current_->buses) bus->stop();
     current_->actions->stop();

@@ -16,6 +16,11 @@
 
 namespace fieldgate {
 
+namespace sparkplug {
+class EdgeNode;
+struct SessionStats;
+}  // namespace sparkplug
+
 // The running gateway: buses, process image, actions and the Modbus server on one io_context.
 // A configuration in force is a generation; a reload builds the next one, keeping every bus
 // whose configuration did not change (and its nodes' state) and the Modbus clients.
@@ -38,6 +43,8 @@ class Gateway {
   std::string status_line() const;
   // Every bus has finished its first attempt to open its link (READY=1 waits for this).
   bool all_buses_attempted() const;
+  // The Sparkplug B session, when enabled.
+  const sparkplug::SessionStats* sparkplug_stats() const;
 
  private:
   struct Generation {
@@ -55,6 +62,7 @@ class Gateway {
   modbus::ModbusTcpServerOptions server_options(const GatewayConfig& config) const;
   void spawn(const std::shared_ptr<Bus>& bus);
   void start_metrics();
+  void start_sparkplug();
 
   asio::io_context& io_;
   std::shared_ptr<Generation> current_;
@@ -62,6 +70,7 @@ class Gateway {
   std::vector<std::shared_ptr<Generation>> retired_;
   std::unique_ptr<modbus::ModbusTcpServer> server_;
   std::unique_ptr<MetricsServer> metrics_;
+  std::unique_ptr<sparkplug::EdgeNode> sparkplug_;
   std::vector<std::shared_ptr<Bus>> pending_start_;
 };
 

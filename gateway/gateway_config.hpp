@@ -11,6 +11,7 @@
 #include "drivers/protocol_family.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "gateway/access_control.hpp"
+#include "gateway/sparkplug/sparkplug_config.hpp"
 #include "mapping/diagnostics.hpp"
 #include "mapping/model.hpp"
 #include "mapping/register_map.hpp"
@@ -113,6 +114,7 @@ struct GatewayConfig {
   std::string file;
   ModbusConfig modbus;
   MetricsConfig metrics;
+  sparkplug::SparkplugConfig sparkplug;
   std::vector<std::string> model_dirs;
   std::vector<BusConfig> buses;
   std::vector<std::string> warnings;  // e.g. poll budgets that cannot be met
