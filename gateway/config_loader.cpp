@@ -62,12 +62,13 @@ class ConfigParser {
     if (!root.IsDefined()) return std::nullopt;
     if (!r_.expect_map(root, "gateway configuration")) return std::nullopt;
     r_.reject_unknown_keys(root, {"modbus", "metrics", "models", "buses", "sparkplug"},
-                         "gateway configuration");
+                           "gateway configuration");
     GatewayConfig config;
     config.file = r_.file();
     if (root["modbus"]) parse_modbus(root["modbus"], config.modbus);
     if (root["metrics"]) parse_metrics(root["metrics"], config.metrics);
-    if (root["sparkplug"]) sparkplug::parse_sparkplug_config(r_, root["sparkplug"], config.sparkplug);
+    if (root["sparkplug"])
+      sparkplug::parse_sparkplug_config(r_, root["sparkplug"], config.sparkplug);
     parse_model_dirs(root["models"], config);
     for (const auto& dir : config.model_dirs) library_.load_directory(dir, r_.diagnostics());
     if (auto buses = r_.require(root, "buses", "gateway configuration");

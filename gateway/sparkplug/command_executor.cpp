@@ -19,7 +19,8 @@ const RegisterEntry* entry_for(const UnitMap& unit, const DeviceMetric& metric) 
   using S = DeviceMetric::Source;
   for (const auto& e : unit.tables[static_cast<std::size_t>(Table::holding_registers)]) {
     if (!e.writable) continue;
-    if (metric.source == S::point && e.kind == RegisterEntry::Kind::point && e.index == metric.index)
+    if (metric.source == S::point && e.kind == RegisterEntry::Kind::point &&
+        e.index == metric.index)
       return &e;
     if (metric.source == S::setpoint && e.kind == RegisterEntry::Kind::setpoint &&
         e.index == metric.index)
@@ -39,9 +40,7 @@ bool outcome_unknown(uint16_t error) {
 
 asio::awaitable<void> execute_command(CommandTarget target, DeviceMetric metric, Metric value,
                                       CommandReport report) {
-  const auto reject = [&](std::string detail) {
-    report({"rejected", std::move(detail), true});
-  };
+  const auto reject = [&](std::string detail) { report({"rejected", std::move(detail), true}); };
   const UnitMap* unit = target.config->register_map.unit(target.unit_id);
   if (!unit) {
     reject("the device has no register map");
@@ -86,9 +85,10 @@ asio::awaitable<void> execute_command(CommandTarget target, DeviceMetric metric,
       report({"unknown", "sent without a valid reply: it may have run", true});
       co_return;
     }
-    std::string detail = fmt::format("exception 0x{:02X} ({})", static_cast<int>(ex),
-                                     modbus::to_string(ex));
-    if (ex == modbus::ExceptionCode::server_device_failure && !node.counters.last_error_text.empty())
+    std::string detail =
+        fmt::format("exception 0x{:02X} ({})", static_cast<int>(ex), modbus::to_string(ex));
+    if (ex == modbus::ExceptionCode::server_device_failure &&
+        !node.counters.last_error_text.empty())
       detail += ": " + node.counters.last_error_text;
     report({"failed", detail, true});
     co_return;

@@ -21,8 +21,8 @@ constexpr std::string_view kRebirth = "Node Control/Rebirth";
 // Device IDs are topic levels.
 std::string device_id_of(const std::string& node_name) {
   std::string id = node_name;
-  std::replace_if(id.begin(), id.end(), [](char c) { return c == '/' || c == '+' || c == '#'; },
-                  '_');
+  std::replace_if(
+      id.begin(), id.end(), [](char c) { return c == '/' || c == '+' || c == '#'; }, '_');
   return id;
 }
 
@@ -138,8 +138,7 @@ void EdgeNode::on_connected() {
     connection_.subscribe(TopicNamespace::state_topic(*config_.primary_host_id), 1);
     if (!primary_.online()) {
       stats_.waiting_for_primary_host = true;
-      log::notice("sparkplug: waiting for primary host {} to be online",
-                  *config_.primary_host_id);
+      log::notice("sparkplug: waiting for primary host {} to be online", *config_.primary_host_id);
       return;
     }
   }
@@ -171,9 +170,9 @@ void EdgeNode::birth() {
   stats_.born = true;
   ++stats_.births;
   log::notice("sparkplug: NBIRTH {}/{} bdSeq {}", config_.group_id, config_.edge_node_id, bd_seq_);
-  next_slow_scan_ = std::chrono::steady_clock::now() +
-                    std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                        config_.diagnostics_interval);
+  next_slow_scan_ =
+      std::chrono::steady_clock::now() +
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(config_.diagnostics_interval);
   for (auto& d : devices_) {
     d.born = false;
     if (image_->node(d.node_index).state == NodeState::online) device_birth(d);
@@ -200,7 +199,7 @@ void EdgeNode::device_death(Device& d) {
   if (publish(topics_.device_topic(MessageType::ddeath, d.id), p)) ++stats_.deaths;
 }
 
-void EdgeNode::scan_device(Device& d, bool include_slow) {
+void EdgeNode::scan_device(Device& d, bool include_slow, bool with_command) {
   if (!born_) return;
   const bool online = image_->node(d.node_index).state == NodeState::online;
   if (online && !d.born) {
@@ -218,7 +217,12 @@ void EdgeNode::scan_device(Device& d, bool include_slow) {
   for (std::size_t i = 0; i < d.metrics.size(); ++i) {
     if (d.metrics[i].slow && !include_slow) continue;
     const MetricValue v = sample(d.metrics[i], *image_, d.node_index, d.command, now);
-    if (!changed(d.metrics[i], d.published[i], v)) continue;
+    const auto source = d.metrics[i].source;
+    const bool command = source == DeviceMetric::Source::command_metric ||
+                         source == DeviceMetric::Source::command_result ||
+                         source == DeviceMetric::Source::command_detail ||
+                         source == DeviceMetric::Source::command_sequence;
+    if (!(with_command && command) && !changed(d.metrics[i], d.published[i], v)) continue;
     d.published[i] = v;
     add_metric(p, d.metrics[i].name, d.metrics[i].type, v, ts);
   }
@@ -343,7 +347,7 @@ void EdgeNode::on_device_command(Device& d, const Payload& payload) {
       ++stats_.commands_rejected;
       log::warning("sparkplug: DCMD {} {} rejected: {}", d.id, m.name(), refusal);
       d.command = {m.name(), "rejected", refusal, d.command.sequence + 1};
-      scan_device(d, false);
+      scan_device(d, false, true);
       continue;
     }
     items.push_back({*it, m});
@@ -378,7 +382,7 @@ void EdgeNode::on_device_command(Device& d, const Payload& payload) {
           if (dev.id != device_id) continue;
           if (sequence == 0) sequence = dev.command.sequence + 1;
           dev.command = {name, o.result, o.detail, sequence};
-          node.scan_device(dev, false);
+          node.scan_device(dev, false, true);
         }
       };
       CommandTarget t = target;

@@ -74,7 +74,9 @@ class EdgeNode {
   void birth();
   void device_birth(Device& device);
   void device_death(Device& device);
-  void scan_device(Device& device, bool include_slow);
+  // with_command: the Command/* metrics go out even unchanged (a new command's result may
+  // equal the last one's).
+  void scan_device(Device& device, bool include_slow, bool with_command = false);
   void scan_node();
   void schedule_scan();
   bool publish(const std::string& topic, const Payload& payload);
@@ -94,7 +96,7 @@ class EdgeNode {
   std::vector<Device> devices_;
   std::vector<NodeMetric> node_published_;
 
-  uint64_t bd_seq_ = 0;       // of the CONNECT being attempted, or of the session
+  uint64_t bd_seq_ = 0;  // of the CONNECT being attempted, or of the session
   bool session_bd_seq_used_ = false;
   uint8_t seq_ = 0;
   bool born_ = false;

@@ -14,23 +14,23 @@ namespace fieldgate::sparkplug {
 
 // The outcome of the last command a host sent to a device (DCMD), published with its metrics.
 struct CommandState {
-  std::string metric;   // the metric the command wrote
-  std::string result;   // rejected, failed, unknown, confirmed, done, error
-  std::string detail;   // why, in words
+  std::string metric;     // the metric the command wrote
+  std::string result;     // rejected, failed, unknown, confirmed, done, error
+  std::string detail;     // why, in words
   uint64_t sequence = 0;  // counts commands, so a host can tell two equal results apart
 };
 
 // One metric of a device (a gateway node): where its value comes from in the process image.
 struct DeviceMetric {
   enum class Source {
-    point,           // index: model point
-    point_bit,       // index: model point, bit: its bit
-    setpoint,        // index: model setpoint
-    action,          // index: model action; writable: true starts it
+    point,      // index: model point
+    point_bit,  // index: model point, bit: its bit
+    setpoint,   // index: model setpoint
+    action,     // index: model action; writable: true starts it
     action_status,
     action_code,
     action_error,
-    diagnostic,      // index: DiagnosticField
+    diagnostic,  // index: DiagnosticField
     node_state,
     command_metric,
     command_result,

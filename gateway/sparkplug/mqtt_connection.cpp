@@ -39,10 +39,10 @@ MqttConnection::MqttConnection(asio::any_io_executor executor, const SparkplugCo
     if (config_.ca_file.empty()) {
       rc = mosquitto_int_option(mosq_, MOSQ_OPT_TLS_USE_OS_CERTS, 1);
     } else {
-      rc = mosquitto_tls_set(mosq_, config_.ca_file.c_str(), nullptr,
-                             config_.cert_file.empty() ? nullptr : config_.cert_file.c_str(),
-                             config_.key_file.empty() ? nullptr : config_.key_file.c_str(),
-                             nullptr);
+      rc =
+          mosquitto_tls_set(mosq_, config_.ca_file.c_str(), nullptr,
+                            config_.cert_file.empty() ? nullptr : config_.cert_file.c_str(),
+                            config_.key_file.empty() ? nullptr : config_.key_file.c_str(), nullptr);
     }
     if (rc != MOSQ_ERR_SUCCESS)
       log::error("sparkplug: TLS set-up failed: {}", mosquitto_strerror(rc));
@@ -97,20 +97,20 @@ void MqttConnection::resolve_and_connect() {
   }
   auto epoch = std::weak_ptr<int>(epoch_);
   const int seen = *epoch_;
-  resolver_.async_resolve(
-      config_.host, std::to_string(config_.port),
-      [this, epoch, seen](const boost::system::error_code& ec,
-                          asio::ip::tcp::resolver::results_type results) {
-        const auto e = epoch.lock();
-        if (!e || *e != seen || !running_) return;
-        if (ec || results.empty()) {
-          ++stats_.connect_failures;
-          log::warning("sparkplug: cannot resolve broker {}: {}", config_.host, ec.message());
-          schedule_reconnect();
-          return;
-        }
-        connect_to(results.begin()->endpoint().address().to_string());
-      });
+  resolver_.async_resolve(config_.host, std::to_string(config_.port),
+                          [this, epoch, seen](const boost::system::error_code& ec,
+                                              asio::ip::tcp::resolver::results_type results) {
+                            const auto e = epoch.lock();
+                            if (!e || *e != seen || !running_) return;
+                            if (ec || results.empty()) {
+                              ++stats_.connect_failures;
+                              log::warning("sparkplug: cannot resolve broker {}: {}", config_.host,
+                                           ec.message());
+                              schedule_reconnect();
+                              return;
+                            }
+                            connect_to(results.begin()->endpoint().address().to_string());
+                          });
 }
 
 void MqttConnection::connect_to(const std::string& address) {
@@ -119,14 +119,14 @@ void MqttConnection::connect_to(const std::string& address) {
     mosquitto_will_set(mosq_, will.topic.c_str(), static_cast<int>(will.payload.size()),
                        will.payload.data(), 1, false);
   }
-  const int keepalive = static_cast<int>(
-      std::max<int64_t>(1, std::chrono::duration_cast<std::chrono::seconds>(config_.keepalive).count()));
+  const int keepalive = static_cast<int>(std::max<int64_t>(
+      5, std::chrono::duration_cast<std::chrono::seconds>(config_.keepalive).count()));
   const int rc = mosquitto_connect_async(mosq_, address.c_str(), config_.port, keepalive);
   if (rc != MOSQ_ERR_SUCCESS) {
     ++stats_.connect_failures;
-    log::warning("sparkplug: cannot connect to {}:{}: {}", config_.host, config_.port,
-                 rc == MOSQ_ERR_ERRNO ? std::string(strerror(errno))
-                                      : std::string(mosquitto_strerror(rc)));
+    log::warning(
+        "sparkplug: cannot connect to {}:{}: {}", config_.host, config_.port,
+        rc == MOSQ_ERR_ERRNO ? std::string(strerror(errno)) : std::string(mosquitto_strerror(rc)));
     schedule_reconnect();
     return;
   }

@@ -9,7 +9,7 @@ struct SessionStats {
   bool connected = false;  // MQTT session up (CONNACK accepted)
   bool born = false;       // NBIRTH published in this session
   bool waiting_for_primary_host = false;
-  uint64_t bd_seq = 0;  // of the current (or next) session
+  uint64_t bd_seq = 0;             // of the current (or next) session
   uint64_t connects = 0;           // CONNACKs accepted
   uint64_t connect_failures = 0;   // attempts that did not reach a session
   uint64_t connection_losses = 0;  // sessions that ended without our asking

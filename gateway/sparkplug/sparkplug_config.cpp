@@ -87,16 +87,17 @@ std::string readable_file(YamlReader& r, const YAML::Node& node, std::string_vie
 
 void parse_sparkplug_config(YamlReader& r, const YAML::Node& node, SparkplugConfig& c) {
   if (!r.expect_map(node, "sparkplug")) return;
-  r.reject_unknown_keys(node,
-                        {"enabled", "broker", "client_id", "group_id", "edge_node_id", "tls",
-                         "username", "password_file", "keepalive", "reconnect", "scan_interval",
-                         "diagnostics_interval", "deadbands", "commands_enabled",
-                         "primary_host_id"},
-                        "sparkplug");
-  c.enabled = node["enabled"] ? r.boolean(node["enabled"], "sparkplug enabled").value_or(false)
-                              : true;
+  r.reject_unknown_keys(
+      node,
+      {"enabled", "broker", "client_id", "group_id", "edge_node_id", "tls", "username",
+       "password_file", "keepalive", "reconnect", "scan_interval", "diagnostics_interval",
+       "deadbands", "commands_enabled", "primary_host_id"},
+      "sparkplug");
+  c.enabled =
+      node["enabled"] ? r.boolean(node["enabled"], "sparkplug enabled").value_or(false) : true;
   if (node["broker"]) parse_broker(r, node["broker"], c);
-  for (auto [key, field] : {std::pair{"group_id", &c.group_id}, {"edge_node_id", &c.edge_node_id}}) {
+  for (auto [key, field] :
+       {std::pair{"group_id", &c.group_id}, {"edge_node_id", &c.edge_node_id}}) {
     const auto v = r.require(node, key, "sparkplug");
     if (!v) continue;
     if (auto text = r.string(*v, std::string("sparkplug ") + key)) {
@@ -106,11 +107,13 @@ void parse_sparkplug_config(YamlReader& r, const YAML::Node& node, SparkplugConf
       *field = *text;
     }
   }
-  if (node["client_id"]) c.client_id = r.string(node["client_id"], "sparkplug client_id").value_or("");
+  if (node["client_id"])
+    c.client_id = r.string(node["client_id"], "sparkplug client_id").value_or("");
   if (const auto tls = node["tls"]; tls && r.expect_map(tls, "sparkplug tls")) {
     r.reject_unknown_keys(tls, {"ca_file", "cert_file", "key_file"}, "sparkplug tls");
     if (tls["ca_file"]) c.ca_file = readable_file(r, tls["ca_file"], "sparkplug tls ca_file");
-    if (tls["cert_file"]) c.cert_file = readable_file(r, tls["cert_file"], "sparkplug tls cert_file");
+    if (tls["cert_file"])
+      c.cert_file = readable_file(r, tls["cert_file"], "sparkplug tls cert_file");
     if (tls["key_file"]) c.key_file = readable_file(r, tls["key_file"], "sparkplug tls key_file");
     if (c.cert_file.empty() != c.key_file.empty())
       r.error(tls, "sparkplug tls: cert_file and key_file go together");
@@ -139,8 +142,8 @@ void parse_sparkplug_config(YamlReader& r, const YAML::Node& node, SparkplugConf
     }
   };
   positive("keepalive", c.keepalive);
-  if (node["keepalive"] && c.keepalive < std::chrono::seconds(1))
-    r.error(node["keepalive"], "sparkplug keepalive: at least 1s (MQTT counts it in seconds)");
+  if (node["keepalive"] && c.keepalive < std::chrono::seconds(5))
+    r.error(node["keepalive"], "sparkplug keepalive: at least 5s (libmosquitto refuses less)");
   positive("scan_interval", c.scan_interval);
   positive("diagnostics_interval", c.diagnostics_interval);
   if (const auto rc = node["reconnect"]; rc && r.expect_map(rc, "sparkplug reconnect")) {
