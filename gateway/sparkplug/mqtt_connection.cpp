@@ -1,5 +1,6 @@
 #include "gateway/sparkplug/mqtt_connection.hpp"
 
+#include <boost/asio/post.hpp>
 #include <mosquitto.h>
 #include <unistd.h>
 
@@ -248,15 +249,31 @@ void MqttConnection::on_connect(mosquitto*, void* self, int rc) {
   c->backoff_ = c->config_.reconnect_min;
   log::notice("sparkplug: connected to {}:{} as {}", c->config_.host, c->config_.port,
               c->config_.effective_client_id());
-  if (c->handlers_.connected) c->handlers_.connected();
+  c->deliver([c] {
+    if (c->handlers_.connected) c->handlers_.connected();
+  });
+}
+
+// libmosquitto calls back with its callback mutex held, and a DISCONNECT written from inside a
+// callback takes that mutex again (a deadlock): handlers run after the callback has returned.
+void MqttConnection::deliver(std::function<void()> handler) {
+  auto epoch = std::weak_ptr<int>(epoch_);
+  const int seen = *epoch_;
+  asio::post(executor_, [epoch, seen, handler = std::move(handler)] {
+    const auto e = epoch.lock();
+    if (e && *e == seen) handler();
+  });
 }
 
 void MqttConnection::on_message(mosquitto*, void* self, const mosquitto_message* message) {
   auto* c = static_cast<MqttConnection*>(self);
   if (!c->handlers_.message) return;
-  c->handlers_.message(message->topic,
-                       std::string_view(static_cast<const char*>(message->payload),
-                                        static_cast<std::size_t>(message->payloadlen)));
+  std::string topic = message->topic;
+  std::string payload(static_cast<const char*>(message->payload),
+                      static_cast<std::size_t>(message->payloadlen));
+  c->deliver([c, topic = std::move(topic), payload = std::move(payload)] {
+    c->handlers_.message(topic, payload);
+  });
 }
 
 bool MqttConnection::publish(const std::string& topic, const std::string& payload, int qos,

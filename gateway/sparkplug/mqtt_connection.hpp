@@ -58,6 +58,7 @@ class MqttConnection {
  private:
   static void on_connect(mosquitto*, void* self, int rc);
   static void on_message(mosquitto*, void* self, const mosquitto_message* message);
+  void deliver(std::function<void()> handler);
   void resolve_and_connect();
   void connect_to(const std::string& address);
   void watch_socket();

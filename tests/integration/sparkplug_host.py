@@ -156,7 +156,7 @@ def topic(kind, edge, device=None):
 
 
 class Gateway:
-    def __init__(self, d, edge, broker_port, nodes, commands_enabled=True):
+    def __init__(self, d, edge, broker_port, nodes, commands_enabled=True, extra=""):
         self.edge = edge
         self.dir = os.path.join(d, edge)
         os.makedirs(self.dir)
@@ -184,7 +184,7 @@ sparkplug:
   diagnostics_interval: 1s
   deadbands: {{int32: 0}}
   commands_enabled: {"true" if commands_enabled else "false"}
-buses:
+{extra}buses:
   - name: copley
     protocol: copley-ascii
     serial: {{device: {link}, baud: 115200}}
@@ -255,7 +255,7 @@ def check_sequences(host, edge):
 
 def dump_logs(gateways):
     for g in gateways:
-        print(f"--- {g.edge} daemon log (tail) ---")
+        print(f"--- {g.edge} daemon log (tail), exit status {g.daemon.poll()} ---")
         print("".join(open(g.log_path).readlines()[-40:]))
 
 
@@ -335,6 +335,21 @@ def run_single(host, broker, gw):
           r is not None and value(r[1], "Command/Result") == "failed"
           and "0x03" in value(r[1], "Command/Detail"), r and value(r[1], "Command/Detail"))
 
+    # A command that gets no reply may have run: its outcome is 'unknown', never failed.
+    mark = host.count()
+    gw.control("silence on")
+    host.command(topic("DCMD", e, dev), [("desired_state", 2, 0)])
+    r = host.wait(topic("DDATA", e, dev), lambda p: value(p, "Command/Metric") == "desired_state",
+                  after=mark)
+    check("DCMD without a reply ends 'unknown'",
+          r is not None and value(r[1], "Command/Result") == "unknown",
+          r and (value(r[1], "Command/Result"), value(r[1], "Command/Detail")))
+    gw.control("silence off")
+    for d in gw.nodes:
+        if host.find(topic("DDEATH", e, d), after=mark):
+            check(f"{d} is born again after the silence",
+                  host.wait(topic("DBIRTH", e, d), after=mark) is not None)
+
     # Rebirth on command: same bdSeq, seq from 0, births of every device again.
     mark = host.count()
     host.command(topic("NCMD", e), [("Node Control/Rebirth", 11, True)])
@@ -387,6 +402,56 @@ def run_single(host, broker, gw):
           nd is not None and value(nd[1], "bdSeq") == 1, nd and value(nd[1], "bdSeq"))
 
 
+def primary(d):
+    """The primary host application's STATE is honoured (Sparkplug 3.0 spBv1.0/STATE/<id>)."""
+    port = free_port()
+    broker = Broker(d, port)
+    broker.start()
+    host = Host(port)
+    wait_for(lambda: host.client.is_connected(), 5)
+    gw = Gateway(d, "gw1", port, [0], extra="  primary_host_id: scada\n")
+    e = gw.edge
+
+    def state(online, ts):
+        host.client.publish("spBv1.0/STATE/scada", f'{{"online": {"true" if online else "false"}, '
+                            f'"timestamp": {ts}}}', qos=1, retain=True).wait_for_publish()
+    try:
+        waiting = wait_for(lambda: "waiting for primary host scada" in open(gw.log_path).read())
+        check("primary: the edge node waits for the host's STATE", waiting)
+        check("primary: no NBIRTH while the host has not said online",
+              host.find(topic("NBIRTH", e)) is None)
+        t0 = int(time.time() * 1000)
+        state(True, t0)
+        nb = host.wait(topic("NBIRTH", e))
+        check("primary: NBIRTH once the host is online", nb is not None and value(nb[1], "bdSeq") == 0)
+        mark = host.count()
+        state(False, t0 + 10)
+        nd = host.wait(topic("NDEATH", e), after=mark)
+        check("primary: NDEATH when the host goes offline", nd is not None and value(nd[1], "bdSeq") == 0)
+        reconnected = wait_for(lambda: open(gw.log_path).read().count("waiting for primary host") >= 2)
+        check("primary: reconnected and waiting again", reconnected)
+        check("primary: no NBIRTH while the host is offline", host.find(topic("NBIRTH", e), after=mark) is None)
+        state(True, t0 + 20)
+        nb = host.wait(topic("NBIRTH", e), after=mark)
+        check("primary: NBIRTH with the next bdSeq when the host is back",
+              nb is not None and value(nb[1], "bdSeq") == 1)
+        # A stale offline (older timestamp, e.g. a late will) is ignored: no death follows.
+        mark = host.count()
+        state(False, t0 + 15)
+        host.command(topic("NCMD", e), [("Node Control/Rebirth", 11, True)])
+        nb = host.wait(topic("NBIRTH", e), after=mark)
+        check("primary: a stale STATE offline is ignored",
+              nb is not None and value(nb[1], "bdSeq") == 1 and
+              host.find(topic("NDEATH", e), after=mark) is None)
+    finally:
+        check_sequences(host, e)
+        if failures:
+            dump_logs([gw])
+        gw.stop()
+        host.client.loop_stop()
+        broker.stop()
+
+
 def fleet(d):
     port = free_port()
     broker = Broker(d, port)
@@ -431,6 +496,6 @@ def fleet(d):
 
 
 with tempfile.TemporaryDirectory() as d:
-    (single if mode == "single" else fleet)(d)
+    {"single": single, "fleet": fleet, "primary": primary}[mode](d)
 print(f"{len(failures)} failure(s)")
 sys.exit(1 if failures else 0)
