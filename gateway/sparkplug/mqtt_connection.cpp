@@ -1,8 +1,8 @@
 #include "gateway/sparkplug/mqtt_connection.hpp"
 
-#include <boost/asio/post.hpp>
 #include <mosquitto.h>
 #include <unistd.h>
+#include <boost/asio/post.hpp>
 
 #include <algorithm>
 #include <mutex>

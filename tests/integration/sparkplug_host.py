@@ -112,6 +112,10 @@ class Host:
                 return i + 1, p
         return None
 
+    def wait_any(self, topics, pred=lambda p: True, after=0, timeout=15.0):
+        return wait_for(lambda: next(filter(None, (self.find(t, pred, after) for t in topics)), None),
+                        timeout)
+
     def wait(self, topic, pred=lambda p: True, after=0, timeout=15.0):
         return wait_for(lambda: self.find(topic, pred, after), timeout)
 
@@ -339,11 +343,20 @@ def run_single(host, broker, gw):
     mark = host.count()
     gw.control("silence on")
     host.command(topic("DCMD", e, dev), [("desired_state", 2, 0)])
-    r = host.wait(topic("DDATA", e, dev), lambda p: value(p, "Command/Metric") == "desired_state",
-                  after=mark)
-    check("DCMD without a reply ends 'unknown'",
-          r is not None and value(r[1], "Command/Result") == "unknown",
-          r and (value(r[1], "Command/Result"), value(r[1], "Command/Detail")))
+    # The node may die meanwhile: then its next DBIRTH carries the result.
+    r = host.wait_any([topic("DDATA", e, dev), topic("DBIRTH", e, dev)],
+                      lambda p: value(p, "Command/Metric") == "desired_state", after=mark, timeout=5)
+    if r is None:
+        gw.control("silence off")
+        r = host.wait(topic("DBIRTH", e, dev), lambda p: value(p, "Command/Metric") == "desired_state",
+                      after=mark)
+        check("DCMD without a reply ends 'unknown' (seen in the DBIRTH after the silence)",
+              r is not None and value(r[1], "Command/Result") == "unknown",
+              r and (value(r[1], "Command/Result"), value(r[1], "Command/Detail")))
+    else:
+        check("DCMD without a reply ends 'unknown'",
+              value(r[1], "Command/Result") == "unknown",
+              (value(r[1], "Command/Result"), value(r[1], "Command/Detail")))
     gw.control("silence off")
     for d in gw.nodes:
         if host.find(topic("DDEATH", e, d), after=mark):
