@@ -1,6 +1,7 @@
 #include "gateway/sparkplug/mqtt_connection.hpp"
 
 #include <mosquitto.h>
+#include <sys/ioctl.h>
 #include <unistd.h>
 #include <boost/asio/post.hpp>
 
@@ -159,8 +160,14 @@ void MqttConnection::wait_readable() {
                      [this, epoch, seen](const boost::system::error_code& ec) {
                        const auto e = epoch.lock();
                        if (ec || !e || *e != seen) return;
-                       check(mosquitto_loop_read(mosq_, 1), "read");
-                       if (*e != seen) return;
+                       // One packet per call: packets already in the socket buffer raise
+                       // no new readiness, so they are read now.
+                       for (int n = 0; n < 64; ++n) {
+                         check(mosquitto_loop_read(mosq_, 1), "read");
+                         if (*e != seen) return;
+                         int pending = 0;
+                         if (::ioctl(fd_, FIONREAD, &pending) != 0 || pending <= 0) break;
+                       }
                        wait_readable();
                        wait_writable();
                      });
