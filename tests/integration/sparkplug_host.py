@@ -492,11 +492,18 @@ def fleet(d):
         check("fleet: the rejection is counted", n is not None)
         time.sleep(0.5)
         mark = host.count()
+        # gw1 stops cleanly (SIGTERM: it publishes its NDEATH, then DISCONNECTs, which drops the
+        # will); the others are killed (the broker publishes their wills).
         for g in gws:
-            g.daemon.send_signal(signal.SIGKILL)
+            g.daemon.send_signal(signal.SIGTERM if g is gws[0] else signal.SIGKILL)
             g.daemon.wait()
         for g in gws:
-            check(f"fleet: NDEATH {g.edge}", host.wait(topic("NDEATH", g.edge), after=mark) is not None)
+            nd = host.wait(topic("NDEATH", g.edge), after=mark)
+            check(f"fleet: NDEATH {g.edge}", nd is not None and value(nd[1], "bdSeq") == 0)
+        time.sleep(0.5)
+        deaths = [t for t, _ in host.snapshot()[mark:] if t == topic("NDEATH", gws[0].edge)]
+        check("fleet: one NDEATH for the clean stop (the will was dropped)", len(deaths) == 1,
+              len(deaths))
     finally:
         for g in gws:
             check_sequences(host, g.edge)
