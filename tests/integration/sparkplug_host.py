@@ -192,7 +192,7 @@ sparkplug:
   - name: copley
     protocol: copley-ascii
     serial: {{device: {link}, baud: 115200}}
-    timing: {{probe_interval: 300ms, offline_after: 2}}
+    timing: {{probe_interval: 300ms, offline_after: 4}}
     nodes:
 {node_lines}""")
         self.log_path = os.path.join(self.dir, "daemon.log")
