@@ -13,6 +13,7 @@
 
 #include "gateway/modbus_rtu_config.hpp"
 #include "gateway/poll_budget.hpp"
+#include "gateway/sparkplug/sparkplug_config.hpp"
 #include "mapping/model_loader.hpp"
 #include "mapping/yaml_reader.hpp"
 
@@ -78,9 +79,9 @@ class ConfigParser {
   std::optional<GatewayConfig> parse(const YAML::Node& root) {
     if (!root.IsDefined()) return std::nullopt;
     if (!r_.expect_map(root, "gateway configuration")) return std::nullopt;
-    r_.reject_unknown_keys(root,
-                           {"modbus", "listeners", "modbus_rtu", "metrics", "models", "buses"},
-                           "gateway configuration");
+    r_.reject_unknown_keys(
+        root, {"modbus", "listeners", "modbus_rtu", "metrics", "models", "buses", "sparkplug"},
+        "gateway configuration");
     GatewayConfig config;
     config.file = r_.file();
     if (root["modbus"]) parse_modbus(root["modbus"], config.modbus, "modbus");
@@ -89,6 +90,8 @@ class ConfigParser {
         listeners && r_.expect_sequence(listeners, "listeners"))
       for (const auto& l : listeners) parse_listener(l, config);
     if (root["metrics"]) parse_metrics(root["metrics"], config.metrics);
+    if (root["sparkplug"])
+      sparkplug::parse_sparkplug_config(r_, root["sparkplug"], config.sparkplug);
     parse_model_dirs(root["models"], config);
     for (const auto& dir : config.model_dirs) library_.load_directory(dir, r_.diagnostics());
     if (auto buses = r_.require(root, "buses", "gateway configuration");

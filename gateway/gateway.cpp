@@ -8,6 +8,7 @@
 
 #include "gateway/log.hpp"
 #include "gateway/metrics.hpp"
+#include "gateway/sparkplug/edge_node.hpp"
 
 namespace fieldgate {
 
@@ -129,8 +130,23 @@ void Gateway::start() {
     listeners_.push_back({current_->config->gateway.listener_name(l), open_listener(*current_, l)});
   rtu_.apply(*current_->config, rtu_handler(*current_));
   start_metrics();
+  start_sparkplug();
   for (auto& bus : pending_start_) spawn(bus);
   pending_start_.clear();
+}
+
+void Gateway::start_sparkplug() {
+  if (sparkplug_) sparkplug_->stop();
+  sparkplug_.reset();
+  const auto& s = current_->config->gateway.sparkplug;
+  if (!s.enabled) return;
+  sparkplug_ = std::make_unique<sparkplug::EdgeNode>(io_.get_executor(), s);
+  sparkplug_->bind(current_->config, current_->image, current_->handlers);
+  sparkplug_->start();
+}
+
+const sparkplug::SessionStats* Gateway::sparkplug_stats() const {
+  return sparkplug_ ? &sparkplug_->stats() : nullptr;
 }
 
 void Gateway::start_metrics() {
@@ -175,6 +191,10 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
   retired_.push_back(current_);
   current_ = next;
   if (metrics_changed) start_metrics();
+  if (!sparkplug_ || sparkplug_->config() != current_->config->gateway.sparkplug)
+    start_sparkplug();
+  else
+    sparkplug_->bind(current_->config, current_->image, current_->handlers);
   for (auto& bus : fresh) spawn(bus);
   return fmt::format("{} bus(es) kept running, {} started, {} stopped{}", kept, fresh.size(),
                      stopped, listener_summary);
@@ -229,6 +249,7 @@ void Gateway::stop() {
     if (l.server) l.server->stop();
   rtu_.stop();
   if (metrics_) metrics_->stop();
+  if (sparkplug_) sparkplug_->stop();
   if (current_) {
     for (auto& bus : current_->buses) bus->stop();
     current_->actions->stop();

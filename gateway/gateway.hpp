@@ -17,6 +17,11 @@
 
 namespace fieldgate {
 
+namespace sparkplug {
+class EdgeNode;
+struct SessionStats;
+}  // namespace sparkplug
+
 // The running gateway: buses, process image, actions and the Modbus listeners (one TCP server
 // per listener, each with its own unit-ID space) on one io_context.
 // A configuration in force is a generation; a reload builds the next one, keeping every bus
@@ -52,6 +57,8 @@ class Gateway {
   std::string status_line() const;
   // Every bus has finished its first attempt to open its link (READY=1 waits for this).
   bool all_buses_attempted() const;
+  // The Sparkplug B session, when enabled.
+  const sparkplug::SessionStats* sparkplug_stats() const;
 
  private:
   struct Generation {
@@ -76,6 +83,7 @@ class Gateway {
   std::string apply_listeners(const Generation& next);
   void spawn(const std::shared_ptr<Bus>& bus);
   void start_metrics();
+  void start_sparkplug();
 
   asio::io_context& io_;
   std::shared_ptr<Generation> current_;
@@ -84,6 +92,7 @@ class Gateway {
   std::vector<Listener> listeners_;
   ModbusRtuPort rtu_{io_};
   std::unique_ptr<MetricsServer> metrics_;
+  std::unique_ptr<sparkplug::EdgeNode> sparkplug_;
   std::vector<std::shared_ptr<Bus>> pending_start_;
 };
 

@@ -12,6 +12,7 @@
 #include "drivers/transport/serial_transport.hpp"
 #include "gateway/access_control.hpp"
 #include "gateway/modbus_rtu_config.hpp"
+#include "gateway/sparkplug/sparkplug_config.hpp"
 #include "mapping/diagnostics.hpp"
 #include "mapping/model.hpp"
 #include "mapping/register_map.hpp"
@@ -128,6 +129,7 @@ struct GatewayConfig {
   std::vector<ListenerConfig> listeners;  // further listeners: listener index 1, 2, ...
   MetricsConfig metrics;
   std::optional<ModbusRtuConfig> modbus_rtu;
+  sparkplug::SparkplugConfig sparkplug;
   std::vector<std::string> model_dirs;
   std::vector<BusConfig> buses;
   std::vector<std::string> warnings;  // e.g. poll budgets that cannot be met

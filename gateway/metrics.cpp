@@ -6,6 +6,7 @@
 
 #include "gateway/gateway.hpp"
 #include "gateway/process_metrics.hpp"
+#include "gateway/sparkplug/session_stats.hpp"
 
 #ifndef FIELDGATE_VERSION
 #define FIELDGATE_VERSION "unknown"
@@ -264,6 +265,62 @@ std::string render_metrics(const Gateway& gateway) {
       if (r.exceptions_by_code[code] > 0)
         w.sample("fieldgate_modbus_rtu_exceptions_total", fmt::format("{},code=\"{}\"", port, code),
                  static_cast<double>(r.exceptions_by_code[code]));
+  }
+
+  if (const auto* sp = gateway.sparkplug_stats()) {
+    w.family("fieldgate_sparkplug_connected", "gauge", "1 while the MQTT session is up.");
+    w.sample("fieldgate_sparkplug_connected", "", sp->connected ? 1 : 0);
+    w.family("fieldgate_sparkplug_born", "gauge", "1 once NBIRTH was published in this session.");
+    w.sample("fieldgate_sparkplug_born", "", sp->born ? 1 : 0);
+    w.family("fieldgate_sparkplug_waiting_for_primary_host", "gauge",
+             "1 while the session waits for the primary host's STATE online.");
+    w.sample("fieldgate_sparkplug_waiting_for_primary_host", "",
+             sp->waiting_for_primary_host ? 1 : 0);
+    w.family("fieldgate_sparkplug_bdseq", "gauge", "bdSeq of the current session.");
+    w.sample("fieldgate_sparkplug_bdseq", "", static_cast<double>(sp->bd_seq));
+    struct SessionCounter {
+      const char* name;
+      const char* help;
+      uint64_t sparkplug::SessionStats::*field;
+    };
+    const SessionCounter session_counters[] = {
+        {"fieldgate_sparkplug_connects_total", "MQTT sessions established.",
+         &sparkplug::SessionStats::connects},
+        {"fieldgate_sparkplug_connect_failures_total", "Connection attempts without a session.",
+         &sparkplug::SessionStats::connect_failures},
+        {"fieldgate_sparkplug_connection_losses_total", "Sessions that ended unasked.",
+         &sparkplug::SessionStats::connection_losses},
+        {"fieldgate_sparkplug_messages_published_total", "MQTT messages published.",
+         &sparkplug::SessionStats::messages_published},
+        {"fieldgate_sparkplug_published_bytes_total", "Payload bytes published.",
+         &sparkplug::SessionStats::bytes_published},
+        {"fieldgate_sparkplug_publish_failures_total", "Publishes that failed or found no session.",
+         &sparkplug::SessionStats::publish_failures},
+        {"fieldgate_sparkplug_births_total", "NBIRTH and DBIRTH messages.",
+         &sparkplug::SessionStats::births},
+        {"fieldgate_sparkplug_deaths_total", "DDEATH and NDEATH messages published.",
+         &sparkplug::SessionStats::deaths},
+        {"fieldgate_sparkplug_rebirth_requests_total", "Node Control/Rebirth commands.",
+         &sparkplug::SessionStats::rebirth_requests},
+        {"fieldgate_sparkplug_commands_received_total", "DCMD metrics received.",
+         &sparkplug::SessionStats::commands_received},
+        {"fieldgate_sparkplug_commands_rejected_total",
+         "DCMD metrics rejected (commands disabled, unknown or read-only metric, bad value).",
+         &sparkplug::SessionStats::commands_rejected},
+        {"fieldgate_sparkplug_commands_failed_total", "DCMD metrics refused or failed.",
+         &sparkplug::SessionStats::commands_failed},
+        {"fieldgate_sparkplug_commands_unknown_total", "DCMD metrics with an unknown outcome.",
+         &sparkplug::SessionStats::commands_unknown},
+        {"fieldgate_sparkplug_commands_completed_total", "DCMD metrics confirmed or done.",
+         &sparkplug::SessionStats::commands_completed},
+        {"fieldgate_sparkplug_malformed_messages_total",
+         "Commands or STATE messages that could not be decoded.",
+         &sparkplug::SessionStats::malformed_messages},
+    };
+    for (const auto& c : session_counters) {
+      w.family(c.name, "counter", c.help);
+      w.sample(c.name, "", static_cast<double>(sp->*c.field));
+    }
   }
   return std::move(w).text() + render_process_metrics();
 }

@@ -1,0 +1,43 @@
+#pragma once
+
+#include <boost/asio/any_io_executor.hpp>
+#include <boost/asio/awaitable.hpp>
+
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "gateway/config_loader.hpp"
+#include "gateway/process_image.hpp"
+#include "gateway/register_map_handler.hpp"
+#include "gateway/sparkplug/metric_mapping.hpp"
+#include "gateway/sparkplug/payload.hpp"
+
+namespace fieldgate::sparkplug {
+
+// The device a command is for, in the configuration generation it arrived in.
+struct CommandTarget {
+  std::shared_ptr<const LoadedConfig> config;
+  std::shared_ptr<RegisterMapHandler> handler;
+  ProcessImage* image = nullptr;
+  int node_index = 0;
+  std::size_t listener = 0;  // whose unit-ID space unit_id is in
+  uint8_t unit_id = 0;
+};
+
+struct CommandOutcome {
+  std::string result;  // rejected, failed, unknown, confirmed, done, error, superseded
+  std::string detail;
+  bool final = false;
+};
+
+using CommandReport = std::function<void(const CommandOutcome&)>;
+
+// Carries out one DCMD metric as the Modbus write of the same register would be carried out:
+// through RegisterMapHandler::write_registers (limits, writes_enabled, read-only units, a held
+// line, confirmation by the controller, the action runner). A written action is then followed to
+// its end (done, error) or, when no end is seen within its timeout, reported 'unknown'.
+asio::awaitable<void> execute_command(CommandTarget target, DeviceMetric metric, Metric value,
+                                      CommandReport report);
+
+}  // namespace fieldgate::sparkplug
