@@ -81,6 +81,7 @@ struct NodeConfig {
   std::map<std::string, int64_t> setpoints;          // initial values, overriding defaults
   std::map<std::string, WriteLimits> limits;         // by point or setpoint name
   std::optional<microseconds> reply_timeout;         // overrides the bus's for this node
+  std::map<std::string, uint8_t> axis_units;         // profile axis name -> its unit ID
   SourceMark mark;
 
   microseconds period_of(const std::string& poll_class) const;

@@ -64,9 +64,25 @@ std::optional<ExceptionCode> exception_for(const Reply& reply) {
 
 RegisterMapHandler::RegisterMapHandler(std::shared_ptr<const LoadedConfig> config,
                                        ProcessImage& image, ActionRunner& actions, BusOf bus_of)
-    : config_(std::move(config)), image_(image), actions_(actions), bus_of_(std::move(bus_of)) {
+    : config_(std::move(config)),
+      image_(image),
+      actions_(actions),
+      bus_of_(std::move(bus_of)),
+      profile_(image, actions, config_->gateway.modbus) {
   for (const auto& bus : config_->gateway.buses)
-    for (const auto& node : bus.nodes) nodes_.push_back(&node);
+    for (const auto& node : bus.nodes) {
+      const int index = static_cast<int>(nodes_.size());
+      nodes_.push_back(&node);
+      for (const auto& [axis, unit] : node.axis_units)
+        if (const auto* def = node.model->find_profile_axis(axis))
+          profile_units_[unit] = {index, &node, node.model,
+                                  static_cast<int>(def - node.model->profile_axes.data())};
+    }
+}
+
+const ProfileUnit* RegisterMapHandler::profile_unit(uint8_t unit) const {
+  const auto it = profile_units_.find(unit);
+  return it == profile_units_.end() ? nullptr : &it->second;
 }
 
 std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit,
@@ -110,6 +126,7 @@ std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit
 
 modbus::ReadBitsResult RegisterMapHandler::read_bits(uint8_t unit_id, modbus::BitTable table,
                                                      uint16_t address, uint16_t count) {
+  if (profile_unit(unit_id)) return ExceptionCode::illegal_data_address;
   const UnitMap* unit = config_->register_map.unit(unit_id);
   if (!unit) return ExceptionCode::gateway_path_unavailable;
   std::vector<bool> bits;
@@ -125,6 +142,7 @@ modbus::ReadBitsResult RegisterMapHandler::read_bits(uint8_t unit_id, modbus::Bi
 }
 
 modbus::DeviceIdentificationResult RegisterMapHandler::device_identification(uint8_t unit_id) {
+  if (const auto* axis = profile_unit(unit_id)) unit_id = axis->node->unit_id;
   const UnitMap* unit = config_->register_map.unit(unit_id);
   if (!unit) return ExceptionCode::gateway_path_unavailable;
   return identify(*unit, image_.node(unit->node_index));
@@ -133,6 +151,8 @@ modbus::DeviceIdentificationResult RegisterMapHandler::device_identification(uin
 modbus::ReadRegistersResult RegisterMapHandler::read_registers(uint8_t unit_id,
                                                                modbus::RegisterTable table,
                                                                uint16_t address, uint16_t count) {
+  if (const auto* axis = profile_unit(unit_id))
+    return profile_.read(*axis, table, address, count, config_->register_map.word_order());
   const UnitMap* unit = config_->register_map.unit(unit_id);
   if (!unit) return ExceptionCode::gateway_path_unavailable;
   const WordOrder order = config_->register_map.word_order();
@@ -155,10 +175,16 @@ modbus::ReadRegistersResult RegisterMapHandler::read_registers(uint8_t unit_id,
 
 asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
     uint8_t unit_id, uint16_t address, std::span<const uint16_t> values) {
-  const UnitMap* unit = config_->register_map.unit(unit_id);
-  if (!unit) co_return ExceptionCode::gateway_path_unavailable;
   const WordOrder order = config_->register_map.word_order();
   const auto& modbus_config = config_->gateway.modbus;
+  if (const auto* axis = profile_unit(unit_id)) {
+    if (modbus_config.read_only_holding || modbus_config.unit_read_only(unit_id))
+      co_return ExceptionCode::illegal_function;
+    const ProfileUnit target = *axis;
+    co_return co_await profile_.write(target, address, values, order);
+  }
+  const UnitMap* unit = config_->register_map.unit(unit_id);
+  if (!unit) co_return ExceptionCode::gateway_path_unavailable;
   if (modbus_config.read_only_holding || modbus_config.unit_read_only(unit_id))
     co_return ExceptionCode::illegal_function;
   const NodeConfig& node_config = *nodes_.at(static_cast<std::size_t>(unit->node_index));
@@ -240,6 +266,7 @@ asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
 
 asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_coils(uint8_t unit_id, uint16_t,
                                                                      std::vector<bool>) {
+  if (profile_unit(unit_id)) co_return ExceptionCode::illegal_data_address;
   if (!config_->register_map.unit(unit_id)) co_return ExceptionCode::gateway_path_unavailable;
   const auto& m = config_->gateway.modbus;
   if (m.read_only_coils || m.unit_read_only(unit_id)) co_return ExceptionCode::illegal_function;
