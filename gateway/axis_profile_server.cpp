@@ -20,6 +20,9 @@ namespace ap = axis_profile;
 namespace {
 
 constexpr auto kFollowInterval = std::chrono::milliseconds(20);
+// How long a jog's completion waits for the polls to show the axis moving (one that cannot move,
+// e.g. standing on a limit, ends done after it).
+constexpr auto kJogStartPatience = std::chrono::seconds(2);
 constexpr std::size_t kTarget = 0, kVelocity = 1, kAcceleration = 2, kDeceleration = 3;
 
 int point_index(const Model& model, const std::string& name) {
@@ -245,9 +248,10 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
     passes.emplace_back(static_cast<std::size_t>(s - model.setpoints.data()), v);
   }
   const auto& action_names = axis.commands.at(cmd);
-  const ActionDef* first = model.find_action(action_names.front());
-  if (node.action.holding_line && !std::all_of(first->steps.begin(), first->steps.end(),
-                                               [](const ActionStep& s) { return s.urgent; }))
+  const ActionDef* first = action_names.empty() ? nullptr : model.find_action(action_names.front());
+  if (first && node.action.holding_line &&
+      !std::all_of(first->steps.begin(), first->steps.end(),
+                   [](const ActionStep& s) { return s.urgent; }))
     co_return ExceptionCode::server_busy;
 
   const PlcopenState state = derive_state(observe(unit, rt));
@@ -260,6 +264,13 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
     rt.command_error = *refused;
     log::info("unit {} axis {}: {} refused in state {}", unit.node->name, axis.name, to_string(cmd),
               to_string(state));
+    co_return modbus::WriteResult::success();
+  }
+  if (action_names.empty()) {
+    // A reset of a controller that has nothing to reset: it clears the profile's own latch.
+    rt.status = CommandStatus::done;
+    rt.error_latched = false;
+    rt.error_id = 0;
     co_return modbus::WriteResult::success();
   }
   for (const auto& [index, value] : passes) node.setpoints[index] = value;
@@ -285,6 +296,7 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
                                                 std::shared_ptr<bool> alive) {
   const auto executor = co_await asio::this_coro::executor;
   asio::steady_timer timer(executor);
+  std::optional<std::chrono::steady_clock::time_point> jog_deadline;
   for (;;) {
     timer.expires_after(kFollowInterval);
     co_await timer.async_wait(asio::as_tuple(asio::use_awaitable));
@@ -315,6 +327,17 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
         co_return;
       }
       continue;
+    }
+    // A jog is done once the drive runs: wait (briefly) until the polls show the motion, so the
+    // state goes from busy ContinuousMotion straight on to moving ContinuousMotion.
+    const bool jog =
+        rt.command == ProfileCommand::jog_positive || rt.command == ProfileCommand::jog_negative;
+    if (jog && !observe(unit, rt).moving) {
+      if (!jog_deadline) jog_deadline = std::chrono::steady_clock::now() + kJogStartPatience;
+      if (std::chrono::steady_clock::now() < *jog_deadline) {
+        --step;
+        continue;
+      }
     }
     rt.status = CommandStatus::done;
     if (rt.command == ProfileCommand::reset) {

@@ -171,7 +171,9 @@ class ProfileParser {
                    t && known_action(e.second, *t, where)) {
           actions.push_back(*t);
         }
-        if (actions.empty())
+        // reset: [] is a reset of a controller without error state: the gateway clears its own
+        // ErrorStop latch. Every other command needs an action.
+        if (actions.empty() && *command != ProfileCommand::reset)
           r_.error(e.second, fmt::format("{} commands {}: no action", where, e.first.Scalar()));
         a.commands[*command] = std::move(actions);
       }

@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# tools/axis.py, which knows only the axis profile page, against the real daemon and one family's
+# simulator: power, home, moves, jogs, stop, halt, an error and its reset, every transition
+# checked. Usage: axis_profile.sh FAMILY FIELDGATE BUILD_DIR MODELS_DIR AXIS_PY
+set -euo pipefail
+family=$1 fieldgate=$2 build=$3 models=$4 axis_py=$5
+dir=$(mktemp -d)
+trap 'kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+
+axis_args=()
+case $family in
+  copley)
+    "$build/sim/copley/fieldgate-sim-copley" --link "$dir/port" --nodes 0,3 </dev/null \
+      >"$dir/sim.log" 2>&1 &
+    bus="protocol: copley-ascii
+    serial: {device: $dir/port, baud: 115200}
+    timing: {reply_timeout: 150ms, probe_interval: 300ms}
+    nodes:
+      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21}
+      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2, profile_unit: 22}"
+    units=21,22
+    axis_args=(--distance 20000 --expect-homed)
+    ;;
+  ims)
+    "$build/sim/ims/fieldgate-sim-ims" --link "$dir/port" --axes A,B </dev/null \
+      >"$dir/sim.log" 2>&1 &
+    bus="protocol: ims-party-line
+    serial: {device: $dir/port, baud: 9600}
+    timing: {reply_timeout: 100ms, byte_timeout: 30ms, probe_interval: 300ms}
+    nodes:
+      - {name: ims_a, address: A, model: ims-indexer, unit_id: 1, profile_unit: 11,
+         limits: {target: {min: -100000, max: 100000}}}
+      - {name: ims_b, address: B, model: ims-indexer, unit_id: 2, profile_unit: 12,
+         limits: {target: {min: -100000, max: 100000}}}"
+    units=11,12
+    axis_args=(--distance 3000 --refused-target 200000)
+    ;;
+  *)
+    echo "unknown family $family"
+    exit 2
+    ;;
+esac
+for _ in $(seq 50); do [ -e "$dir/port" ] && break; sleep 0.1; done
+cat >"$dir/gw.yaml" <<YAML
+modbus: {listen: 127.0.0.1:0}
+models: $models
+buses:
+  - name: $family
+    $bus
+YAML
+: >"$dir/daemon.log"
+"$fieldgate" --config "$dir/gw.yaml" >"$dir/daemon.log" 2>&1 &
+port=""
+for _ in $(seq 100); do
+  port=$(sed -n 's/.*modbus: listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$dir/daemon.log")
+  [ -n "$port" ] && break
+  sleep 0.1
+done
+[ -n "$port" ] || { echo "daemon did not start"; cat "$dir/daemon.log"; exit 1; }
+rc=0
+/usr/bin/python3 "$axis_py" --port "$port" --unit "$units" "${axis_args[@]}" -v || rc=$?
+if [ "$rc" -ne 0 ]; then
+  echo "--- daemon log ---"
+  cat "$dir/daemon.log"
+fi
+exit "$rc"
