@@ -35,6 +35,18 @@ case $family in
     units=11,12
     axis_args=(--distance 3000 --refused-target 200000)
     ;;
+  centent)
+    "$build/sim/centent/fieldgate-sim-centent" --link "$dir/port" --units 0 --power-up \
+      </dev/null >"$dir/sim.log" 2>&1 &
+    bus="protocol: centent-cn0170
+    serial: {device: $dir/port, baud: 9600}
+    timing: {reply_timeout: 200ms, byte_timeout: 20ms, probe_interval: 300ms}
+    nodes:
+      - {name: table_0, address: 0, model: centent-cn0170, unit_id: 1, axis_units: {x: 21, y: 22},
+         limits: {x_target: {min: -10000000, max: 10000000}, y_target: {min: -10000000, max: 10000000}}}"
+    units=21,22
+    axis_args=(--distance 1024000 --refused-target 20000000 --tolerance 4)
+    ;;
   *)
     echo "unknown family $family"
     exit 2
