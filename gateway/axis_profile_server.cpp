@@ -9,6 +9,7 @@
 
 #include <algorithm>
 
+#include "gateway/bus.hpp"
 #include "gateway/log.hpp"
 #include "gateway/register_map_handler.hpp"
 
@@ -20,8 +21,8 @@ namespace ap = axis_profile;
 namespace {
 
 constexpr auto kFollowInterval = std::chrono::milliseconds(20);
-// How long a jog's completion waits for the polls to show the axis moving (one that cannot move,
-// e.g. standing on a limit, ends done after it).
+// How long a command's completion waits for the profile's moving bit to agree with it (a jog that
+// cannot move, e.g. standing on a limit, ends done after it).
 constexpr auto kJogStartPatience = std::chrono::seconds(2);
 constexpr std::size_t kTarget = 0, kVelocity = 1, kAcceleration = 2, kDeceleration = 3;
 
@@ -70,6 +71,8 @@ std::vector<std::pair<ProfileSetpoint, std::size_t>> inputs_of(ProfileCommand c)
       return {{ProfileSetpoint::jog_velocity, kVelocity},
               {ProfileSetpoint::acceleration, kAcceleration},
               {ProfileSetpoint::deceleration, kDeceleration}};
+    case ProfileCommand::home:
+      return {{ProfileSetpoint::home_velocity, kVelocity}};
     case ProfileCommand::stop:
     case ProfileCommand::halt:
       return {{ProfileSetpoint::deceleration, kDeceleration}};
@@ -87,9 +90,9 @@ void finish_with_error(ProfileAxisRuntime& rt, uint16_t code) {
 
 }  // namespace
 
-AxisProfileServer::AxisProfileServer(ProcessImage& image, ActionRunner& actions,
+AxisProfileServer::AxisProfileServer(ProcessImage& image, ActionRunner& actions, BusOf bus_of,
                                      const ModbusConfig& modbus)
-    : image_(image), actions_(actions), modbus_(modbus) {}
+    : image_(image), actions_(actions), bus_of_(std::move(bus_of)), modbus_(modbus) {}
 
 AxisProfileServer::~AxisProfileServer() {
   *alive_ = false;
@@ -108,14 +111,18 @@ ProfileAxisRuntime& AxisProfileServer::runtime(const ProfileUnit& unit) {
       const auto it = axis.setpoints.find(p);
       if (it == axis.setpoints.end()) return;
       const SetpointDef* s = unit.model->find_setpoint(it->second);
-      if (!s) return;
+      if (!s) {
+        // A controller register: its value as last polled, if it was.
+        if (const auto v = point_value(*unit.model, node, it->second)) rt.setpoints[slot] = *v;
+        return;
+      }
       const auto index = static_cast<std::size_t>(s - unit.model->setpoints.data());
       if (index < node.setpoints.size()) rt.setpoints[slot] = node.setpoints[index];
     };
     from(ProfileSetpoint::velocity, kVelocity);
     from(ProfileSetpoint::acceleration, kAcceleration);
     from(ProfileSetpoint::deceleration, kDeceleration);
-    rt.initialised = true;
+    rt.initialised = node.state == NodeState::online;  // again once the registers are polled
   }
   return rt;
 }
@@ -232,20 +239,35 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
   auto& rt = runtime(unit);
   // The values this command passes, checked against the model's and the node's limits.
   std::vector<std::pair<std::size_t, int64_t>> passes;  // model setpoint index, value
+  std::vector<std::pair<const PointDef*, int64_t>> point_writes;
   for (const auto& [which, slot] : inputs_of(cmd)) {
     const auto it = axis.setpoints.find(which);
     if (it == axis.setpoints.end()) continue;
     const SetpointDef* s = model.find_setpoint(it->second);
+    const PointDef* p = s ? nullptr : model.find_point(it->second);
     int64_t v = rt.setpoints[slot];
-    if (which == ProfileSetpoint::jog_velocity) v = v < 0 ? -v : v;
-    std::optional<int64_t> min = s->min, max = s->max;
-    if (const auto l = unit.node->limits.find(s->name); l != unit.node->limits.end()) {
+    if (which == ProfileSetpoint::jog_velocity || which == ProfileSetpoint::home_velocity)
+      v = v < 0 ? -v : v;
+    std::optional<int64_t> min = s ? s->min : p->min, max = s ? s->max : p->max;
+    if (const auto l = unit.node->limits.find(it->second); l != unit.node->limits.end()) {
       if (l->second.min && (!min || *l->second.min > *min)) min = l->second.min;
       if (l->second.max && (!max || *l->second.max < *max)) max = l->second.max;
     }
-    if (!in_range(s->type, v) || (min && v < *min) || (max && v > *max))
+    if (!in_range(s ? s->type : p->type, v) || (min && v < *min) || (max && v > *max))
       co_return ExceptionCode::illegal_data_value;
-    passes.emplace_back(static_cast<std::size_t>(s - model.setpoints.data()), v);
+    if (s)
+      passes.emplace_back(static_cast<std::size_t>(s - model.setpoints.data()), v);
+    else
+      point_writes.emplace_back(p, v);
+  }
+  for (const auto& [name, value] : axis.fixed)
+    passes.emplace_back(
+        static_cast<std::size_t>(model.find_setpoint(name) - model.setpoints.data()), value);
+  for (const auto& [name, point] : axis.hold) {
+    const auto value = point_value(model, node, point);
+    if (!value) co_return ExceptionCode::gateway_target_failed;
+    passes.emplace_back(
+        static_cast<std::size_t>(model.find_setpoint(name) - model.setpoints.data()), *value);
   }
   const auto& action_names = axis.commands.at(cmd);
   const ActionDef* first = action_names.empty() ? nullptr : model.find_action(action_names.front());
@@ -275,6 +297,22 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
   }
   for (const auto& [index, value] : passes) node.setpoints[index] = value;
   rt.status = CommandStatus::busy;
+  for (const auto& [point, value] : point_writes) {
+    const int64_t v = value;
+    const Request request{point->write->request.render([v](std::string_view) { return v; }),
+                          Request::Expect::ack, NumberFormat::decimal};
+    const Reply written = co_await bus_of_(unit.node_index).submit(unit.node_index, request);
+    if (rt.generation != generation) co_return modbus::WriteResult::success();  // superseded
+    if (written.status != Reply::Status::ok) {
+      finish_with_error(rt, written.status == Reply::Status::device_error
+                                ? static_cast<uint16_t>(written.device_code)
+                                : kActionErrorNoReply);
+      if (auto ex = exception_for(written)) co_return *ex;
+      co_return ExceptionCode::server_device_failure;
+    }
+    image_.node(unit.node_index).points[static_cast<std::size_t>(point - model.points.data())] = {
+        value, std::chrono::steady_clock::now(), true};
+  }
   const uint64_t action_generation = node.action.generation + 1;
   const Reply reply = co_await actions_.start(unit.node_index, unit.model, *first);
   if (rt.generation != generation) co_return modbus::WriteResult::success();  // superseded
@@ -330,9 +368,14 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
     }
     // A jog is done once the drive runs: wait (briefly) until the polls show the motion, so the
     // state goes from busy ContinuousMotion straight on to moving ContinuousMotion.
+    // Likewise a move, home, stop or halt is done only once the profile's own moving bit (which
+    // may come from another point than the action's done condition) shows standstill.
     const bool jog =
         rt.command == ProfileCommand::jog_positive || rt.command == ProfileCommand::jog_negative;
-    if (jog && !observe(unit, rt).moving) {
+    const bool motion = rt.command != ProfileCommand::power_on &&
+                        rt.command != ProfileCommand::power_off &&
+                        rt.command != ProfileCommand::reset;
+    if (motion && observe(unit, rt).moving != jog) {
       if (!jog_deadline) jog_deadline = std::chrono::steady_clock::now() + kJogStartPatience;
       if (std::chrono::steady_clock::now() < *jog_deadline) {
         --step;

@@ -24,7 +24,9 @@ struct ProfileUnit {
 // process image, commands through the model's actions with the sequence-number handshake.
 class AxisProfileServer {
  public:
-  AxisProfileServer(ProcessImage& image, ActionRunner& actions, const ModbusConfig& modbus);
+  using BusOf = std::function<Bus&(int node_index)>;
+  AxisProfileServer(ProcessImage& image, ActionRunner& actions, BusOf bus_of,
+                    const ModbusConfig& modbus);
   ~AxisProfileServer();
 
   modbus::ReadRegistersResult read(const ProfileUnit& unit, modbus::RegisterTable table,
@@ -42,6 +44,7 @@ class AxisProfileServer {
 
   ProcessImage& image_;
   ActionRunner& actions_;
+  BusOf bus_of_;
   const ModbusConfig& modbus_;
   std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);
 };

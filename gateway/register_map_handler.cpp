@@ -68,7 +68,7 @@ RegisterMapHandler::RegisterMapHandler(std::shared_ptr<const LoadedConfig> confi
       image_(image),
       actions_(actions),
       bus_of_(std::move(bus_of)),
-      profile_(image, actions, config_->gateway.modbus) {
+      profile_(image, actions, bus_of_, config_->gateway.modbus) {
   for (const auto& bus : config_->gateway.buses)
     for (const auto& node : bus.nodes) {
       const int index = static_cast<int>(nodes_.size());

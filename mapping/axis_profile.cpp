@@ -95,6 +95,8 @@ std::string_view to_string(ProfileSetpoint setpoint) {
       return "acceleration";
     case ProfileSetpoint::deceleration:
       return "deceleration";
+    case ProfileSetpoint::home_velocity:
+      return "home_velocity";
   }
   return "?";
 }

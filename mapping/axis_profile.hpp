@@ -94,8 +94,16 @@ inline constexpr uint16_t kProfileErrorStopping = 0xffee;     // motion while a 
 inline constexpr uint16_t kProfileErrorDeviceFault = 0xffed;  // error bit without a device code
 
 // Which setpoint of the model a profile value feeds.
-enum class ProfileSetpoint { target, distance, velocity, jog_velocity, acceleration, deceleration };
-inline constexpr int kProfileSetpointCount = 6;
+enum class ProfileSetpoint {
+  target,
+  distance,
+  velocity,
+  jog_velocity,
+  acceleration,
+  deceleration,
+  home_velocity,
+};
+inline constexpr int kProfileSetpointCount = 7;
 std::string_view to_string(ProfileSetpoint setpoint);
 
 // A status bit taken from a polled point: bit `bit` (or the whole value) equals / differs from a
@@ -116,7 +124,14 @@ struct ProfileAxisDef {
   std::string velocity;    // empty: not reported
   std::string error_code;  // point holding the device's error code, optional
   std::map<StatusBit, StatusSource> status;
-  std::map<ProfileSetpoint, std::string> setpoints;  // profile value -> model setpoint
+  // Profile value -> a setpoint of the model, or a writable point (written, confirmed, before the
+  // command's first action).
+  std::map<ProfileSetpoint, std::string> setpoints;
+  // Model setpoints given before every command of this axis: fixed values (the axis number of a
+  // multi-axis controller) and the latest value of a polled point (the other axes' positions, for
+  // a controller whose absolute move names every axis).
+  std::map<std::string, int64_t> fixed;
+  std::map<std::string, std::string> hold;
   // Per command: the model's actions run in order, each awaited to done. Absent: unsupported.
   std::map<ProfileCommand, std::vector<std::string>> commands;
   SourceMark mark;

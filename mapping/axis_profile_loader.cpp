@@ -93,9 +93,10 @@ class ProfileParser {
   std::optional<ProfileAxisDef> parse_axis(const std::string& name, const YAML::Node& n) {
     const std::string where = "axis_profile " + name;
     if (!r_.expect_map(n, where)) return std::nullopt;
-    r_.reject_unknown_keys(
-        n, {"position", "velocity", "error_code", "status", "setpoints", "commands", "unsupported"},
-        where);
+    r_.reject_unknown_keys(n,
+                           {"position", "velocity", "error_code", "status", "setpoints", "fixed",
+                            "hold", "commands", "unsupported"},
+                           where);
     ProfileAxisDef a;
     a.name = name;
     a.mark = r_.mark(n);
@@ -141,17 +142,43 @@ class ProfileParser {
         if (!which) {
           r_.error(e.first, fmt::format("{} setpoints: unknown profile value '{}' (target, "
                                         "distance, velocity, jog_velocity, acceleration, "
-                                        "deceleration)",
+                                        "deceleration, home_velocity)",
                                         where, key));
           continue;
         }
         const std::string target = r_.string(e.second, where + " setpoint").value_or("");
-        if (!model_.find_setpoint(target)) {
-          r_.error(e.second, fmt::format("{} setpoints: model {} has no setpoint '{}'", where,
-                                         model_.name, target));
+        const PointDef* point = model_.find_point(target);
+        if (!model_.find_setpoint(target) && !(point && point->writable())) {
+          r_.error(e.second, fmt::format("{} setpoints: model {} has no setpoint or writable "
+                                         "point '{}'",
+                                         where, model_.name, target));
           continue;
         }
         a.setpoints[*which] = target;
+      }
+    }
+    if (const auto f = n["fixed"]; f && r_.expect_map(f, where + " fixed")) {
+      for (const auto& e : f) {
+        const std::string sp = e.first.Scalar();
+        if (!model_.find_setpoint(sp)) {
+          r_.error(e.first,
+                   fmt::format("{} fixed: model {} has no setpoint '{}'", where, model_.name, sp));
+          continue;
+        }
+        if (auto v = r_.integer(e.second, where + " fixed " + sp, INT64_MIN, INT64_MAX))
+          a.fixed[sp] = *v;
+      }
+    }
+    if (const auto h = n["hold"]; h && r_.expect_map(h, where + " hold")) {
+      for (const auto& e : h) {
+        const std::string sp = e.first.Scalar();
+        if (!model_.find_setpoint(sp)) {
+          r_.error(e.first,
+                   fmt::format("{} hold: model {} has no setpoint '{}'", where, model_.name, sp));
+          continue;
+        }
+        const std::string point = r_.string(e.second, where + " hold " + sp).value_or("");
+        if (polled_point(e.second, point, where + " hold " + sp)) a.hold[sp] = point;
       }
     }
     if (const auto cmds = n["commands"]; cmds && r_.expect_map(cmds, where + " commands")) {

@@ -186,6 +186,8 @@ class Axis:
             self.check("an axis without power command is enabled", self.page()["enabled"])
         # Home
         if self.supports("home"):
+            if a.home_velocity:
+                self.set_setpoints(velocity=a.home_velocity)
             seen, p = self.command("home", timeout=a.timeout * 2)
             self.check("home: Homing seen or over at once", seen <= {"Homing"}, str(seen))
             p = self.wait_state({"Standstill"})
@@ -314,6 +316,8 @@ def main():
                     help="profile unit ID(s), repeatable or comma-separated")
     ap.add_argument("--distance", type=int, default=4000, help="move distance (axis units)")
     ap.add_argument("--velocity", type=int, default=0, help="move velocity (0: the axis default)")
+    ap.add_argument("--home-velocity", type=int, default=0,
+                    help="velocity register for home (0: leave it)")
     ap.add_argument("--jog-velocity", type=int, default=0, help="jog velocity (0: as --velocity)")
     ap.add_argument("--tolerance", type=int, default=2, help="position tolerance")
     ap.add_argument("--beyond", type=int, help="a target beyond a limit, for axes without power")

@@ -47,6 +47,19 @@ case $family in
     units=21,22
     axis_args=(--distance 1024000 --refused-target 20000000 --tolerance 4)
     ;;
+  whedco)
+    "$build/sim/whedco/fieldgate-sim-whedco" --link "$dir/port" --units 4 --axes XY \
+      --baud 38400 </dev/null >"$dir/sim.log" 2>&1 &
+    bus="protocol: whedco-cmc
+    serial: {device: $dir/port, baud: 38400}
+    timing: {reply_timeout: 50ms, byte_timeout: 10ms, probe_interval: 300ms}
+    nodes:
+      - {name: cmc_4, address: 4, model: whedco-cmc-xy, unit_id: 1, axis_units: {x: 41, y: 42},
+         limits: {x_target: {min: -1000000, max: 1000000}, y_target: {min: -1000000, max: 1000000}}}"
+    units=41,42
+    axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
+               --refused-target 2000000)
+    ;;
   *)
     echo "unknown family $family"
     exit 2
