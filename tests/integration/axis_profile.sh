@@ -60,6 +60,24 @@ case $family in
     axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
                --refused-target 2000000)
     ;;
+  techno-c142 | techno-it116g)
+    variant=${family#techno-}
+    "$build/sim/techno/fieldgate-sim-techno" --link "$dir/port" --variant "$variant" \
+      --baud 19200 </dev/null >"$dir/sim.log" 2>&1 &
+    if [ "$variant" = c142 ]; then
+      units_yaml="axis_units: {x: 31, y: 32, z: 33}"
+      units=31,32,33
+    else
+      units_yaml="profile_unit: 31"
+      units=31
+    fi
+    bus="protocol: techno-c
+    serial: {device: $dir/port, baud: 19200}
+    timing: {reply_timeout: 100ms, byte_timeout: 20ms, probe_interval: 300ms}
+    nodes:
+      - {name: techno, address: 0, model: $family, unit_id: 1, $units_yaml}"
+    axis_args=(--distance 2000 --refused-target 9000000)
+    ;;
   *)
     echo "unknown family $family"
     exit 2
