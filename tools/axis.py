@@ -257,6 +257,29 @@ class Axis:
             self.check(end + ": the axis stands still", abs(q["position"] - p["position"]) <=
                        a.tolerance and q["state"] == "Standstill", "%d -> %d" %
                        (p["position"], q["position"]))
+        # An axis without jogs: stop and halt a running move instead.
+        if not self.supports("jog_positive") and not self.supports("jog_negative"):
+            for end in ("stop", "halt"):
+                if not self.supports(end):
+                    continue
+                start = self.page()["position"]
+                self.set_setpoints(target=start + 4 * a.distance)
+                r = self.send("move_absolute")
+                self.check("long move taken", not r.isError(), str(r))
+                deadline = time.monotonic() + a.timeout
+                p = self.page()
+                while not p["moving"]:
+                    self.check("long move: the axis moves", time.monotonic() < deadline, str(p))
+                    time.sleep(0.02)
+                    p = self.page()
+                seen, p = self.command(end)
+                self.check(end + " of a move: Stopping/DiscreteMotion while busy",
+                           seen <= ({"Stopping"} if end == "stop" else {"DiscreteMotion"}),
+                           str(seen))
+                self.check(end + " of a move: done means stopped", not p["moving"], str(p))
+                self.check(end + " of a move: short of the target",
+                           abs(p["position"] - (start + 4 * a.distance)) > a.tolerance, str(p))
+                self.wait_state({"Standstill"})
         # Every unsupported command answers 0x01.
         for name in COMMANDS:
             if not self.supports(name):
