@@ -575,7 +575,7 @@ class ConfigParser {
       }
     r_.reject_unknown_keys(node,
                            {"name", "address", "model", "unit_id", "poll", "setpoints", "limits",
-                            "reply_timeout", "listener"},
+                            "reply_timeout", "listener", "profile_unit", "axis_units"},
                            where);
     n.listener = resolve_listener(node["listener"], config, where, bus_listener_);
     if (node["reply_timeout"]) {
@@ -683,7 +683,47 @@ class ConfigParser {
         n.limits[name] = l;
       }
     }
+    parse_axis_units(node, where, n, config);
     bus.nodes.push_back(std::move(n));
+  }
+
+  // profile_unit: N (a model with one profile axis) or axis_units: {x: N, y: M}.
+  void parse_axis_units(const YAML::Node& node, const std::string& where, NodeConfig& n,
+                        const GatewayConfig& config) {
+    const auto claim = [&](const YAML::Node& at, const std::string& axis) {
+      const auto id = r_.integer(at, where + " profile unit", 1, 247);
+      if (!id) return;
+      const auto unit = static_cast<uint8_t>(*id);
+      const auto [it, fresh] =
+          unit_ids_.try_emplace({n.listener, unit}, UnitOwner{n.name + "." + axis, r_.mark(at)});
+      if (!fresh)
+        r_.error(at, fmt::format("{}: unit_id {} is already used by {} ({}) on listener {}", where,
+                                 *id, it->second.node, to_string(it->second.mark),
+                                 config.listener_name(n.listener)));
+      n.axis_units[axis] = unit;
+    };
+    if (node["profile_unit"] && node["axis_units"])
+      r_.error(node, where + ": give profile_unit or axis_units, not both");
+    if (const auto p = node["profile_unit"]) {
+      if (n.model && n.model->profile_axes.size() != 1)
+        r_.error(p, fmt::format("{}: model {} has {} profile axes; name them under axis_units",
+                                where, n.model->name, n.model->profile_axes.size()));
+      else if (n.model)
+        claim(p, n.model->profile_axes.front().name);
+    }
+    if (const auto a = node["axis_units"]; a && r_.expect_map(a, where + " axis_units")) {
+      for (const auto& e : a) {
+        const std::string axis = e.first.Scalar();
+        if (n.model && !n.model->find_profile_axis(axis)) {
+          std::string known;
+          for (const auto& k : n.model->profile_axes) known += (known.empty() ? "" : ", ") + k.name;
+          r_.error(e.first, fmt::format("{}: model {} has no profile axis '{}' (axes: {})", where,
+                                        n.model->name, axis, known.empty() ? "none" : known));
+          continue;
+        }
+        claim(e.second, axis);
+      }
+    }
   }
 
   YamlReader& r_;

@@ -94,6 +94,7 @@ struct NodeConfig {
   std::map<std::string, WriteLimits> limits;         // by point or setpoint name
   std::optional<microseconds> reply_timeout;         // overrides the bus's for this node
   std::size_t listener = 0;  // index of GatewayConfig::listener_modbus: 0 is `modbus:`
+  std::map<std::string, uint8_t> axis_units;  // profile axis name -> its unit ID
   SourceMark mark;
 
   microseconds period_of(const std::string& poll_class) const;

@@ -6,6 +6,7 @@
 #include "gateway/daemon.hpp"
 #include "gateway/log.hpp"
 #include "gateway/modbus_rtu_port.hpp"
+#include "gateway/profile_units_document.hpp"
 #include "mapping/register_map_document.hpp"
 
 using namespace fieldgate;
@@ -59,7 +60,22 @@ int main(int argc, char** argv) {
   std::string map_format = "md";
   map->add_option("config", map_path, "gateway configuration (YAML)")->capture_default_str();
   map->add_option("--format", map_format, "md or csv")->check(CLI::IsMember({"md", "csv"}));
+  bool map_profile = false;
+  map->add_flag("--profile", map_profile,
+                "write the axis profile page (with a config: and its profile units)");
   CLI11_PARSE(app, argc, argv);
+  if (*map && map_profile) {
+    std::cout << write_axis_profile_document();
+    if (map_path.empty()) return 0;
+    auto config = load_config_or_report(map_path);
+    if (!config) return 1;
+    std::cout << write_profile_units_document(config->gateway);
+    return 0;
+  }
+  if (*map && map_path.empty()) {
+    std::cerr << "fieldgate map: a configuration is required (or --profile)\n";
+    return 2;
+  }
   if (*map) {
     auto config = load_config_or_report(map_path);
     if (!config) return 1;

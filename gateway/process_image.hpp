@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "gateway/axis_profile_state.hpp"
 #include "mapping/register_map.hpp"
 
 namespace fieldgate {
@@ -73,6 +74,7 @@ struct NodeImage {
   NodeCounters counters;
   NodeState state = NodeState::starting;
   ActionState action;
+  std::vector<ProfileAxisRuntime> profile_axes;  // by the model's profile axis index
 };
 
 // The latest value of every point with its time and quality, plus per-node diagnostics,

@@ -70,9 +70,23 @@ RegisterMapHandler::RegisterMapHandler(std::shared_ptr<const LoadedConfig> confi
       modbus_(config_->gateway.listener_modbus(listener)),
       image_(image),
       actions_(actions),
-      bus_of_(std::move(bus_of)) {
+      bus_of_(std::move(bus_of)),
+      profile_(image, actions, bus_of_, modbus_) {
   for (const auto& bus : config_->gateway.buses)
-    for (const auto& node : bus.nodes) nodes_.push_back(&node);
+    for (const auto& node : bus.nodes) {
+      const int index = static_cast<int>(nodes_.size());
+      nodes_.push_back(&node);
+      if (node.listener != listener) continue;  // profile units are per listener too
+      for (const auto& [axis, unit] : node.axis_units)
+        if (const auto* def = node.model->find_profile_axis(axis))
+          profile_units_[unit] = {index, &node, node.model,
+                                  static_cast<int>(def - node.model->profile_axes.data())};
+    }
+}
+
+const ProfileUnit* RegisterMapHandler::profile_unit(uint8_t unit) const {
+  const auto it = profile_units_.find(unit);
+  return it == profile_units_.end() ? nullptr : &it->second;
 }
 
 std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit,
@@ -116,6 +130,7 @@ std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit
 
 modbus::ReadBitsResult RegisterMapHandler::read_bits(uint8_t unit_id, modbus::BitTable table,
                                                      uint16_t address, uint16_t count) {
+  if (profile_unit(unit_id)) return ExceptionCode::illegal_data_address;
   const UnitMap* unit = unit_of(unit_id);
   if (!unit) return ExceptionCode::gateway_path_unavailable;
   std::vector<bool> bits;
@@ -131,6 +146,7 @@ modbus::ReadBitsResult RegisterMapHandler::read_bits(uint8_t unit_id, modbus::Bi
 }
 
 modbus::DeviceIdentificationResult RegisterMapHandler::device_identification(uint8_t unit_id) {
+  if (const auto* axis = profile_unit(unit_id)) unit_id = axis->node->unit_id;
   const UnitMap* unit = unit_of(unit_id);
   if (!unit) return ExceptionCode::gateway_path_unavailable;
   return identify(*unit, image_.node(unit->node_index));
@@ -139,6 +155,8 @@ modbus::DeviceIdentificationResult RegisterMapHandler::device_identification(uin
 modbus::ReadRegistersResult RegisterMapHandler::read_registers(uint8_t unit_id,
                                                                modbus::RegisterTable table,
                                                                uint16_t address, uint16_t count) {
+  if (const auto* axis = profile_unit(unit_id))
+    return profile_.read(*axis, table, address, count, map_.word_order());
   const UnitMap* unit = unit_of(unit_id);
   if (!unit) return ExceptionCode::gateway_path_unavailable;
   const WordOrder order = map_.word_order();
@@ -161,10 +179,16 @@ modbus::ReadRegistersResult RegisterMapHandler::read_registers(uint8_t unit_id,
 
 asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
     uint8_t unit_id, uint16_t address, std::span<const uint16_t> values) {
-  const UnitMap* unit = unit_of(unit_id);
-  if (!unit) co_return ExceptionCode::gateway_path_unavailable;
   const WordOrder order = map_.word_order();
   const auto& modbus_config = modbus_;
+  if (const auto* axis = profile_unit(unit_id)) {
+    if (modbus_config.read_only_holding || modbus_config.unit_read_only(unit_id))
+      co_return ExceptionCode::illegal_function;
+    const ProfileUnit target = *axis;
+    co_return co_await profile_.write(target, address, values, order);
+  }
+  const UnitMap* unit = unit_of(unit_id);
+  if (!unit) co_return ExceptionCode::gateway_path_unavailable;
   if (modbus_config.read_only_holding || modbus_config.unit_read_only(unit_id))
     co_return ExceptionCode::illegal_function;
   const NodeConfig& node_config = *nodes_.at(static_cast<std::size_t>(unit->node_index));
@@ -246,6 +270,7 @@ asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
 
 asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_coils(uint8_t unit_id, uint16_t,
                                                                      std::vector<bool>) {
+  if (profile_unit(unit_id)) co_return ExceptionCode::illegal_data_address;
   if (!unit_of(unit_id)) co_return ExceptionCode::gateway_path_unavailable;
   const auto& m = modbus_;
   if (m.read_only_coils || m.unit_read_only(unit_id)) co_return ExceptionCode::illegal_function;

@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "gateway/action_runner.hpp"
+#include "gateway/axis_profile_server.hpp"
 #include "gateway/config_loader.hpp"
 #include "gateway/modbus/request_handler.hpp"
 #include "gateway/process_image.hpp"
@@ -45,7 +46,12 @@ class RegisterMapHandler final : public modbus::RequestHandler {
   ProcessImage& image_;
   ActionRunner& actions_;
   BusOf bus_of_;
+  // The axis a profile unit ID stands for, or nullptr (a native unit, or none).
+  const ProfileUnit* profile_unit(uint8_t unit) const;
+
   std::vector<const NodeConfig*> nodes_;  // by the gateway's node number
+  std::map<uint8_t, ProfileUnit> profile_units_;
+  AxisProfileServer profile_;
 };
 
 // How a bus reply answers a confirmed write: nullopt for success, else the exception.

@@ -26,6 +26,9 @@ const ActionDef* Model::find_action(const std::string& n) const {
 const PollClassDef* Model::find_poll_class(const std::string& n) const {
   return find_named(poll_classes, n);
 }
+const ProfileAxisDef* Model::find_profile_axis(const std::string& n) const {
+  return find_named(profile_axes, n);
+}
 const ActionDef* Model::find_action(uint16_t code) const {
   for (const auto& a : actions)
     if (a.code == code) return &a;

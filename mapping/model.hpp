@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "mapping/axis_profile.hpp"
 #include "mapping/command_template.hpp"
 #include "mapping/diagnostics.hpp"
 #include "mapping/value_type.hpp"
@@ -128,6 +129,7 @@ struct Model {
   std::vector<SetpointDef> setpoints;
   std::vector<ActionDef> actions;
   std::map<std::string, std::string> options;  // family-specific settings, validated by the family
+  std::vector<ProfileAxisDef> profile_axes;    // its axes on the axis profile, if mapped
   SourceMark mark;
 
   const PointDef* find_point(const std::string& point_name) const;
@@ -135,6 +137,7 @@ struct Model {
   const ActionDef* find_action(const std::string& action_name) const;
   const ActionDef* find_action(uint16_t code) const;
   const PollClassDef* find_poll_class(const std::string& class_name) const;
+  const ProfileAxisDef* find_profile_axis(const std::string& axis_name) const;
 };
 
 using ModelPtr = std::shared_ptr<const Model>;

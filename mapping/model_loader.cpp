@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <set>
 
+#include "mapping/axis_profile_loader.hpp"
 #include "mapping/yaml_reader.hpp"
 
 namespace fieldgate {
@@ -21,7 +22,7 @@ class ModelParser {
     if (!r_.expect_map(root, "model file")) return nullptr;
     r_.reject_unknown_keys(root,
                            {"model", "family", "description", "options", "poll_classes", "points",
-                            "setpoints", "actions"},
+                            "setpoints", "actions", "axis_profile"},
                            "model");
     auto model = std::make_shared<Model>();
     model->mark = r_.mark(root);
@@ -40,6 +41,7 @@ class ModelParser {
     parse_points(root["points"], *model);
     parse_setpoints(root["setpoints"], *model);
     parse_actions(root["actions"], *model);
+    parse_axis_profile(r_, root["axis_profile"], *model);
     return model;
   }
 

@@ -1,0 +1,243 @@
+#include "mapping/axis_profile_loader.hpp"
+
+#include <fmt/format.h>
+
+#include <set>
+
+namespace fieldgate {
+
+namespace {
+
+constexpr std::array<StatusBit, 7> kMappedBits = {
+    StatusBit::enabled,        StatusBit::homed,          StatusBit::moving, StatusBit::error,
+    StatusBit::limit_positive, StatusBit::limit_negative, StatusBit::warning};
+
+class ProfileParser {
+ public:
+  ProfileParser(YamlReader& reader, Model& model) : r_(reader), model_(model) {}
+
+  void parse(const YAML::Node& node) {
+    if (!r_.expect_map(node, "axis_profile")) return;
+    std::set<std::string> seen;
+    for (const auto& e : node) {
+      const std::string name = e.first.Scalar();
+      if (!seen.insert(name).second) {
+        r_.error(e.first, fmt::format("axis_profile: axis '{}' is defined twice", name));
+        continue;
+      }
+      if (auto axis = parse_axis(name, e.second)) model_.profile_axes.push_back(std::move(*axis));
+    }
+  }
+
+ private:
+  bool polled_point(const YAML::Node& n, const std::string& name, const std::string& where) {
+    const PointDef* p = model_.find_point(name);
+    if (!p) {
+      r_.error(n, fmt::format("{}: unknown point '{}'", where, name));
+      return false;
+    }
+    if (!p->readable() || p->poll_class.empty()) {
+      r_.error(n, fmt::format("{}: point '{}' is not polled", where, name));
+      return false;
+    }
+    return true;
+  }
+
+  std::optional<StatusSource> parse_source(const YAML::Node& n, const std::string& where) {
+    StatusSource s;
+    s.mark = r_.mark(n);
+    if (n.IsScalar()) {
+      if (auto b = r_.boolean(n, where)) {
+        s.constant = *b;
+        return s;
+      }
+      return std::nullopt;
+    }
+    if (!r_.expect_map(n, where)) return std::nullopt;
+    r_.reject_unknown_keys(n, {"point", "bit", "equals", "not_equals"}, where);
+    const auto p = r_.require(n, "point", where);
+    if (!p) return std::nullopt;
+    s.point = r_.string(*p, where + " point").value_or("");
+    if (!polled_point(*p, s.point, where)) return std::nullopt;
+    const PointDef* point = model_.find_point(s.point);
+    if (const auto bit = n["bit"]) {
+      if (auto v = parse_integer_text(bit.Scalar()); v && *v >= 0 && *v <= 31) {
+        s.bit = static_cast<int>(*v);
+      } else if (const auto* b = point->find_bit(bit.Scalar())) {
+        s.bit = b->bit;
+      } else {
+        r_.error(bit, fmt::format("{}: point '{}' has no bit '{}'", where, s.point, bit.Scalar()));
+        return std::nullopt;
+      }
+    }
+    if (n["equals"] && n["not_equals"]) {
+      r_.error(n, fmt::format("{}: give 'equals' or 'not_equals', not both", where));
+      return std::nullopt;
+    }
+    if (n["equals"])
+      s.value = r_.integer(n["equals"], where + " equals", INT64_MIN, INT64_MAX).value_or(1);
+    if (n["not_equals"]) {
+      s.value =
+          r_.integer(n["not_equals"], where + " not_equals", INT64_MIN, INT64_MAX).value_or(0);
+      s.negate = true;
+    }
+    return s;
+  }
+
+  bool known_action(const YAML::Node& n, const std::string& name, const std::string& where) {
+    if (model_.find_action(name)) return true;
+    r_.error(n, fmt::format("{}: model {} has no action '{}'", where, model_.name, name));
+    return false;
+  }
+
+  std::optional<ProfileAxisDef> parse_axis(const std::string& name, const YAML::Node& n) {
+    const std::string where = "axis_profile " + name;
+    if (!r_.expect_map(n, where)) return std::nullopt;
+    r_.reject_unknown_keys(n,
+                           {"position", "velocity", "error_code", "status", "setpoints", "fixed",
+                            "hold", "commands", "unsupported"},
+                           where);
+    ProfileAxisDef a;
+    a.name = name;
+    a.mark = r_.mark(n);
+    if (auto p = r_.require(n, "position", where)) {
+      a.position = r_.string(*p, where + " position").value_or("");
+      polled_point(*p, a.position, where + " position");
+    }
+    if (n["velocity"]) {
+      a.velocity = r_.string(n["velocity"], where + " velocity").value_or("");
+      polled_point(n["velocity"], a.velocity, where + " velocity");
+    }
+    if (n["error_code"]) {
+      a.error_code = r_.string(n["error_code"], where + " error_code").value_or("");
+      polled_point(n["error_code"], a.error_code, where + " error_code");
+    }
+    if (auto status = r_.require(n, "status", where); status && r_.expect_map(*status, where)) {
+      for (const auto& e : *status) {
+        const std::string bit_name = e.first.Scalar();
+        std::optional<StatusBit> bit;
+        for (const auto b : kMappedBits)
+          if (to_string(b) == bit_name) bit = b;
+        if (!bit) {
+          r_.error(e.first, fmt::format("{} status: '{}' is no mapped status bit (enabled, homed, "
+                                        "moving, error, limit_positive, limit_negative, warning)",
+                                        where, bit_name));
+          continue;
+        }
+        if (auto s = parse_source(e.second, where + " status " + bit_name)) a.status[*bit] = *s;
+      }
+      for (const auto b : {StatusBit::enabled, StatusBit::moving})
+        if (!a.status.count(b))
+          r_.error(*status, fmt::format("{} status: '{}' is required (true where the controller "
+                                        "has no such notion)",
+                                        where, to_string(b)));
+    }
+    if (const auto sp = n["setpoints"]; sp && r_.expect_map(sp, where + " setpoints")) {
+      for (const auto& e : sp) {
+        const std::string key = e.first.Scalar();
+        std::optional<ProfileSetpoint> which;
+        for (int i = 0; i < kProfileSetpointCount; ++i)
+          if (to_string(static_cast<ProfileSetpoint>(i)) == key)
+            which = static_cast<ProfileSetpoint>(i);
+        if (!which) {
+          r_.error(e.first, fmt::format("{} setpoints: unknown profile value '{}' (target, "
+                                        "distance, velocity, jog_velocity, acceleration, "
+                                        "deceleration, home_velocity)",
+                                        where, key));
+          continue;
+        }
+        const std::string target = r_.string(e.second, where + " setpoint").value_or("");
+        const PointDef* point = model_.find_point(target);
+        if (!model_.find_setpoint(target) && !(point && point->writable())) {
+          r_.error(e.second, fmt::format("{} setpoints: model {} has no setpoint or writable "
+                                         "point '{}'",
+                                         where, model_.name, target));
+          continue;
+        }
+        a.setpoints[*which] = target;
+      }
+    }
+    if (const auto f = n["fixed"]; f && r_.expect_map(f, where + " fixed")) {
+      for (const auto& e : f) {
+        const std::string sp = e.first.Scalar();
+        if (!model_.find_setpoint(sp)) {
+          r_.error(e.first,
+                   fmt::format("{} fixed: model {} has no setpoint '{}'", where, model_.name, sp));
+          continue;
+        }
+        if (auto v = r_.integer(e.second, where + " fixed " + sp, INT64_MIN, INT64_MAX))
+          a.fixed[sp] = *v;
+      }
+    }
+    if (const auto h = n["hold"]; h && r_.expect_map(h, where + " hold")) {
+      for (const auto& e : h) {
+        const std::string sp = e.first.Scalar();
+        if (!model_.find_setpoint(sp)) {
+          r_.error(e.first,
+                   fmt::format("{} hold: model {} has no setpoint '{}'", where, model_.name, sp));
+          continue;
+        }
+        const std::string point = r_.string(e.second, where + " hold " + sp).value_or("");
+        if (polled_point(e.second, point, where + " hold " + sp)) a.hold[sp] = point;
+      }
+    }
+    if (const auto cmds = n["commands"]; cmds && r_.expect_map(cmds, where + " commands")) {
+      for (const auto& e : cmds) {
+        const auto command = profile_command_named(e.first.Scalar());
+        if (!command) {
+          r_.error(e.first, fmt::format("{} commands: unknown profile command '{}'", where,
+                                        e.first.Scalar()));
+          continue;
+        }
+        std::vector<std::string> actions;
+        if (e.second.IsSequence()) {
+          for (const auto& s : e.second)
+            if (auto t = r_.string(s, where + " command"); t && known_action(s, *t, where))
+              actions.push_back(*t);
+        } else if (auto t = r_.string(e.second, where + " command");
+                   t && known_action(e.second, *t, where)) {
+          actions.push_back(*t);
+        }
+        // reset: [] is a reset of a controller without error state: the gateway clears its own
+        // ErrorStop latch. Every other command needs an action.
+        if (actions.empty() && *command != ProfileCommand::reset)
+          r_.error(e.second, fmt::format("{} commands {}: no action", where, e.first.Scalar()));
+        a.commands[*command] = std::move(actions);
+      }
+    }
+    std::set<ProfileCommand> unsupported;
+    if (const auto u = n["unsupported"]; u && r_.expect_sequence(u, where + " unsupported")) {
+      for (const auto& e : u) {
+        const auto command = profile_command_named(e.Scalar());
+        if (!command) {
+          r_.error(e,
+                   fmt::format("{} unsupported: unknown profile command '{}'", where, e.Scalar()));
+          continue;
+        }
+        if (a.commands.count(*command))
+          r_.error(e, fmt::format("{}: {} is both mapped and unsupported", where, e.Scalar()));
+        unsupported.insert(*command);
+      }
+    }
+    for (uint16_t c = 1; c < kProfileCommandCount; ++c) {
+      const auto command = static_cast<ProfileCommand>(c);
+      if (!a.commands.count(command) && !unsupported.count(command))
+        r_.error(n, fmt::format("{}: command {} is neither mapped under 'commands' nor listed "
+                                "under 'unsupported'",
+                                where, to_string(command)));
+    }
+    return a;
+  }
+
+  YamlReader& r_;
+  Model& model_;
+};
+
+}  // namespace
+
+void parse_axis_profile(YamlReader& reader, const YAML::Node& node, Model& model) {
+  if (!node) return;
+  ProfileParser(reader, model).parse(node);
+}
+
+}  // namespace fieldgate

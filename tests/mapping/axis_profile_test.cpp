@@ -1,0 +1,103 @@
+// The axis profile's state diagram, refusals and the models' axis_profile: sections.
+#include <gtest/gtest.h>
+
+#include "mapping/axis_profile.hpp"
+#include "mapping/model_loader.hpp"
+
+namespace fieldgate {
+namespace {
+
+AxisObservation enabled_axis() {
+  AxisObservation o;
+  o.enabled = true;
+  return o;
+}
+
+TEST(AxisProfileState, ErrorStopWinsUntilResetAndErrorClear) {
+  auto o = enabled_axis();
+  o.error = true;
+  EXPECT_EQ(derive_state(o), PlcopenState::error_stop);
+  o.error = false;
+  o.error_latched = true;
+  o.command = ProfileCommand::move_absolute;
+  o.status = CommandStatus::busy;
+  EXPECT_EQ(derive_state(o), PlcopenState::error_stop);
+  o.enabled = false;
+  EXPECT_EQ(derive_state(o), PlcopenState::error_stop);
+}
+
+TEST(AxisProfileState, FollowsTheCommandInProgress) {
+  auto o = enabled_axis();
+  EXPECT_EQ(derive_state(o), PlcopenState::standstill);
+  o.status = CommandStatus::busy;
+  o.command = ProfileCommand::home;
+  EXPECT_EQ(derive_state(o), PlcopenState::homing);
+  o.command = ProfileCommand::move_relative;
+  EXPECT_EQ(derive_state(o), PlcopenState::discrete_motion);
+  o.command = ProfileCommand::halt;
+  EXPECT_EQ(derive_state(o), PlcopenState::discrete_motion);
+  o.command = ProfileCommand::stop;
+  o.moving = true;
+  EXPECT_EQ(derive_state(o), PlcopenState::stopping);
+  o.command = ProfileCommand::jog_negative;
+  o.status = CommandStatus::done;
+  EXPECT_EQ(derive_state(o), PlcopenState::continuous_motion);
+  o.moving = false;
+  EXPECT_EQ(derive_state(o), PlcopenState::standstill);
+  o.enabled = false;
+  EXPECT_EQ(derive_state(o), PlcopenState::disabled);
+}
+
+TEST(AxisProfileState, RefusalsFollowThePlcopenDiagram) {
+  EXPECT_EQ(refusal(PlcopenState::disabled, ProfileCommand::move_absolute), kProfileErrorDisabled);
+  EXPECT_FALSE(refusal(PlcopenState::disabled, ProfileCommand::power_on));
+  EXPECT_FALSE(refusal(PlcopenState::disabled, ProfileCommand::reset));
+  EXPECT_EQ(refusal(PlcopenState::error_stop, ProfileCommand::home), kProfileErrorErrorStop);
+  EXPECT_FALSE(refusal(PlcopenState::error_stop, ProfileCommand::reset));
+  EXPECT_FALSE(refusal(PlcopenState::error_stop, ProfileCommand::power_off));
+  EXPECT_EQ(refusal(PlcopenState::stopping, ProfileCommand::jog_positive), kProfileErrorStopping);
+  EXPECT_FALSE(refusal(PlcopenState::stopping, ProfileCommand::stop));
+  EXPECT_FALSE(refusal(PlcopenState::discrete_motion, ProfileCommand::move_absolute));
+}
+
+TEST(AxisProfileModels, EveryShippedMotionModelMapsEveryCommandOrListsIt) {
+  Diagnostics d;
+  ModelLibrary library;
+  library.load_directory(std::string(FIELDGATE_SOURCE_DIR) + "/config/models", d);
+  ASSERT_TRUE(d.ok()) << d.to_text();
+  for (const char* name : {"copley-amplifier", "ims-indexer", "centent-cn0170", "whedco-cmc-xy"}) {
+    const auto model = library.find(name);
+    ASSERT_TRUE(model) << name;
+    ASSERT_FALSE(model->profile_axes.empty()) << name;
+    for (const auto& axis : model->profile_axes) {
+      EXPECT_TRUE(axis.supports(ProfileCommand::move_absolute)) << name;
+      EXPECT_TRUE(axis.supports(ProfileCommand::stop)) << name;
+      EXPECT_TRUE(axis.supports(ProfileCommand::reset)) << name;
+    }
+  }
+  EXPECT_EQ(library.find("centent-cn0170")->profile_axes.size(), 2u);
+  EXPECT_FALSE(library.find("ims-indexer")->profile_axes[0].supports(ProfileCommand::power_on));
+}
+
+TEST(AxisProfileModels, ACommandNeitherMappedNorUnsupportedIsAnError) {
+  Diagnostics d;
+  load_model_text(R"(model: m
+family: copley-ascii
+points:
+  pos: {type: int32, read: g r0x32, poll: fast}
+actions:
+  go: {code: 1, steps: [t 1]}
+axis_profile:
+  axis:
+    position: pos
+    status: {enabled: true, moving: {point: pos, bit: 0}}
+    commands: {move_absolute: go}
+    unsupported: [power_on]
+)",
+                  "m.yaml", d);
+  EXPECT_FALSE(d.ok());
+  EXPECT_NE(d.to_text().find("command home is neither mapped"), std::string::npos) << d.to_text();
+}
+
+}  // namespace
+}  // namespace fieldgate
