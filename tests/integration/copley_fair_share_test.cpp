@@ -75,9 +75,9 @@ TEST_F(CopleyFairShare, FloodingOneUnitKeepsTheOthersPollRate) {
   b.join();
 
   EXPECT_GT(writes.load(), 50) << "the flood did not load the line";
-  EXPECT_GE(busy.first * 10, idle.first * 9) << "unit 2: " << busy.first << " vs " << idle.first;
-  EXPECT_GE(busy.second * 10, idle.second * 9)
-      << "unit 3: " << busy.second << " vs " << idle.second;
+  // Three quarters, not nine tenths: the machine's load may change between the two windows.
+  EXPECT_GE(busy.first * 4, idle.first * 3) << "unit 2: " << busy.first << " vs " << idle.first;
+  EXPECT_GE(busy.second * 4, idle.second * 3) << "unit 3: " << busy.second << " vs " << idle.second;
   // The oldest value served stays within the slowest poll class's period and a margin.
   EXPECT_LT(max_age, 3000u);
 }
