@@ -87,10 +87,13 @@ command() {
     check "$2 written" "$out" false
     return
   fi
+  local seen=()
   for _ in $(seq 600); do
     page && [ "${in[7]}" -eq "$seq" ] && [ "${in[8]}" -ne 1 ] && break
+    [ "${#in[@]}" -eq 12 ] && [ "${in[7]}" -eq "$seq" ] && seen+=("$(position)")
     sleep 0.05
   done
+  echo "info: $2: positions read while busy: ${seen[*]:-none}"
   check "$2 done (sequence $seq)" "$(status)" ended_done
 }
 ended_done() { [ "${in[7]}" -eq "$seq" ] && [ "${in[8]}" -eq 2 ]; }
