@@ -121,7 +121,10 @@ std::optional<ModbusRtuConfig> parse_modbus_rtu(YamlReader& r, const YAML::Node&
   std::set<uint8_t> known_units;
   for (const auto& bus : config.buses)
     for (const auto& n : bus.nodes)
-      if (n.listener == rtu.listener) known_units.insert(n.unit_id);
+      if (n.listener == rtu.listener) {
+        known_units.insert(n.unit_id);
+        for (const auto& [axis, id] : n.axis_units) known_units.insert(id);
+      }
   if (const auto units = node["units"]; units && r.expect_sequence(units, where + " units")) {
     for (const auto& item : units) {
       const auto u = r.integer(item, where + " units", 1, 247);

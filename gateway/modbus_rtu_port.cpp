@@ -29,6 +29,11 @@ modbus::ModbusRtuServerOptions rtu_server_options(const LoadedConfig& config) {
   if (rtu.units.empty()) {
     for (const auto& [id, unit] : config.map_of(config.gateway.modbus_rtu->listener).units())
       o.units.set(id);
+    // Profile units (docs/axis-profile.md) are served like native ones.
+    for (const auto& bus : config.gateway.buses)
+      for (const auto& node : bus.nodes)
+        if (node.listener == rtu.listener)
+          for (const auto& [axis, id] : node.axis_units) o.units.set(id);
   } else {
     for (const auto id : rtu.units) o.units.set(id);
   }

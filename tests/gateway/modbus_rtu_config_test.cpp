@@ -25,7 +25,8 @@ class ModbusRtuConfigTest : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
-  // Loads the section with two Copley nodes (units 1, 2) and a Techno pair (3, 4) on one bus.
+  // Loads the section with two Copley nodes (units 1, 2; the first's axis profile on 21) and a
+  // Techno pair (3, 4).
   std::string load(const std::string& rtu, std::optional<LoadedConfig>* out = nullptr) {
     const auto path = dir_ / "gw.yaml";
     std::ofstream(path) << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
@@ -33,7 +34,8 @@ class ModbusRtuConfigTest : public ::testing::Test {
                         << "buses:\n"
                            "  - name: c\n    protocol: copley-ascii\n"
                            "    serial: {device: /dev/null, baud: 115200}\n    nodes:\n"
-                           "      - {name: a, address: 0, model: copley-amplifier, unit_id: 1}\n"
+                           "      - {name: a, address: 0, model: copley-amplifier, unit_id: 1,"
+                           " profile_unit: 21}\n"
                            "      - {name: b, address: 3, model: copley-amplifier, unit_id: 2}\n"
                            "  - name: t\n    protocol: techno-c\n"
                            "    serial: {device: /dev/null, baud: 9600}\n    nodes:\n"
@@ -60,6 +62,7 @@ TEST_F(ModbusRtuConfigTest, DefaultsAreTheSpecs) {
   EXPECT_FALSE(o.rs485.enabled);
   EXPECT_EQ(o.slow_writes, modbus::SlowWrites::acknowledge);
   EXPECT_TRUE(o.units.test(1) && o.units.test(4) && !o.units.test(5));
+  EXPECT_TRUE(o.units.test(21)) << "a profile unit is served by default";
   EXPECT_TRUE(o.broadcast.writes.empty());
 }
 
@@ -105,6 +108,13 @@ TEST_F(ModbusRtuConfigTest, BusWideStopOncePerBus) {
   EXPECT_EQ(o.broadcast.writes[0].unit, 3);
 }
 
+TEST_F(ModbusRtuConfigTest, ProfileUnitsCanBeListed) {
+  std::optional<LoadedConfig> c;
+  ASSERT_EQ(load("modbus_rtu: {device: /dev/ttyS1, units: [2, 21]}\n", &c), "");
+  const auto o = rtu_server_options(*c);
+  EXPECT_TRUE(o.units.test(21) && o.units.test(2) && !o.units.test(1));
+}
+
 TEST_F(ModbusRtuConfigTest, PreciseErrors) {
   auto e = load("modbus_rtu: {device: /dev/ttyS1, baud: 11520}\n");
   EXPECT_NE(e.find("gw.yaml:2:40: error: modbus_rtu baud: 11520 is not a standard rate"),
@@ -121,7 +131,9 @@ TEST_F(ModbusRtuConfigTest, PreciseErrors) {
   e = load("modbus_rtu: {device: /dev/ttyS1, rs485: {delay_before_send: 500us}}\n");
   EXPECT_NE(e.find("the kernel takes whole milliseconds"), std::string::npos) << e;
   e = load("modbus_rtu: {device: /dev/ttyS1, units: [9]}\n");
-  EXPECT_NE(e.find("modbus_rtu units: no node on listener default has unit_id 9"), std::string::npos) << e;
+  EXPECT_NE(e.find("modbus_rtu units: no node on listener default has unit_id 9"),
+            std::string::npos)
+      << e;
   e = load(
       "modbus_rtu: {device: /dev/ttyS1, broadcast_stop: {actions: {copley-amplifier: "
       "halt}}}\n");

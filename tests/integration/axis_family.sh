@@ -1,0 +1,85 @@
+# Sourced by the axis tests: starts one family's simulator on $dir/port and sets, for the
+# daemon's config and the axis drivers, bus (the bus's YAML after its name, for a line indented
+# four spaces), units (the profile unit IDs, comma-separated) and axis_args (tools/axis.py
+# options fitting the family). The simulator is a job of the calling shell.
+# Usage: axis_family_start FAMILY BUILD_DIR DIR
+axis_family_start() {
+  local family=$1 build=$2 dir=$3 variant units_yaml
+  axis_args=()
+  case $family in
+    copley)
+      "$build/sim/copley/fieldgate-sim-copley" --link "$dir/port" --nodes 0,3 </dev/null \
+        >"$dir/sim.log" 2>&1 &
+      bus="protocol: copley-ascii
+    serial: {device: $dir/port, baud: 115200}
+    timing: {reply_timeout: 150ms, probe_interval: 300ms}
+    nodes:
+      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21}
+      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2, profile_unit: 22}"
+      units=21,22
+      axis_args=(--distance 20000 --expect-homed)
+      ;;
+    ims)
+      "$build/sim/ims/fieldgate-sim-ims" --link "$dir/port" --axes A,B </dev/null \
+        >"$dir/sim.log" 2>&1 &
+      bus="protocol: ims-party-line
+    serial: {device: $dir/port, baud: 9600}
+    timing: {reply_timeout: 100ms, byte_timeout: 30ms, probe_interval: 300ms}
+    nodes:
+      - {name: ims_a, address: A, model: ims-indexer, unit_id: 1, profile_unit: 11,
+         limits: {target: {min: -100000, max: 100000}}}
+      - {name: ims_b, address: B, model: ims-indexer, unit_id: 2, profile_unit: 12,
+         limits: {target: {min: -100000, max: 100000}}}"
+      units=11,12
+      axis_args=(--distance 3000 --refused-target 200000)
+      ;;
+    centent)
+      "$build/sim/centent/fieldgate-sim-centent" --link "$dir/port" --units 0 --power-up \
+        </dev/null >"$dir/sim.log" 2>&1 &
+      bus="protocol: centent-cn0170
+    serial: {device: $dir/port, baud: 9600}
+    timing: {reply_timeout: 200ms, byte_timeout: 20ms, probe_interval: 300ms}
+    nodes:
+      - {name: table_0, address: 0, model: centent-cn0170, unit_id: 1, axis_units: {x: 21, y: 22},
+         limits: {x_target: {min: -10000000, max: 10000000}, y_target: {min: -10000000, max: 10000000}}}"
+      units=21,22
+      axis_args=(--distance 1024000 --refused-target 20000000 --tolerance 4)
+      ;;
+    whedco)
+      "$build/sim/whedco/fieldgate-sim-whedco" --link "$dir/port" --units 4 --axes XY \
+        --baud 38400 </dev/null >"$dir/sim.log" 2>&1 &
+      bus="protocol: whedco-cmc
+    serial: {device: $dir/port, baud: 38400}
+    timing: {reply_timeout: 50ms, byte_timeout: 10ms, probe_interval: 300ms}
+    nodes:
+      - {name: cmc_4, address: 4, model: whedco-cmc-xy, unit_id: 1, axis_units: {x: 41, y: 42},
+         limits: {x_target: {min: -1000000, max: 1000000}, y_target: {min: -1000000, max: 1000000}}}"
+      units=41,42
+      axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
+                 --refused-target 2000000)
+      ;;
+    techno-c142 | techno-it116g)
+      variant=${family#techno-}
+      "$build/sim/techno/fieldgate-sim-techno" --link "$dir/port" --variant "$variant" \
+        --baud 19200 </dev/null >"$dir/sim.log" 2>&1 &
+      if [ "$variant" = c142 ]; then
+        units_yaml="axis_units: {x: 31, y: 32, z: 33}"
+        units=31,32,33
+      else
+        units_yaml="profile_unit: 31"
+        units=31
+      fi
+      bus="protocol: techno-c
+    serial: {device: $dir/port, baud: 19200}
+    timing: {reply_timeout: 100ms, byte_timeout: 20ms, probe_interval: 300ms}
+    nodes:
+      - {name: techno, address: 0, model: $family, unit_id: 1, $units_yaml}"
+      axis_args=(--distance 2000 --refused-target 9000000)
+      ;;
+    *)
+      echo "unknown family $family"
+      return 2
+      ;;
+  esac
+  for _ in $(seq 50); do [ -e "$dir/port" ] && break; sleep 0.1; done
+}
