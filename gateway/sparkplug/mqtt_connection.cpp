@@ -14,7 +14,13 @@ namespace fieldgate::sparkplug {
 
 namespace {
 std::once_flag library_once;
+
+// libmosquitto says why TLS failed (OpenSSL's error, e.g. "certificate verify failed") only in
+// its log; its return code is a bare MOSQ_ERR_TLS.
+void on_library_log(mosquitto*, void*, int level, const char* text) {
+  if (level & (MOSQ_LOG_ERR | MOSQ_LOG_WARNING)) log::warning("sparkplug: libmosquitto: {}", text);
 }
+}  // namespace
 
 MqttConnection::MqttConnection(asio::any_io_executor executor, const SparkplugConfig& config,
                                Handlers handlers, SessionStats& stats)
@@ -33,6 +39,7 @@ MqttConnection::MqttConnection(asio::any_io_executor executor, const SparkplugCo
   mosquitto_int_option(mosq_, MOSQ_OPT_PROTOCOL_VERSION, MQTT_PROTOCOL_V311);
   mosquitto_connect_callback_set(mosq_, &MqttConnection::on_connect);
   mosquitto_message_callback_set(mosq_, &MqttConnection::on_message);
+  mosquitto_log_callback_set(mosq_, &on_library_log);
   if (!config_.username.empty())
     mosquitto_username_pw_set(mosq_, config_.username.c_str(),
                               config_.password.empty() ? nullptr : config_.password.c_str());

@@ -611,7 +611,7 @@ keyfile {srv_key}
               re.search(r"as fieldgate-plant-gw-tls .*u'gw'", broker_log) is not None)
         for g, why, pattern in ((badpw, "wrong password", r"broker refused the connection: .*not authori[sz]ed"),
                                 (badca, "CA that did not sign the broker's certificate",
-                                 r"cannot reach broker 127\.0\.0\.1:\d+ \(.*TLS")):
+                                 r"(?s)certificate verify failed.*cannot reach broker 127\.0\.0\.1:\d+ \(.*TLS")):
             check(f"tls: {why}: the daemon runs", g.daemon.poll() is None, g.daemon.poll())
             mport = wait_for(lambda: (lambda m: int(m.group(1)) if m else None)(
                 re.search(r"metrics: http://127\.0\.0\.1:(\d+)/", open(g.log_path).read())), 10)
@@ -622,7 +622,7 @@ keyfile {srv_key}
             check(f"tls: {why}: {name} rises ({first} at first)", bool(rising),
                   metric_value(mport, name) if mport else "no metrics port")
             said = [line for line in open(g.log_path) if "sparkplug:" in line]
-            print("".join(said[:4]), end="")
+            print("".join(said[:5]), end="")
             check(f"tls: {why}: a log line says why",
                   re.search(pattern, "".join(said)) is not None)
             check(f"tls: {why}: never connected", "sparkplug: connected" not in open(g.log_path).read())
