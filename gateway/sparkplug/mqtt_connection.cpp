@@ -98,28 +98,25 @@ void MqttConnection::restart() {
 
 void MqttConnection::resolve_and_connect() {
   if (!running_) return;
-  // With TLS the certificate is checked against the name, so libmosquitto gets the name (and
-  // resolves it itself: a numeric address or /etc/hosts entry avoids a DNS query there).
-  if (config_.tls) {
-    connect_to(config_.host);
-    return;
-  }
   auto epoch = std::weak_ptr<int>(epoch_);
   const int seen = *epoch_;
-  resolver_.async_resolve(config_.host, std::to_string(config_.port),
-                          [this, epoch, seen](const boost::system::error_code& ec,
-                                              asio::ip::tcp::resolver::results_type results) {
-                            const auto e = epoch.lock();
-                            if (!e || *e != seen || !running_) return;
-                            if (ec || results.empty()) {
-                              ++stats_.connect_failures;
-                              log::warning("sparkplug: cannot resolve broker {}: {}", config_.host,
-                                           ec.message());
-                              schedule_reconnect();
-                              return;
-                            }
-                            connect_to(results.begin()->endpoint().address().to_string());
-                          });
+  resolver_.async_resolve(
+      config_.host, std::to_string(config_.port),
+      [this, epoch, seen](const boost::system::error_code& ec,
+                          asio::ip::tcp::resolver::results_type results) {
+        const auto e = epoch.lock();
+        if (!e || *e != seen || !running_) return;
+        if (ec || results.empty()) {
+          ++stats_.connect_failures;
+          log::warning("sparkplug: cannot resolve broker {}: {}", config_.host, ec.message());
+          schedule_reconnect();
+          return;
+        }
+        // With TLS the certificate is checked against the name, so libmosquitto gets the name
+        // and looks it up again, blocking the io_context. Resolved here first, a DNS that does
+        // not answer (the usual outage) never gets there; a slow one still does.
+        connect_to(config_.tls ? config_.host : results.begin()->endpoint().address().to_string());
+      });
 }
 
 void MqttConnection::connect_to(const std::string& address) {
