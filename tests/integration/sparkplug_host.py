@@ -611,7 +611,8 @@ keyfile {srv_key}
               re.search(r"as fieldgate-plant-gw-tls .*u'gw'", broker_log) is not None)
         for g, why, pattern in ((badpw, "wrong password", r"broker refused the connection: .*not authori[sz]ed"),
                                 (badca, "CA that did not sign the broker's certificate",
-                                 r"(?s)certificate verify failed.*cannot reach broker 127\.0\.0\.1:\d+ \(.*TLS")):
+                                 r"(?s)certificate verify failed.*"
+                                 r"(cannot reach broker|cannot connect to) 127\.0\.0\.1:\d+\b.*TLS")):
             check(f"tls: {why}: the daemon runs", g.daemon.poll() is None, g.daemon.poll())
             mport = wait_for(lambda: (lambda m: int(m.group(1)) if m else None)(
                 re.search(r"metrics: http://127\.0\.0\.1:(\d+)/", open(g.log_path).read())), 10)
