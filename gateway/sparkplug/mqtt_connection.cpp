@@ -14,7 +14,13 @@ namespace fieldgate::sparkplug {
 
 namespace {
 std::once_flag library_once;
+
+// libmosquitto says why TLS failed (OpenSSL's error, e.g. "certificate verify failed") only in
+// its log; its return code is a bare MOSQ_ERR_TLS.
+void on_library_log(mosquitto*, void*, int level, const char* text) {
+  if (level & (MOSQ_LOG_ERR | MOSQ_LOG_WARNING)) log::warning("sparkplug: libmosquitto: {}", text);
 }
+}  // namespace
 
 MqttConnection::MqttConnection(asio::any_io_executor executor, const SparkplugConfig& config,
                                Handlers handlers, SessionStats& stats)
@@ -33,6 +39,7 @@ MqttConnection::MqttConnection(asio::any_io_executor executor, const SparkplugCo
   mosquitto_int_option(mosq_, MOSQ_OPT_PROTOCOL_VERSION, MQTT_PROTOCOL_V311);
   mosquitto_connect_callback_set(mosq_, &MqttConnection::on_connect);
   mosquitto_message_callback_set(mosq_, &MqttConnection::on_message);
+  mosquitto_log_callback_set(mosq_, &on_library_log);
   if (!config_.username.empty())
     mosquitto_username_pw_set(mosq_, config_.username.c_str(),
                               config_.password.empty() ? nullptr : config_.password.c_str());
@@ -91,28 +98,25 @@ void MqttConnection::restart() {
 
 void MqttConnection::resolve_and_connect() {
   if (!running_) return;
-  // With TLS the certificate is checked against the name, so libmosquitto gets the name (and
-  // resolves it itself: a numeric address or /etc/hosts entry avoids a DNS query there).
-  if (config_.tls) {
-    connect_to(config_.host);
-    return;
-  }
   auto epoch = std::weak_ptr<int>(epoch_);
   const int seen = *epoch_;
-  resolver_.async_resolve(config_.host, std::to_string(config_.port),
-                          [this, epoch, seen](const boost::system::error_code& ec,
-                                              asio::ip::tcp::resolver::results_type results) {
-                            const auto e = epoch.lock();
-                            if (!e || *e != seen || !running_) return;
-                            if (ec || results.empty()) {
-                              ++stats_.connect_failures;
-                              log::warning("sparkplug: cannot resolve broker {}: {}", config_.host,
-                                           ec.message());
-                              schedule_reconnect();
-                              return;
-                            }
-                            connect_to(results.begin()->endpoint().address().to_string());
-                          });
+  resolver_.async_resolve(
+      config_.host, std::to_string(config_.port),
+      [this, epoch, seen](const boost::system::error_code& ec,
+                          asio::ip::tcp::resolver::results_type results) {
+        const auto e = epoch.lock();
+        if (!e || *e != seen || !running_) return;
+        if (ec || results.empty()) {
+          ++stats_.connect_failures;
+          log::warning("sparkplug: cannot resolve broker {}: {}", config_.host, ec.message());
+          schedule_reconnect();
+          return;
+        }
+        // With TLS the certificate is checked against the name, so libmosquitto gets the name
+        // and looks it up again, blocking the io_context. Resolved here first, a DNS that does
+        // not answer (the usual outage) never gets there; a slow one still does.
+        connect_to(config_.tls ? config_.host : results.begin()->endpoint().address().to_string());
+      });
 }
 
 void MqttConnection::connect_to(const std::string& address) {
