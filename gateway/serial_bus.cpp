@@ -248,8 +248,11 @@ void SerialBus::record(NodeRuntime& n, const Reply& reply, bool poll) {
     case ReplyOutcome::failed:
       if (c.consecutive_timeouts >= static_cast<uint32_t>(config_.timing.offline_after) ||
           (*n.image).state == NodeState::offline)
+        // Named apart: a forwarding device's "node unreachable" (Copley e 32) is not silence.
         set_state(n, NodeState::offline,
-                  reply.status == Reply::Status::unreachable ? reply.text : "no reply");
+                  reply.status == Reply::Status::unreachable
+                      ? fmt::format("unreachable ({})", reply.text)
+                      : fmt::format("{}, no reply", to_string(reply.status)));
       break;
   }
 }

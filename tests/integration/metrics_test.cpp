@@ -77,6 +77,11 @@ TEST(Metrics, ScrapedAndParsed) {
   ASSERT_TRUE(wait_until([&] { return client.read_input(1, 0, 2).ok(); }));
   ASSERT_TRUE(
       wait_until([&] { return client.read_input(2, 1014, 1).values == std::vector<uint16_t>{2}; }));
+  // The log names the cause of amp9's going offline apart from a timeout, as the metrics do.
+  EXPECT_TRUE(wait_until([&] {
+    return plant.daemon().log().find("node amp9 (9) offline: unreachable (e 32:") !=
+           std::string::npos;
+  })) << plant.daemon().log();
   for (int i = 0; i < 7; ++i) client.read_input(1, 0, 2);
   client.read_input(1, 600, 1);  // one exception
 
