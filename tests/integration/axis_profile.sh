@@ -17,15 +17,8 @@ buses:
   - name: $family
     $bus
 YAML
-: >"$dir/daemon.log"
-"$fieldgate" --config "$dir/gw.yaml" >"$dir/daemon.log" 2>&1 &
-port=""
-for _ in $(seq 100); do
-  port=$(sed -n 's/.*modbus: listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$dir/daemon.log")
-  [ -n "$port" ] && break
-  sleep 0.1
-done
-[ -n "$port" ] || { echo "daemon did not start"; cat "$dir/daemon.log"; exit 1; }
+source "$here/daemon.sh"
+start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 rc=0
 /usr/bin/python3 "$axis_py" --port "$port" --unit "$units" "${axis_args[@]}" -v || rc=$?
 if [ "$rc" -ne 0 ]; then

@@ -21,17 +21,8 @@ buses:
       - {name: a3, address: 3, model: copley-amplifier, unit_id: 2}
       - {name: a9, address: 9, model: copley-amplifier, unit_id: 3}
 YAML
-# The log is created here, not by the job's redirection: the job may not have run yet when
-# the loop below first reads it.
-: >"$dir/daemon.log"
-"$fieldgate" --config "$dir/gw.yaml" >"$dir/daemon.log" 2>&1 &
-port=""
-for _ in $(seq 100); do
-  port=$(sed -n 's/.*modbus: listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$dir/daemon.log")
-  [ -n "$port" ] && break
-  sleep 0.1
-done
-[ -n "$port" ] || { echo "daemon did not start"; cat "$dir/daemon.log"; exit 1; }
+source "$(dirname "$0")/daemon.sh"
+start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 
 fail=0
 check() {  # check NAME EXPECTED ACTUAL

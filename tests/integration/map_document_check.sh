@@ -23,17 +23,8 @@ YAML
 "$fieldgate" map "$dir/gw.yaml" --format csv >"$dir/map.csv"
 "$fieldgate" map "$dir/gw.yaml" --format md >"$dir/map.md"
 grep -q '^| holding registers | 100 | 40101 | action.command |' "$dir/map.md" || { echo "FAIL: markdown lacks the action register"; exit 1; }
-# The log is created here, not by the job's redirection: the job may not have run yet when
-# the loop below first reads it.
-: >"$dir/daemon.log"
-"$fieldgate" --config "$dir/gw.yaml" >"$dir/daemon.log" 2>&1 &
-port=""
-for _ in $(seq 100); do
-  port=$(sed -n 's/.*modbus: listening on 127.0.0.1:\([0-9]*\).*/\1/p' "$dir/daemon.log")
-  [ -n "$port" ] && break
-  sleep 0.1
-done
-[ -n "$port" ] || { echo "daemon did not start"; cat "$dir/daemon.log"; exit 1; }
+source "$(dirname "$0")/daemon.sh"
+start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 
 /usr/bin/python3 - "$port" "$dir/map.csv" <<'PY'
 import csv, sys, time
