@@ -453,8 +453,9 @@ TEST_F(ModbusTcpServerTest, HalfRequestDoesNotBlockOthersAndTimesOut) {
   run_client([&] {
     RawClient stalled(port_);
     ASSERT_TRUE(stalled.connected());
-    ASSERT_TRUE(stalled.send({0x00, 0x01, 0x00, 0x00, 0x00}));  // 5 of the 7 header bytes
+    // Taken before sending: the server's deadline may start before this thread runs again.
     const auto sent = Clock::now();
+    ASSERT_TRUE(stalled.send({0x00, 0x01, 0x00, 0x00, 0x00}));  // 5 of the 7 header bytes
     Client other(port_);
     ASSERT_TRUE(other.connect());
     for (int i = 0; i < 20; ++i) EXPECT_EQ(other.read_one(i), i);
@@ -492,9 +493,10 @@ TEST_F(ModbusTcpServerTest, IdleClientIsDroppedWhileActiveClientStays) {
   options.idle_timeout = 300ms;
   start_server(options);
   run_client([&] {
+    // Taken before connecting: the server may accept before this thread runs again.
+    const auto connected = Clock::now();
     RawClient idle(port_);
     ASSERT_TRUE(idle.connected());
-    const auto connected = Clock::now();
     Client active(port_);
     ASSERT_TRUE(active.connect());
     for (int i = 0; i < 8; ++i) {  // 800 ms of requests 100 ms apart
