@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# tools/axis.py's full cycle (power, home, moves, jogs, stop, halt, error, reset) through the
+# daemon against an independent implementation of one controller family (written from the
+# manuals, not the project's simulators). Usage: run.sh FAMILY FIELDGATE_BIN AXIS_PY
+set -euo pipefail
+family=$1 fieldgate=$2 axis_py=$3
+here=$(cd "$(dirname "$0")" && pwd)
+models=$(cd "$here/../../config/models" && pwd)
+dir=$(mktemp -d)
+trap 'kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+
+axis_args=()
+case $family in
+  ims)
+    unit=(ims_unit.py --axes A,B)
+    bus="protocol: ims-party-line
+    serial: {device: $dir/port, baud: 9600}
+    timing: {reply_timeout: 100ms, byte_timeout: 30ms, probe_interval: 300ms}
+    nodes:
+      - {name: ims_a, address: A, model: ims-indexer, unit_id: 1, profile_unit: 11,
+         limits: {target: {min: -100000, max: 100000}}}
+      - {name: ims_b, address: B, model: ims-indexer, unit_id: 2, profile_unit: 12,
+         limits: {target: {min: -100000, max: 100000}}}"
+    units=11,12
+    axis_args=(--distance 3000 --refused-target 200000)
+    ;;
+  *)
+    echo "unknown family $family"
+    exit 2
+    ;;
+esac
+
+/usr/bin/python3 "$here/${unit[0]}" --link "$dir/port" "${unit[@]:1}" </dev/null \
+  >"$dir/unit.log" 2>&1 &
+for _ in $(seq 50); do [ -e "$dir/port" ] && break; sleep 0.1; done
+[ -e "$dir/port" ] || { echo "the $family unit did not start"; cat "$dir/unit.log"; exit 1; }
+
+cat >"$dir/gw.yaml" <<YAML
+modbus: {listen: 127.0.0.1:0}
+models: $models
+buses:
+  - name: $family
+    $bus
+YAML
+source "$here/../integration/daemon.sh"
+start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
+rc=0
+/usr/bin/python3 "$axis_py" --port "$port" --unit "$units" "${axis_args[@]}" -v || rc=$?
+echo "--- unit log (command lines as received, each shown at most 3 times) ---"
+cat "$dir/unit.log"
+if [ "$rc" -ne 0 ]; then
+  echo "--- daemon log ---"
+  cat "$dir/daemon.log"
+fi
+exit "$rc"

@@ -1,0 +1,188 @@
+"""Shared plumbing of the independent controller implementations: a PTY served under a symlink,
+an event loop with timed output (characters leave at the line's baud rate), and a kinematic axis.
+
+Written from the manuals only; nothing here is taken from sim/ or drivers/.
+"""
+import math
+import os
+import select
+import sys
+import termios
+import time
+import tty
+
+
+class Pty:
+    """The unit's end of a serial line: a PTY whose slave side is reachable at `link`."""
+
+    def __init__(self, link, baud):
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        attrs = termios.tcgetattr(self.master)
+        attrs[3] &= ~termios.ECHO
+        termios.tcsetattr(self.master, termios.TCSANOW, attrs)
+        if os.path.lexists(link):
+            os.unlink(link)
+        os.symlink(os.ttyname(self.slave), link)
+        self.link = link
+        self.char_time = 10.0 / baud
+        self.out = bytearray()
+        self.next_out = 0.0
+
+    def send(self, data):
+        self.out += data
+
+    def flush_due(self, now):
+        """Writes the characters whose transmission time has come."""
+        if not self.out:
+            self.next_out = max(self.next_out, now)
+            return
+        if self.next_out < now - self.char_time:
+            self.next_out = now
+        n = 0
+        while n < len(self.out) and self.next_out <= now:
+            n += 1
+            self.next_out += self.char_time
+        if n:
+            try:
+                os.write(self.master, bytes(self.out[:n]))
+            except OSError:
+                pass
+            del self.out[:n]
+
+    def read(self):
+        try:
+            return os.read(self.master, 4096)
+        except OSError:
+            return b""
+
+
+def run(pty, on_bytes, on_tick, tick=0.005):
+    """Serves until killed: bytes in go to on_bytes(data, now), on_tick(now) runs every tick."""
+    last = time.monotonic()
+    while True:
+        timeout = tick if not pty.out else min(tick, pty.char_time)
+        r, _, _ = select.select([pty.master], [], [], timeout)
+        now = time.monotonic()
+        if r:
+            data = pty.read()
+            if data:
+                on_bytes(data, now)
+            else:
+                time.sleep(tick)
+        if now - last >= tick:
+            on_tick(now)
+            last = now
+        pty.flush_due(time.monotonic())
+
+
+class Axis:
+    """One motor with trapezoidal profiles, position in the unit's own counts (float).
+
+    Limit switches sit at physical positions (relative to where the unit powered up); the home
+    switch is an edge at `home_switch`: high below it, low above it."""
+
+    def __init__(self, accel=20000.0, limit_neg=-1e6, limit_pos=1e6, home_switch=-1500.0):
+        self.pos = 0.0  # physical position, counts
+        self.offset = 0.0  # reported = physical - offset
+        self.v = 0.0
+        self.accel = accel
+        self.decel = accel
+        self.mode = "idle"  # idle, pos, vel, stop
+        self.target = 0.0
+        self.vmax = 0.0
+        self.limit_neg, self.limit_pos = limit_neg, limit_pos
+        self.home_switch = home_switch
+        self.hit_limit = 0  # +1 or -1 when the last motion ended on a limit
+        self.last = time.monotonic()
+
+    # Reported position
+    def position(self):
+        return self.pos - self.offset
+
+    def set_position(self, value):
+        self.offset = self.pos - value
+
+    def moving(self):
+        return self.mode != "idle"
+
+    def limit_active(self, sign):
+        return self.pos >= self.limit_pos if sign > 0 else self.pos <= self.limit_neg
+
+    def home_input_high(self):
+        return self.pos < self.home_switch
+
+    # Commands
+    def move_to(self, reported_target, velocity):
+        self.mode, self.target, self.vmax = "pos", reported_target + self.offset, abs(velocity)
+        self.hit_limit = 0
+
+    def run_at(self, velocity):
+        self.mode, self.vmax = "vel", velocity
+        self.hit_limit = 0
+
+    def stop(self, decel=None):
+        if self.mode != "idle":
+            self.mode, self.vmax = "stop", 0.0
+            if decel:
+                self.decel = decel
+
+    def hard_stop(self):
+        self.mode, self.v = "idle", 0.0
+
+    def _approach(self, want, dt):
+        rate = self.accel if abs(want) > abs(self.v) and want * self.v >= 0 else self.decel
+        step = rate * dt
+        if abs(want - self.v) <= step:
+            self.v = want
+        else:
+            self.v += step if want > self.v else -step
+
+    def tick(self, now):
+        dt = now - self.last
+        self.last = now
+        if self.mode == "idle":
+            return
+        if self.mode == "pos":
+            dist = self.target - self.pos
+            if abs(dist) < 1e-6 and abs(self.v) < 1e-6:
+                self.mode, self.v = "idle", 0.0
+                return
+            reach = math.sqrt(2.0 * self.decel * abs(dist))
+            want = math.copysign(min(self.vmax, reach), dist)
+            self._approach(want, dt)
+            if abs(self.v) < 1e-9:
+                self.v = math.copysign(min(self.vmax, self.accel * dt, abs(dist) / dt), dist)
+            move = self.v * dt
+            if abs(move) >= abs(dist) or (move * dist < 0 and abs(dist) < 1.0):
+                self.pos, self.v, self.mode = self.target, 0.0, "idle"
+            else:
+                self.pos += move
+        elif self.mode == "vel":
+            self._approach(self.vmax, dt)
+            self.pos += self.v * dt
+        elif self.mode == "stop":
+            self._approach(0.0, dt)
+            self.pos += self.v * dt
+            if self.v == 0.0:
+                self.mode = "idle"
+        # Limit switches stop motion in their direction, without a ramp.
+        for sign in (1, -1):
+            if self.mode != "idle" and self.v * sign > 0 and self.limit_active(sign):
+                self.pos = self.limit_pos if sign > 0 else self.limit_neg
+                self.mode, self.v, self.hit_limit = "idle", 0.0, sign
+
+
+_seen = {}
+
+
+def wire(text):
+    """Logs a command line the first few times it is seen (polls would flood the log)."""
+    key = text[:40]
+    _seen[key] = _seen.get(key, 0) + 1
+    if _seen[key] <= 3:
+        log("rx " + text)
+
+
+def log(text):
+    print(text, file=sys.stderr, flush=True)
