@@ -24,6 +24,17 @@ case $family in
     units=11,12
     axis_args=(--distance 3000 --refused-target 200000)
     ;;
+  copley)
+    unit=(copley_unit.py --nodes 0,3)
+    bus="protocol: copley-ascii
+    serial: {device: $dir/port, baud: 115200}
+    timing: {reply_timeout: 150ms, probe_interval: 300ms}
+    nodes:
+      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21}
+      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2, profile_unit: 22}"
+    units=21,22
+    axis_args=(--distance 20000 --expect-homed)
+    ;;
   *)
     echo "unknown family $family"
     exit 2

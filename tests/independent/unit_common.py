@@ -26,29 +26,42 @@ class Pty:
         os.symlink(os.ttyname(self.slave), link)
         self.link = link
         self.char_time = 10.0 / baud
-        self.out = bytearray()
-        self.next_out = 0.0
+        self.out = []  # (due time, message)
+        self.busy_until = 0.0
 
     def send(self, data):
-        self.out += data
+        """Queues one message. It is written in one piece once the line would have carried its
+        last character: a UART sends back to back, and a scheduler pause inside a reply must
+        not look like a gap on the wire."""
+        now = time.monotonic()
+        start = max(now, self.busy_until)
+        self.busy_until = start + len(data) * self.char_time
+        self.out.append((self.busy_until, bytes(data)))
+
+    def host_baud(self):
+        """The rate the host set on its end of the line (its termios), or None if unknown."""
+        try:
+            speed = termios.tcgetattr(self.slave)[5]
+        except termios.error:
+            return None
+        for name in dir(termios):
+            if name.startswith("B") and name[1:].isdigit() and getattr(termios, name) == speed:
+                return int(name[1:])
+        return None
+
+    def next_due(self):
+        return self.out[0][0] if self.out else None
 
     def flush_due(self, now):
-        """Writes the characters whose transmission time has come."""
-        if not self.out:
-            self.next_out = max(self.next_out, now)
-            return
-        if self.next_out < now - self.char_time:
-            self.next_out = now
-        n = 0
-        while n < len(self.out) and self.next_out <= now:
-            n += 1
-            self.next_out += self.char_time
-        if n:
+        """Writes the messages whose last character has left."""
+        chunk = bytearray()
+        while self.out and self.out[0][0] <= now:
+            chunk += self.out.pop(0)[1]
+        if chunk:
             try:
-                os.write(self.master, bytes(self.out[:n]))
+                os.write(self.master, bytes(chunk))
             except OSError:
                 pass
-            del self.out[:n]
 
     def read(self):
         try:
@@ -61,7 +74,8 @@ def run(pty, on_bytes, on_tick, tick=0.005):
     """Serves until killed: bytes in go to on_bytes(data, now), on_tick(now) runs every tick."""
     last = time.monotonic()
     while True:
-        timeout = tick if not pty.out else min(tick, pty.char_time)
+        due = pty.next_due()
+        timeout = tick if due is None else max(0.0, min(tick, due - time.monotonic()))
         r, _, _ = select.select([pty.master], [], [], timeout)
         now = time.monotonic()
         if r:
