@@ -35,6 +35,17 @@ case $family in
     units=21,22
     axis_args=(--distance 20000 --expect-homed)
     ;;
+  centent)
+    unit=(centent_unit.py --units 0)
+    bus="protocol: centent-cn0170
+    serial: {device: $dir/port, baud: 9600}
+    timing: {reply_timeout: 200ms, byte_timeout: 20ms, probe_interval: 300ms}
+    nodes:
+      - {name: table_0, address: 0, model: centent-cn0170, unit_id: 1, axis_units: {x: 21, y: 22},
+         limits: {x_target: {min: -10000000, max: 10000000}, y_target: {min: -10000000, max: 10000000}}}"
+    units=21,22
+    axis_args=(--distance 1024000 --refused-target 20000000 --tolerance 4)
+    ;;
   *)
     echo "unknown family $family"
     exit 2
