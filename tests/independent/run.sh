@@ -46,6 +46,30 @@ case $family in
     units=21,22
     axis_args=(--distance 1024000 --refused-target 20000000 --tolerance 4)
     ;;
+  techno-c142 | techno-it116g | techno-c142.live | techno-it116g.live)
+    # .live: the card answers @0P during a motion (the reading the manual leaves open, p.73).
+    variant=${family#techno-}
+    queries=deferred
+    if [ "${variant%.live}" != "$variant" ]; then
+      variant=${variant%.live}
+      queries=live
+    fi
+    family=techno-$variant
+    unit=(techno_unit.py --variant "$variant" --baud 19200 --queries "$queries")
+    if [ "$variant" = c142 ]; then
+      units_yaml="axis_units: {x: 31, y: 32, z: 33}"
+      units=31,32,33
+    else
+      units_yaml="profile_unit: 31"
+      units=31
+    fi
+    bus="protocol: techno-c
+    serial: {device: $dir/port, baud: 19200}
+    timing: {reply_timeout: 100ms, byte_timeout: 20ms, probe_interval: 300ms}
+    nodes:
+      - {name: techno, address: 0, model: $family, unit_id: 1, $units_yaml}"
+    axis_args=(--distance 2000 --refused-target 9000000)
+    ;;
   *)
     echo "unknown family $family"
     exit 2

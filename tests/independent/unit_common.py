@@ -188,14 +188,15 @@ class Axis:
 
 
 _seen = {}
+_t0 = time.monotonic()
 
 
 def wire(text):
     """Logs a command line the first few times it is seen (polls would flood the log)."""
     key = text[:40]
     _seen[key] = _seen.get(key, 0) + 1
-    if _seen[key] <= 3:
-        log("rx " + text)
+    if _seen[key] <= 3 or os.environ.get("INDEPENDENT_WIRE_ALL"):
+        log("%.3f rx %s" % (time.monotonic() - _t0, text))
 
 
 def log(text):
