@@ -15,7 +15,7 @@ case $family in
     unit=(ims_unit.py --axes A,B)
     bus="protocol: ims-party-line
     serial: {device: $dir/port, baud: 9600}
-    timing: {reply_timeout: 100ms, byte_timeout: 30ms, probe_interval: 300ms}
+    timing: {reply_timeout: 200ms, byte_timeout: 30ms, probe_interval: 300ms}
     nodes:
       - {name: ims_a, address: A, model: ims-indexer, unit_id: 1, profile_unit: 11,
          limits: {target: {min: -100000, max: 100000}}}
@@ -28,7 +28,7 @@ case $family in
     unit=(copley_unit.py --nodes 0,3)
     bus="protocol: copley-ascii
     serial: {device: $dir/port, baud: 115200}
-    timing: {reply_timeout: 150ms, probe_interval: 300ms}
+    timing: {reply_timeout: 200ms, probe_interval: 300ms}
     nodes:
       - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21}
       - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2, profile_unit: 22}"
@@ -65,10 +65,26 @@ case $family in
     fi
     bus="protocol: techno-c
     serial: {device: $dir/port, baud: 19200}
-    timing: {reply_timeout: 100ms, byte_timeout: 20ms, probe_interval: 300ms}
+    timing: {reply_timeout: 200ms, byte_timeout: 20ms, probe_interval: 300ms}
     nodes:
       - {name: techno, address: 0, model: $family, unit_id: 1, $units_yaml}"
     axis_args=(--distance 2000 --refused-target 9000000)
+    ;;
+  whedco | whedco.*)
+    # .non-echo: the CMC-0's DIP switch SW2-5 at "non-echo" (factory: echo). .busy-first: the
+    # status words with busy at bit 0 (the manual's section 4.3.1 is missing; see whedco_unit.py).
+    unit=(whedco_unit.py --units 4 --axes XY --baud 38400)
+    case $family in *non-echo*) unit+=(--non-echo) ;; esac
+    case $family in *busy-first*) unit+=(--status-bits busy-first) ;; esac
+    bus="protocol: whedco-cmc
+    serial: {device: $dir/port, baud: 38400}
+    timing: {reply_timeout: 200ms, byte_timeout: 20ms, probe_interval: 300ms}
+    nodes:
+      - {name: cmc_4, address: 4, model: whedco-cmc-xy, unit_id: 1, axis_units: {x: 41, y: 42},
+         limits: {x_target: {min: -1000000, max: 1000000}, y_target: {min: -1000000, max: 1000000}}}"
+    units=41,42
+    axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
+               --refused-target 2000000)
     ;;
   *)
     echo "unknown family $family"
