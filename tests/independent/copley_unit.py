@@ -295,18 +295,15 @@ class Bus:
         self.gateway = self.amps[nodes[0]]
         self.buf = bytearray()
         self.later = []  # (time, reply) for replies that come back through CAN
-        self.sampled_baud = None
 
     def set_baud(self, baud):
         self.pty.char_time = 10.0 / baud
 
     def on_bytes(self, data, now):
-        # A PTY carries bytes at any rate, and the host may switch its rate right after writing
-        # (4.1: switch as soon as the CR has left): the line counts as sent at the rate sampled
-        # on the last tick as well as at the current one.
-        host = self.pty.host_baud()
+        # 4.1: the host switches as soon as the CR has left; see Pty.heard_at.
         rate = self.gateway.ram[0x90]
-        if host is not None and rate not in (host, self.sampled_baud):
+        if not self.pty.heard_at(rate, now):
+            host = self.pty.rate_now
             # At another rate the amp sees framing errors only, and answers nothing.
             uc.wire("(host at %d baud, amp at %d: %d bytes unreadable)" %
                     (host, self.gateway.ram[0x90], len(data)))
@@ -359,7 +356,6 @@ class Bus:
         self.pty.send(text.encode() + b"\r")
 
     def on_tick(self, now):
-        self.sampled_baud = self.pty.host_baud()
         for amp in self.amps.values():
             amp.tick(now)
         while self.later and self.later[0][0] <= now:

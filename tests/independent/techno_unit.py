@@ -293,18 +293,14 @@ def main():
     args = ap.parse_args()
     pty = uc.Pty(args.link, args.baud)
     card = Card(args.variant, pty, args.queries == "live")
-    sampled = {"baud": None}
-
     def on_bytes(data, now):
-        host = pty.host_baud()
-        if host is not None and args.baud not in (host, sampled["baud"]):
+        if not pty.heard_at(args.baud, now):
             uc.wire("(host at %d baud, card at %d: %d bytes unreadable)" %
-                    (host, args.baud, len(data)))
+                    (pty.rate_now, args.baud, len(data)))
             return
         card.on_bytes(data, now)
 
     def on_tick(now):
-        sampled["baud"] = pty.host_baud()
         card.tick(now)
 
     uc.log("techno: %s at %d baud on %s" % (args.variant, args.baud, args.link))

@@ -27,6 +27,8 @@ class Pty:
         self.link = link
         self.char_time = 10.0 / baud
         self.out = []  # (due time, message)
+        self.rate_now = self.rate_before = None
+        self.rate_changed = 0.0
         self.busy_until = 0.0
 
     def send(self, data):
@@ -48,6 +50,20 @@ class Pty:
             if name.startswith("B") and name[1:].isdigit() and getattr(termios, name) == speed:
                 return int(name[1:])
         return None
+
+    def sample_rate(self, now):
+        rate = self.host_baud()
+        if rate != self.rate_now:
+            self.rate_before, self.rate_now, self.rate_changed = self.rate_now, rate, now
+
+    def heard_at(self, rate, now):
+        """Whether bytes just read were sent at `rate`. A PTY carries bytes at any rate, and a
+        host may switch its rate right after writing (its tcdrain returns at once here): bytes
+        count as sent at the rate the host had up to 50 ms ago as well as at the current one."""
+        self.sample_rate(now)
+        if self.rate_now is None or self.rate_now == rate:
+            return True
+        return self.rate_before == rate and now - self.rate_changed < 0.05
 
     def next_due(self):
         return self.out[0][0] if self.out else None
@@ -78,6 +94,8 @@ def run(pty, on_bytes, on_tick, tick=0.005):
         timeout = tick if due is None else max(0.0, min(tick, due - time.monotonic()))
         r, _, _ = select.select([pty.master], [], [], timeout)
         now = time.monotonic()
+        if not r:
+            pty.sample_rate(now)
         if r:
             data = pty.read()
             if data:

@@ -359,18 +359,14 @@ def main():
     controllers = [Controller(a, args.axes, not args.non_echo, args.status_bits)
                    for a in args.units.split(",") if a]
     line = Line(pty, controllers)
-    sampled = {"baud": None}
-
     def on_bytes(data, now):
-        host = pty.host_baud()
-        if host is not None and args.baud not in (host, sampled["baud"]):
+        if not pty.heard_at(args.baud, now):
             uc.wire("(host at %d baud, unit at %d: %d bytes unreadable)" %
-                    (host, args.baud, len(data)))
+                    (pty.rate_now, args.baud, len(data)))
             return
         line.on_bytes(data, now)
 
     def on_tick(now):
-        sampled["baud"] = pty.host_baud()
         line.on_tick(now)
 
     uc.log("whedco: units %s axes %s %s at %d baud on %s" % (
