@@ -10,9 +10,9 @@ Readings of the manual where it leaves room (section numbers are the manual's pa
   character itself is not echoed; the echo runs from the command character up to the LF.
 - p.12 RESULT cycle: every command ends with a result; a number (space padded) and CR LF, or a
   bare CR LF when there is no number. So `AR100\n` answers `R100\n\r\n`.
-- p.13: a second action command during a completion cycle is pending: its echo comes back at
-  once (entry), but the unit runs nothing else until the motion is done; then it executes it and
-  sends its CR LF. ESC, ^C and `@` are one-character interrupts seen at any time.
+- p.13: a second action command during a completion cycle (an index until it ends, F until
+  home is found, M until its ramp ends) is pending: its echo comes back at once (entry), but
+  the unit runs nothing else until the cycle ends; then it executes it and sends its CR LF. ESC, ^C and `@` are one-character interrupts seen at any time.
 - `@` and ESC are Global (command set): every axis on the line soft/hard stops.
 - `]0` reports a limit bit as 1 while that limit switch is active (the switch level, whatever
   the `l` polarity).
@@ -116,11 +116,19 @@ class Unit:
         self.awake = False
         line = bytes(self.line)
         self.line.clear()
-        if line[:1] in (b"+", b"-", b"R", b"M", b"F", b"G", b"H") and self.axis.moving() and \
-                not (line[:1] == b"M" and self.const_vel):
+        if line[:1] in (b"+", b"-", b"R", b"M", b"F", b"G", b"H") and self.in_completion():
             self.pending = line  # executed when the completion cycle ends
             return
         self.execute(line)
+
+    def in_completion(self):
+        """p.13: an index until it ends, F until home is found, M until its ramp ends."""
+        a = self.axis
+        if self.homing:
+            return True
+        if self.const_vel:
+            return a.mode == "vel" and a.v != a.vmax
+        return a.moving()
 
     def drain(self):
         while self.backlog and not self.blocked():
@@ -250,14 +258,14 @@ class Unit:
                 self.homing = None
         if not a.moving():
             self.const_vel = False
-            if self.wait_motion:
-                self.wait_motion = False
-                self.result()
-                self.drain()
-            if self.pending is not None:
-                line, self.pending = self.pending, None
-                self.execute(line)
-                self.drain()
+        if self.wait_motion and not a.moving():
+            self.wait_motion = False
+            self.result()
+            self.drain()
+        if self.pending is not None and not self.in_completion():
+            line, self.pending = self.pending, None
+            self.execute(line)
+            self.drain()
 
 
 class Bus:

@@ -92,7 +92,7 @@ case $family in
     ;;
 esac
 
-/usr/bin/python3 "$here/${unit[0]}" --link "$dir/port" "${unit[@]:1}" </dev/null \
+PYTHONDONTWRITEBYTECODE=1 /usr/bin/python3 "$here/${unit[0]}" --link "$dir/port" "${unit[@]:1}" </dev/null \
   >"$dir/unit.log" 2>&1 &
 for _ in $(seq 50); do [ -e "$dir/port" ] && break; sleep 0.1; done
 [ -e "$dir/port" ] || { echo "the $family unit did not start"; cat "$dir/unit.log"; exit 1; }
