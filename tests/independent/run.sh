@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # tools/axis.py's full cycle (power, home, moves, jogs, stop, halt, error, reset) through the
 # daemon against an independent implementation of one controller family (written from the
-# manuals, not the project's simulators). Usage: run.sh FAMILY FIELDGATE_BIN AXIS_PY
+# manuals, not the project's simulators). Usage: run.sh FAMILY FIELDGATE_BIN AXIS_PY [SCENARIO]
+# With SCENARIO, scenarios.py runs that scenario (home-position, abort-jog, cross-axis) instead.
 set -euo pipefail
-family=$1 fieldgate=$2 axis_py=$3
+family=$1 fieldgate=$2 axis_py=$3 scenario=${4:-}
 here=$(cd "$(dirname "$0")" && pwd)
 models=$(cd "$here/../../config/models" && pwd)
 dir=$(mktemp -d)
@@ -107,7 +108,12 @@ YAML
 source "$here/../integration/daemon.sh"
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 rc=0
-/usr/bin/python3 "$axis_py" --port "$port" --unit "$units" "${axis_args[@]}" -v || rc=$?
+if [ -n "$scenario" ]; then
+  /usr/bin/python3 "$here/scenarios.py" "$scenario" --port "$port" --unit "$units" \
+    "${axis_args[@]}" || rc=$?
+else
+  /usr/bin/python3 "$axis_py" --port "$port" --unit "$units" "${axis_args[@]}" -v || rc=$?
+fi
 echo "--- unit log (command lines as received, each shown at most 3 times) ---"
 cat "$dir/unit.log"
 if [ "$rc" -ne 0 ]; then
