@@ -42,6 +42,8 @@ Options parse_options(const std::map<std::string, std::string>& options,
       flag(key, value, o.reselect_for_commands);
     } else if (key == "guard_program_mode") {
       flag(key, value, o.guard_program_mode);
+    } else if (key == "guard_position_sign") {
+      flag(key, value, o.guard_position_sign);
     } else if (key == "overflow_mode") {
       if (value == "warning")
         o.overflow = Options::Overflow::warning;
@@ -69,7 +71,7 @@ Options parse_options(const std::map<std::string, std::string>& options,
       errors.push_back(fmt::format(
           "unknown option '{}' (known: confirm_commands, overflow_mode, overflow_command, "
           "leading_cr, autobaud_cr, discover_chain, kill_target, reselect_for_commands, "
-          "guard_program_mode)",
+          "guard_program_mode, guard_position_sign)",
           key));
     }
   }
@@ -93,6 +95,7 @@ void Chain::link_opened() {
   order.clear();
   order_known = false;
   drain_before_next = false;
+  positions = {};
 }
 
 int Chain::chain_position(int unit) const {
@@ -132,6 +135,7 @@ void Chain::absorb(const Message& m) {
       reset.set_up = false;
       reset.mode = 0;
       reset.queue_full = false;
+      positions[subject] = {};
       forget_selection();
       log(4, fmt::format("{} reset (unsolicited 'U{}'): selection forgotten, the unit's clock "
                          "and queues are lost",
@@ -200,6 +204,25 @@ Query mode_query() {
   return *classify_query("M?");
 }
 
+// An absolute move that crosses 0 in the signed view (README "Absolute moves and the sign").
+std::optional<Reply> position_sign_refusal(const Chain& chain, int unit,
+                                           const std::string& instruction) {
+  for (const auto& t : absolute_targets(instruction)) {
+    const auto& known = chain.positions[static_cast<std::size_t>(unit)][t.axis == 'X' ? 0 : 1];
+    const int64_t from = known ? static_cast<int32_t>(*known) : 0;
+    if ((t.raw < 0) == (from < 0)) continue;
+    return refusal(
+        kInvalidValue,
+        fmt::format("'{}': absolute {} move of unit {} to {} from {}{} (1/1024 step) crosses 0: "
+                    "the CN0170's positions are unsigned ('positive only'), so the unit may run "
+                    "the long way round its 4,194,304-step register instead; move relative, or "
+                    "declare the position (XP=) first",
+                    instruction, t.axis, unit, t.raw, from,
+                    known ? "" : " (assumed: not polled yet)"));
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 Plan plan_request(Chain& chain, const Options& options, int unit, const Request& request) {
@@ -256,6 +279,11 @@ Plan plan_request(Chain& chain, const Options& options, int unit, const Request&
       default:
         moves_queue = true;
         only_mode_queries = false;
+        if (options.guard_position_sign)
+          if (auto refused = position_sign_refusal(chain, unit, instruction)) {
+            plan.refused = std::move(refused);
+            return plan;
+          }
         break;
     }
   }
@@ -507,6 +535,8 @@ bool Exchange::on_line(std::string_view line) {
     if (m.kind == MessageKind::position) {
       saw_position_ = true;
       motion_ |= m.values[1];
+      chain_.positions[static_cast<std::size_t>(unit_)][m.key.front() == 'X' ? 0 : 1] =
+          static_cast<uint32_t>(m.values[0]);
     }
   }
   ++next_;

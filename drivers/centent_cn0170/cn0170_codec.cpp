@@ -4,6 +4,7 @@
 
 #include <cctype>
 #include <charconv>
+#include <cmath>
 
 namespace fieldgate::cn0170 {
 
@@ -433,6 +434,36 @@ std::optional<std::string> normalise_instruction(std::string_view instruction, s
     return s;
   }
   return signed_relative_distances(s);
+}
+
+std::vector<AbsoluteTarget> absolute_targets(std::string_view instruction) {
+  std::string s;
+  for (char c : upper(instruction))
+    if (c != ' ') s += c;
+  std::vector<AbsoluteTarget> out;
+  for (std::size_t i = 0; i + 2 < s.size(); ++i) {
+    const bool term_start = i == 0 || s[i - 1] == '&' || s[i - 1] == ',' || s[i - 1] == '^';
+    if (!term_start || (s[i] != 'X' && s[i] != 'Y') || s[i + 1] != '=') continue;
+    std::size_t end = i + 2;
+    while (end < s.size() && s[end] != '&' && s[end] != ',' && s[end] != '^') ++end;
+    const std::string_view n(s.data() + i + 2, end - (i + 2));
+    AbsoluteTarget t;
+    t.axis = s[i];
+    if (n.size() >= 2 && n.back() == 'H') {
+      uint64_t v = 0;
+      const auto digits = n.substr(0, n.size() - 1);
+      const auto [ptr, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), v, 16);
+      if (ec != std::errc() || ptr != digits.data() + digits.size() || v > 0xffffffffu) continue;
+      t.raw = static_cast<int32_t>(static_cast<uint32_t>(v));
+    } else {
+      double v = 0;
+      const auto [ptr, ec] = std::from_chars(n.data(), n.data() + n.size(), v);
+      if (ec != std::errc() || ptr != n.data() + n.size()) continue;
+      t.raw = std::llround(v * 1024);
+    }
+    out.push_back(t);
+  }
+  return out;
 }
 
 std::optional<std::string> normalise_request(std::string_view request, std::string& error) {

@@ -106,6 +106,15 @@ enum class InstructionKind {
 };
 InstructionKind classify_instruction(std::string_view instruction);
 
+// The absolute point-to-point terms of a move instruction: X=n / Y=n at its start or after '&',
+// ',' or '^' (linked, linear, circular forms), n in decimal steps or raw hex (…H). `raw` is the
+// target in 1/1024 step as the signed 32-bit view of the register (0FFFFF060H is -4000).
+struct AbsoluteTarget {
+  char axis = 'X';
+  int64_t raw = 0;
+};
+std::vector<AbsoluteTarget> absolute_targets(std::string_view instruction);
+
 // Rewrites that let a model pass numbers for the CN0170's symbolic forms (README "Command
 // rewrites"); nullopt with `error` set for a value the CN0170 does not accept:
 //   XC17 / XC18 / XC19      -> XC\L / XC\P / XC\U   (XC1..XC16 unchanged, others refused)

@@ -70,6 +70,43 @@ TEST_F(ChainTest, CommandsReselectAndAreConfirmed) {
   EXPECT_TRUE(q.expected.empty());
 }
 
+// Positions are "positive only" (§9 #20): a unit that compares an absolute target with its
+// position unsigned runs the long way round its 2^32 register (35 minutes at 2000 steps/s) to
+// reach a target on the other side of 0. Such moves are refused before anything is sent.
+TEST_F(ChainTest, AbsoluteMoveAcrossZeroIsRefused) {
+  const auto refused = [&](const char* c) {
+    const Plan p = plan_request(chain, options, 1, command(c));
+    return p.refused && p.refused->device_code == kInvalidValue;
+  };
+  // Position not polled yet: the register is 0 after power-up.
+  EXPECT_TRUE(refused("XV=200,2000;X=0FFFFF060H"));  // -4000 as the model renders it
+  EXPECT_TRUE(refused("X=-5"));
+  EXPECT_TRUE(refused("X=0BB8H,Y=0FFFFFC00H"));  // linear: the Y term
+  EXPECT_TRUE(refused("X=0BB8H & Y=-1"));
+  EXPECT_FALSE(refused("XV=200,2000;X=0BB8H"));
+  EXPECT_FALSE(refused("X-0FA0H"));        // relative moves are the way below 0
+  EXPECT_FALSE(refused("XP=0FFFFF060H"));  // declaring a position moves nothing
+  EXPECT_FALSE(refused("Y/X=0C0000000H"));
+  const auto text = plan_request(chain, options, 1, command("X=0FFFFF060H")).refused->text;
+  EXPECT_NE(text.find("to -4000 from 0"), std::string::npos) << text;
+  EXPECT_NE(text.find("move relative"), std::string::npos) << text;
+
+  // Below 0 now (a relative move went there): targets above 0 cross it, targets below do not.
+  ASSERT_TRUE(exchange(chain, options, 1, read("XP?;YP?"), {"1X=FFFFF060h\r", "1Y=00000400h\r"}));
+  EXPECT_TRUE(refused("X=0BB8H"));
+  EXPECT_TRUE(refused("X=0"));
+  EXPECT_FALSE(refused("X=0FFFFF000H"));
+  EXPECT_FALSE(refused("Y=0BB8H"));  // Y is still above 0
+  EXPECT_FALSE(refused("X+0FA0H"));
+  // Its reset clears the position register: above 0 again.
+  Exchange ex(chain, 1, plan_request(chain, options, 1, read("XP?")), "XP?");
+  (void)ex.on_line("U1\r");
+  EXPECT_FALSE(refused("X=0BB8H"));
+
+  options.guard_position_sign = false;
+  EXPECT_FALSE(refused("X=0FFFFF060H"));
+}
+
 TEST_F(ChainTest, ReadDemultiplexedByPrefixWithMotionWord) {
   const auto r = exchange(chain, options, 2, read("XP?;YP?"), {"2X=00000400h\r", "2Y-00000800h\r"});
   ASSERT_TRUE(r);
