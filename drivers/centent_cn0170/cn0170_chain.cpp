@@ -396,9 +396,8 @@ Exchange::Exchange(Chain& chain, int unit, Plan plan, std::string what)
   was_answering_ = chain_.units[static_cast<std::size_t>(unit_)].answering;
 }
 
-void Exchange::owe_rest() {
-  for (std::size_t i = next_; i < plan_.expected.size(); ++i)
-    owes_.push_back(plan_.expected[i].key);
+void Exchange::owe_rest(std::size_t from) {
+  for (std::size_t i = from; i < plan_.expected.size(); ++i) owes_.push_back(plan_.expected[i].key);
 }
 
 bool Exchange::finish(Reply::Status status, std::string text, int64_t code) {
@@ -442,7 +441,7 @@ bool Exchange::on_line(std::string_view line) {
       return false;
     case MessageKind::unknown:
       ++chain_.stray_lines;
-      if (was_answering_ || next_ > 0) owe_rest();
+      if (was_answering_ || next_ > 0) owe_rest(next_);
       lost();
       return finish(Reply::Status::garbled,
                     fmt::format("unreadable line '{}' while waiting for unit {}'s reply to '{}'",
@@ -473,7 +472,7 @@ bool Exchange::on_line(std::string_view line) {
       if (!chain_.owed[static_cast<std::size_t>(unit_)].empty()) {
         // It may reject an earlier request whose replies are still owed, or this one.
         ++chain_.units[static_cast<std::size_t>(unit_)].counters.rejects;
-        owe_rest();
+        owe_rest(next_);
         lost();
         return finish(Reply::Status::garbled,
                       fmt::format("unit {} rejected \"{}\" while replies to an earlier request "
@@ -484,7 +483,7 @@ bool Exchange::on_line(std::string_view line) {
       chain_.units[static_cast<std::size_t>(unit_)].answering = true;
       // Replies to the rest of the request may still follow; they must not meet the next one.
       chain_.drain_before_next = true;
-      owe_rest();
+      owe_rest(next_);
       return finish(Reply::Status::device_error,
                     fmt::format("unit {} rejected \"{}\" (syntax error; the string was ignored)",
                                 unit_, m.text),
@@ -520,7 +519,9 @@ bool Exchange::on_line(std::string_view line) {
                               "a reset or a duplicate unit number); selection forgotten",
                               m.unit, what_, unit_));
   }
+  const auto debt_since = chain_.owed_since[static_cast<std::size_t>(unit_)];
   if (chain_.pay(unit_, m.key)) {
+    if (!paid_debt_since_) paid_debt_since_ = debt_since;
     // The late answer to an earlier request with the same key: ours comes after it.
     chain_.absorb(m);
     return false;
@@ -545,7 +546,11 @@ bool Exchange::on_line(std::string_view line) {
 }
 
 Reply Exchange::on_timeout(std::string_view partial) {
-  if (was_answering_ || next_ > 0 || !partial.empty()) owe_rest();
+  // A reply cut off inside the line: its rest comes as a fragment no key can match, never as
+  // the whole reply, so it is not owed (those after it still are).
+  const bool cut_reply =
+      next_ < plan_.expected.size() && starts_reply(partial, unit_, plan_.expected[next_]);
+  if (was_answering_ || next_ > 0 || !partial.empty()) owe_rest(cut_reply ? next_ + 1 : next_);
   lost();
   if (!partial.empty())
     finish(Reply::Status::garbled,

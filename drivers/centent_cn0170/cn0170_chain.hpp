@@ -167,6 +167,12 @@ class Exchange {
   int unit() const { return unit_; }
   // Reply keys still on their way when the exchange gave up (for Chain::owe).
   const std::vector<std::string>& owes() const { return owes_; }
+  // Since when the debts this exchange paid had been open: a new debt it leaves keeps that age.
+  // An exchange that takes its own reply for a late one (the late one was lost or cut) would
+  // otherwise owe it again as new, every poll, and never reach the write-off.
+  std::optional<std::chrono::steady_clock::time_point> paid_debt_since() const {
+    return paid_debt_since_;
+  }
   const Reply& reply() const { return reply_; }
 
  private:
@@ -185,7 +191,8 @@ class Exchange {
   std::optional<int> reset_seen_;
   bool was_answering_ = false;
   std::vector<std::string> owes_;
-  void owe_rest();
+  std::optional<std::chrono::steady_clock::time_point> paid_debt_since_;
+  void owe_rest(std::size_t from);
   int confirmed_mode_ = 0;
   Reply reply_;
   bool finished_ = false;

@@ -349,6 +349,29 @@ std::optional<Query> classify_query(std::string_view instruction) {
   return q;
 }
 
+bool starts_reply(std::string_view partial, int unit, const Query& query) {
+  std::string_view s = partial;
+  while (!s.empty() && (s.front() == '\r' || s.front() == '\n' || s.front() == ' '))
+    s.remove_prefix(1);
+  int sender = 0;
+  if (!s.empty() && s.front() >= '1' && s.front() <= '9') {
+    sender = s.front() - '0';
+    s.remove_prefix(1);
+    if (!s.empty() && (s.front() == ' ' || s.front() == ':')) s.remove_prefix(1);
+  }
+  if (sender != unit) return false;
+  const std::string u = upper(s);
+  if (query.kind == MessageKind::position) {
+    // X=…h, X+…h, X-…h (p.35) or XP=…h (p.2).
+    const char axis = query.key.front();
+    return u.size() >= 2 && u[0] == axis &&
+           (u[1] == '=' || u[1] == '+' || u[1] == '-' || (u.size() >= 3 && u.substr(1, 2) == "P="));
+  }
+  if (query.kind == MessageKind::mode) return u == "M";
+  return u.size() > query.key.size() && u.compare(0, query.key.size(), query.key) == 0 &&
+         u[query.key.size()] == '=';
+}
+
 int values_of_request(const std::vector<Query>& queries) {
   int n = 0;
   bool position = false;

@@ -85,6 +85,10 @@ struct Query {
   bool hex = false;     // the reply is hex (the model's read format must say so)
 };
 
+// Whether an unterminated line is the beginning of `unit`'s reply to `query` ("2Y=0000", "X+0",
+// "1M"): prefix, then the reply's key and what follows a key. False when too short to tell.
+bool starts_reply(std::string_view partial, int unit, const Query& query);
+
 // "XP?" -> position/XP; nullopt for anything that is not a query of §5. Case-insensitive.
 std::optional<Query> classify_query(std::string_view instruction);
 

@@ -271,6 +271,64 @@ TEST_F(ChainTest, TimeoutForgetsTheSelection) {
   EXPECT_EQ(cut.on_timeout("1X=000").text, "incomplete reply '1X=000' from unit 1 to 'XP?;YP?'");
 }
 
+// Seen on the demo under load: unit 2's Y reply was cut ('2Y=0000000', rest '0h' drained as a
+// fragment). It was owed anyway, so every later poll took its own Y reply for the late one,
+// waited for another, timed out and owed it again: garbled polls for good, the motion word
+// never read, a move busy until its timeout.
+TEST_F(ChainTest, ReplyCutInsideTheLineIsNotOwed) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Plan plan = plan_request(chain, options, 2, read("XP?;YP?"));
+  Exchange cut(chain, 2, plan, "XP?;YP?");
+  EXPECT_FALSE(cut.on_line("2X=00000400h\r"));
+  EXPECT_EQ(cut.on_timeout("2Y=0000000").status, Reply::Status::garbled);
+  chain.owe(2, cut.owes(), t0);
+  EXPECT_TRUE(chain.owed[2].empty());
+  chain.absorb(parse_message("0h\r"));  // the rest, drained by the resync
+  const auto next =
+      exchange(chain, options, 2, read("XP?;YP?"), {"2X=00000400h\r", "2Y=00000800h\r"});
+  ASSERT_TRUE(next) << "the poll after the cut reply took its own Y reply for a late one";
+  EXPECT_EQ(next->status, Reply::Status::ok);
+  // Cut inside the first reply: the second is still on its way whole, and owed.
+  Exchange early(chain, 2, plan_request(chain, options, 2, read("XP?;YP?")), "XP?;YP?");
+  (void)early.on_timeout("2X=00");
+  EXPECT_EQ(early.owes(), std::vector<std::string>{"YP"});
+  EXPECT_TRUE(starts_reply("1XP=00", 1, *classify_query("XP?")));
+  EXPECT_TRUE(starts_reply("1M", 1, *classify_query("M?")));
+  EXPECT_TRUE(starts_reply("A\\X=8", 0, *classify_query("A\\X?")));
+  EXPECT_FALSE(starts_reply("1", 1, *classify_query("XP?")));  // too short to tell
+  EXPECT_FALSE(starts_reply("2Y=00", 1, *classify_query("YP?")));
+  EXPECT_FALSE(starts_reply("1P1=0", 1, *classify_query("P?")));
+}
+
+// A reply that never comes (lost, or cut where the key cannot be told) is owed; the next poll
+// takes its own reply for the late one and owes it again. The debt keeps its first age through
+// that, so it is written off after the window, not renewed by every poll.
+TEST_F(ChainTest, DebtRenewedByEachPollIsStillWrittenOff) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto window = std::chrono::milliseconds(250);
+  Plan plan = plan_request(chain, options, 2, read("XP?;YP?"));
+  Exchange lost(chain, 2, plan, "XP?;YP?");
+  EXPECT_FALSE(lost.on_line("2X=00000400h\r"));
+  (void)lost.on_timeout("");
+  chain.owe(2, lost.owes(), t0);
+  ASSERT_EQ(chain.owed[2].size(), 1u);
+  int garbled = 0;
+  for (int poll = 1; poll <= 20; ++poll) {
+    const auto now = t0 + poll * std::chrono::milliseconds(100);
+    chain.expire_owed(now, window);
+    Exchange ex(chain, 2, plan_request(chain, options, 2, read("XP?;YP?")), "XP?;YP?");
+    (void)ex.on_line("2X=00000400h\r");
+    if (ex.on_line("2Y=00000800h\r")) {
+      EXPECT_EQ(ex.reply().status, Reply::Status::ok);
+      break;
+    }
+    ++garbled;
+    (void)ex.on_timeout("");
+    chain.owe(2, ex.owes(), ex.paid_debt_since().value_or(now));
+  }
+  EXPECT_LE(garbled, 2) << "polls kept paying and renewing the same debt";
+}
+
 TEST_F(ChainTest, KillGoesToTheFirstUnitOfTheChain) {
   chain.order = {3, 0, 1};
   Plan p = plan_kill(chain, options, 1, {0, 1, 3});

@@ -444,6 +444,28 @@ TEST_P(CententPositionSign, AbsoluteMoveAcrossZeroIsRefusedRelativeGoesBelow) {
 
 INSTANTIATE_TEST_SUITE_P(Readings, CententPositionSign, ::testing::Values("unsigned", "signed"));
 
+// Seen on the demo under load: one poll whose Y reply was cut or lost left it owed, and every
+// later poll took its own Y reply for the late one and was garbled in turn, so the motion word
+// was never read again and the move stayed busy. One poll that loses its Y reply costs that poll
+// (and at most the write-off window), and the move ends done where it should.
+TEST_F(CententEndToEnd, LostReplyLinesDuringAMoveDoNotKeepItBusy) {
+  start("1", {1}, ", poll: {fast: 100ms, slow: 3600s}");
+  wait_online({2});
+  const int id = 2;
+  ASSERT_TRUE(client_->write_single(id, kXSpeed, 500).ok());  // 3000 steps: 6 s
+  ASSERT_TRUE(client_->write_i32(id, kXTarget, 3000 * 1024).ok());
+  ASSERT_TRUE(client_->write_single(id, kCommand, kMoveXAbsolute).ok());
+  for (int i = 0; i < 3; ++i) {
+    std::this_thread::sleep_for(1s);
+    plant_->control("drop-last-line 1");  // the next poll gets "1X+…h\r" alone
+  }
+  ASSERT_TRUE(wait_until([&] { return action_status(id) != 1; }, 60s));
+  EXPECT_EQ(action_status(id), 2) << "error "
+                                  << client_->read_holding(id, kActionError, 1).values.at(0);
+  EXPECT_EQ(client_->read_input_i32(id, kXPosition), 3000 * 1024);
+  EXPECT_EQ(plant_->daemon().log().find("its end cannot be seen"), std::string::npos);
+}
+
 // Garbled replies leave a node online, so polls that keep coming back garbled never take it
 // offline; an action watching them stayed busy until its timeout (30 minutes for a move). It
 // fails once its condition point has gone unread for ten poll periods (at least 5 s).
