@@ -225,14 +225,15 @@ const std::string& action_condition_point(const ActionDef& action) {
   return action.done ? action.done->point : action.failed->point;
 }
 
-// When a watch gives up on seeing the action's end: its condition point not read for ten poll
-// periods of its class, and never less than 5 s (a loaded bus, a node being probed again).
+// When a watch gives up on seeing the action's end: its condition point not read for twenty poll
+// periods of its class, and never less than 15 s (a loaded machine stalls a bus for seconds; a
+// node going offline is probed again every probe_interval).
 std::optional<Clock::duration> completion_blind_after(const Model& model, const ActionDef& action) {
   const PointDef* p = model.find_point(action_condition_point(action));
   if (!p || p->poll_class.empty()) return std::nullopt;
   const PollClassDef* c = model.find_poll_class(p->poll_class);
   if (!c || c->period.count() <= 0) return std::nullopt;
-  return std::max<Clock::duration>(10 * c->period, std::chrono::seconds(5));
+  return std::max<Clock::duration>(20 * c->period, std::chrono::seconds(15));
 }
 
 SteadyTime condition_updated(const NodeImage& node, const Model& model, const ActionDef& action) {

@@ -468,7 +468,7 @@ TEST_F(CententEndToEnd, LostReplyLinesDuringAMoveDoNotKeepItBusy) {
 
 // Garbled replies leave a node online, so polls that keep coming back garbled never take it
 // offline; an action watching them stayed busy until its timeout (30 minutes for a move). It
-// fails once its condition point has gone unread for ten poll periods (at least 5 s).
+// fails once its condition point has gone unread for twenty poll periods (at least 15 s).
 TEST_F(CententEndToEnd, PersistentGarbledPollsFailAWatchedMoveInBoundedTime) {
   start("0,1", {0, 1});
   wait_online({1, 2});
