@@ -486,5 +486,72 @@ TEST_F(CententEndToEnd, PersistentGarbledPollsFailAWatchedMoveInBoundedTime) {
   EXPECT_NE(plant_->daemon().log().find("its end cannot be seen"), std::string::npos);
 }
 
+// Repeated moves of one axis, as in README "Try it": out, back to 0, again to 0 (no distance),
+// a relative move of 0, then out again. A move that starts and ends where the axis is never
+// shows "moving"; each action must still end (done), and the next one must run.
+class CententRepeatedMoves : public CententEndToEnd,
+                             public ::testing::WithParamInterface<std::string> {};
+
+TEST_P(CententRepeatedMoves, EveryMoveEndsIncludingZeroDistance) {
+  const std::string baud = GetParam();
+  std::vector<std::string> extra;
+  if (baud == "9600") extra = {"--emulate-wire", "--hop-delay-us", "500"};  // as scripts/demo
+  start("0,1,2", {0, 1, 2}, "", std::move(extra), baud);
+  wait_online({1, 2, 3});
+  const int id = 2;  // unit 1
+  struct Move {
+    int command;
+    int setpoint;
+    int32_t value;
+    int32_t expected_position;
+  };
+  const std::vector<Move> moves{{kMoveXAbsolute, kXTarget, 3000, 3000},
+                                {kMoveXAbsolute, kXTarget, 0, 0},
+                                {kMoveXAbsolute, kXTarget, 0, 0},
+                                {kMoveXRelative, kXDistance, 0, 0},
+                                {kMoveXAbsolute, kXTarget, 3000, 3000},
+                                {kMoveXAbsolute, kXTarget, 3000, 3000},
+                                {kMoveXAbsolute, kXTarget, 0, 0},
+                                {kMoveXAbsolute, kXTarget, 3000 * 1024, 3000 * 1024},
+                                {kMoveXAbsolute, kXTarget, 3000 * 1024, 3000 * 1024},
+                                {kMoveXAbsolute, kXTarget, 0, 0}};
+  for (std::size_t i = 0; i < moves.size(); ++i) {
+    const Move& m = moves[i];
+    SCOPED_TRACE("move " + std::to_string(i) + " to/by " + std::to_string(m.value));
+    ASSERT_TRUE(client_->write_i32(id, m.setpoint, m.value).ok());
+    ASSERT_TRUE(client_->write_single(id, kCommand, m.command).ok());
+    ASSERT_TRUE(wait_until([&] { return action_status(id) != 1; }, 30s))
+        << "action stuck busy, x_position " << client_->read_input_i32(id, kXPosition).value_or(-1);
+    ASSERT_EQ(action_status(id), 2)
+        << "error " << client_->read_holding(id, kActionError, 1).values.at(0);
+    EXPECT_EQ(client_->read_input_i32(id, kXPosition), m.expected_position);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Bauds, CententRepeatedMoves, ::testing::Values("9600", "115200"));
+
+// The same sequence while the units answer late now and then (a loaded machine): a move may
+// fail (no reply, error), but no action may stay busy.
+TEST_F(CententEndToEnd, RepeatedMovesWithLateRepliesNeverStayBusy) {
+  start("0,1,2", {0, 1, 2}, ", poll: {fast: 200ms, slow: 2s}",
+        {"--baud", "9600", "--emulate-wire", "--hop-delay-us", "500"}, "9600");
+  wait_online({1, 2, 3});
+  const int id = 2;
+  std::mt19937 random(7);
+  const int delays[] = {0, 0, 20, 40, 60, 90, 150};
+  const int32_t targets[] = {3000, 0, 0, 3000, 3000, 0, 3000};
+  for (int round = 0; round < 4; ++round)
+    for (std::size_t i = 0; i < std::size(targets); ++i) {
+      SCOPED_TRACE("round " + std::to_string(round) + " move " + std::to_string(i));
+      plant_->sim().send_line("delay " + std::to_string(delays[random() % std::size(delays)]));
+      if (!client_->write_i32(id, kXTarget, targets[i]).ok()) continue;
+      if (!client_->write_single(id, kCommand, kMoveXAbsolute).ok()) continue;
+      ASSERT_TRUE(wait_until([&] { return action_status(id) != 1; }, 30s))
+          << "action stuck busy, x_position "
+          << client_->read_input_i32(id, kXPosition).value_or(-1);
+    }
+  plant_->sim().send_line("delay 0");
+}
+
 }  // namespace
 }  // namespace fieldgate::test
