@@ -219,6 +219,32 @@ std::optional<bool> ActionRunner::evaluate(const NodeImage& node, const Model& m
   return std::nullopt;
 }
 
+namespace {
+
+const std::string& action_condition_point(const ActionDef& action) {
+  return action.done ? action.done->point : action.failed->point;
+}
+
+// When a watch gives up on seeing the action's end: its condition point not read for twenty poll
+// periods of its class, and never less than 15 s (a loaded machine stalls a bus for seconds; a
+// node going offline is probed again every probe_interval).
+std::optional<Clock::duration> completion_blind_after(const Model& model, const ActionDef& action) {
+  const PointDef* p = model.find_point(action_condition_point(action));
+  if (!p || p->poll_class.empty()) return std::nullopt;
+  const PollClassDef* c = model.find_poll_class(p->poll_class);
+  if (!c || c->period.count() <= 0) return std::nullopt;
+  return std::max<Clock::duration>(20 * c->period, std::chrono::seconds(15));
+}
+
+SteadyTime condition_updated(const NodeImage& node, const Model& model, const ActionDef& action) {
+  const std::string& name = action_condition_point(action);
+  for (std::size_t i = 0; i < model.points.size(); ++i)
+    if (model.points[i].name == name) return node.points[i].updated;
+  return {};
+}
+
+}  // namespace
+
 bool ActionRunner::refreshed_since(const NodeImage& node, const Model& model,
                                    const std::string& condition_point, SteadyTime since) const {
   const PointDef* p = model.find_point(condition_point);
@@ -241,6 +267,7 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
   const auto deadline = acknowledged + action.timeout;
   auto& node = image_.node(node_index);
   std::optional<SteadyTime> settled_since;
+  const auto blind_after = completion_blind_after(model, action);
   for (;;) {
     if (stopping_ || node.action.generation != generation) break;
     if (action.failed && evaluate(node, model, *action.failed, acknowledged).value_or(false)) {
@@ -266,7 +293,27 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
                    std::chrono::duration_cast<std::chrono::milliseconds>(action.timeout).count());
       break;
     }
-    wake.expires_at(deadline);
+    // Polls that keep failing (garbled replies leave a node online) would otherwise hold the
+    // action busy until its timeout, which for a long move is half an hour.
+    auto wake_at = deadline;
+    if (blind_after) {
+      const auto last_seen = std::max(acknowledged, condition_updated(node, model, action));
+      if (Clock::now() - last_seen >= *blind_after) {
+        const bool offline = node.state == NodeState::offline;
+        node.action.status = ActionStatus::error;
+        node.action.error = offline ? kActionErrorUnreachable : kActionErrorGarbled;
+        log::warning(
+            "node {}: action {} failed: its end cannot be seen, point '{}' not read "
+            "for {} ms ({}; last error: {})",
+            node_index, action.name, action_condition_point(action),
+            std::chrono::duration_cast<std::chrono::milliseconds>(*blind_after).count(),
+            offline ? "node offline" : "polls failing",
+            node.counters.last_error_text.empty() ? "none" : node.counters.last_error_text);
+        break;
+      }
+      wake_at = std::min(deadline, last_seen + *blind_after);
+    }
+    wake.expires_at(wake_at);
     co_await wake.async_wait(use_tuple);
   }
   list.erase(std::remove(list.begin(), list.end(), &wake), list.end());

@@ -269,7 +269,9 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     trace_collecting_ = trace_.enabled();
     reply = co_await config_.family->transact(link_, n.config->address, request, n.timing);
     trace_collecting_ = false;
-    trace_transaction(n, to_string(reply.status));
+    // The trace's outcome names (README "Wire trace"), as CAN buses give them.
+    trace_transaction(n,
+                      reply.status == Reply::Status::garbled ? "garbled" : to_string(reply.status));
     record_latency(std::chrono::duration<double>(Clock::now() - started).count());
     for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
     ++counters_.transactions;

@@ -42,9 +42,12 @@ std::string format_trace_line(std::string_view bus, std::chrono::steady_clock::t
                               std::string_view outcome, std::string_view bytes) {
   const auto us =
       std::chrono::duration_cast<std::chrono::microseconds>(at.time_since_epoch()).count();
+  // One field each, so a script can split on spaces: "device error" -> device_error.
+  std::string outcome_field = outcome.empty() ? "-" : std::string(outcome);
+  std::replace(outcome_field.begin(), outcome_field.end(), ' ', '_');
   return fmt::format("trace {} ({}.{:06}) {} {} {} '{}'", bus, us / 1000000, us % 1000000,
                      node.empty() ? "-" : node, direction == TraceDirection::tx ? "tx" : "rx",
-                     outcome.empty() ? "-" : outcome, bytes);
+                     outcome_field, bytes);
 }
 
 WireTrace::WireTrace(std::string bus, bool enabled, double rate, double burst)

@@ -42,6 +42,8 @@ Options parse_options(const std::map<std::string, std::string>& options,
       flag(key, value, o.reselect_for_commands);
     } else if (key == "guard_program_mode") {
       flag(key, value, o.guard_program_mode);
+    } else if (key == "guard_position_sign") {
+      flag(key, value, o.guard_position_sign);
     } else if (key == "overflow_mode") {
       if (value == "warning")
         o.overflow = Options::Overflow::warning;
@@ -69,7 +71,7 @@ Options parse_options(const std::map<std::string, std::string>& options,
       errors.push_back(fmt::format(
           "unknown option '{}' (known: confirm_commands, overflow_mode, overflow_command, "
           "leading_cr, autobaud_cr, discover_chain, kill_target, reselect_for_commands, "
-          "guard_program_mode)",
+          "guard_program_mode, guard_position_sign)",
           key));
     }
   }
@@ -93,6 +95,7 @@ void Chain::link_opened() {
   order.clear();
   order_known = false;
   drain_before_next = false;
+  positions = {};
 }
 
 int Chain::chain_position(int unit) const {
@@ -132,6 +135,7 @@ void Chain::absorb(const Message& m) {
       reset.set_up = false;
       reset.mode = 0;
       reset.queue_full = false;
+      positions[subject] = {};
       forget_selection();
       log(4, fmt::format("{} reset (unsolicited 'U{}'): selection forgotten, the unit's clock "
                          "and queues are lost",
@@ -200,6 +204,25 @@ Query mode_query() {
   return *classify_query("M?");
 }
 
+// An absolute move that crosses 0 in the signed view (README "Absolute moves and the sign").
+std::optional<Reply> position_sign_refusal(const Chain& chain, int unit,
+                                           const std::string& instruction) {
+  for (const auto& t : absolute_targets(instruction)) {
+    const auto& known = chain.positions[static_cast<std::size_t>(unit)][t.axis == 'X' ? 0 : 1];
+    const int64_t from = known ? static_cast<int32_t>(*known) : 0;
+    if ((t.raw < 0) == (from < 0)) continue;
+    return refusal(
+        kInvalidValue,
+        fmt::format("'{}': absolute {} move of unit {} to {} from {}{} (1/1024 step) crosses 0: "
+                    "the CN0170's positions are unsigned ('positive only'), so the unit may run "
+                    "the long way round its 4,194,304-step register instead; move relative, or "
+                    "declare the position (XP=) first",
+                    instruction, t.axis, unit, t.raw, from,
+                    known ? "" : " (assumed: not polled yet)"));
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 Plan plan_request(Chain& chain, const Options& options, int unit, const Request& request) {
@@ -256,6 +279,11 @@ Plan plan_request(Chain& chain, const Options& options, int unit, const Request&
       default:
         moves_queue = true;
         only_mode_queries = false;
+        if (options.guard_position_sign)
+          if (auto refused = position_sign_refusal(chain, unit, instruction)) {
+            plan.refused = std::move(refused);
+            return plan;
+          }
         break;
     }
   }
@@ -368,9 +396,8 @@ Exchange::Exchange(Chain& chain, int unit, Plan plan, std::string what)
   was_answering_ = chain_.units[static_cast<std::size_t>(unit_)].answering;
 }
 
-void Exchange::owe_rest() {
-  for (std::size_t i = next_; i < plan_.expected.size(); ++i)
-    owes_.push_back(plan_.expected[i].key);
+void Exchange::owe_rest(std::size_t from) {
+  for (std::size_t i = from; i < plan_.expected.size(); ++i) owes_.push_back(plan_.expected[i].key);
 }
 
 bool Exchange::finish(Reply::Status status, std::string text, int64_t code) {
@@ -414,7 +441,7 @@ bool Exchange::on_line(std::string_view line) {
       return false;
     case MessageKind::unknown:
       ++chain_.stray_lines;
-      if (was_answering_ || next_ > 0) owe_rest();
+      if (was_answering_ || next_ > 0) owe_rest(next_);
       lost();
       return finish(Reply::Status::garbled,
                     fmt::format("unreadable line '{}' while waiting for unit {}'s reply to '{}'",
@@ -445,7 +472,7 @@ bool Exchange::on_line(std::string_view line) {
       if (!chain_.owed[static_cast<std::size_t>(unit_)].empty()) {
         // It may reject an earlier request whose replies are still owed, or this one.
         ++chain_.units[static_cast<std::size_t>(unit_)].counters.rejects;
-        owe_rest();
+        owe_rest(next_);
         lost();
         return finish(Reply::Status::garbled,
                       fmt::format("unit {} rejected \"{}\" while replies to an earlier request "
@@ -456,7 +483,7 @@ bool Exchange::on_line(std::string_view line) {
       chain_.units[static_cast<std::size_t>(unit_)].answering = true;
       // Replies to the rest of the request may still follow; they must not meet the next one.
       chain_.drain_before_next = true;
-      owe_rest();
+      owe_rest(next_);
       return finish(Reply::Status::device_error,
                     fmt::format("unit {} rejected \"{}\" (syntax error; the string was ignored)",
                                 unit_, m.text),
@@ -492,7 +519,9 @@ bool Exchange::on_line(std::string_view line) {
                               "a reset or a duplicate unit number); selection forgotten",
                               m.unit, what_, unit_));
   }
+  const auto debt_since = chain_.owed_since[static_cast<std::size_t>(unit_)];
   if (chain_.pay(unit_, m.key)) {
+    if (!paid_debt_since_) paid_debt_since_ = debt_since;
     // The late answer to an earlier request with the same key: ours comes after it.
     chain_.absorb(m);
     return false;
@@ -507,6 +536,8 @@ bool Exchange::on_line(std::string_view line) {
     if (m.kind == MessageKind::position) {
       saw_position_ = true;
       motion_ |= m.values[1];
+      chain_.positions[static_cast<std::size_t>(unit_)][m.key.front() == 'X' ? 0 : 1] =
+          static_cast<uint32_t>(m.values[0]);
     }
   }
   ++next_;
@@ -515,7 +546,11 @@ bool Exchange::on_line(std::string_view line) {
 }
 
 Reply Exchange::on_timeout(std::string_view partial) {
-  if (was_answering_ || next_ > 0 || !partial.empty()) owe_rest();
+  // A reply cut off inside the line: its rest comes as a fragment no key can match, never as
+  // the whole reply, so it is not owed (those after it still are).
+  const bool cut_reply =
+      next_ < plan_.expected.size() && starts_reply(partial, unit_, plan_.expected[next_]);
+  if (was_answering_ || next_ > 0 || !partial.empty()) owe_rest(cut_reply ? next_ + 1 : next_);
   lost();
   if (!partial.empty())
     finish(Reply::Status::garbled,

@@ -38,6 +38,10 @@ struct Options {
   bool reselect_for_commands = true;
   // Refuse motor and I/O traffic to a unit in Program Mode (M2), where it would be stored.
   bool guard_program_mode = true;
+  // Refuse an absolute move whose target and the axis's last polled position lie on different
+  // sides of 0 in the signed view: the manual's positions are "positive only" (§9 #20), so a
+  // unit comparing them unsigned would run the long way round instead of crossing 0.
+  bool guard_position_sign = true;
 };
 
 // Parses a model's options; unknown keys and bad values are errors.
@@ -110,6 +114,8 @@ struct Chain {
   std::array<std::deque<std::string>, kMaxUnit + 1> owed;
   std::array<std::chrono::steady_clock::time_point, kMaxUnit + 1> owed_since{};
   uint64_t late_replies = 0;  // skipped as late answers
+  // Last polled position register of each unit's X and Y (raw), unknown after a reset.
+  std::array<std::array<std::optional<uint32_t>, 2>, kMaxUnit + 1> positions{};
 
   void forget_selection() { selected.reset(); }
   void owe(int unit, const std::vector<std::string>& keys,
@@ -161,6 +167,12 @@ class Exchange {
   int unit() const { return unit_; }
   // Reply keys still on their way when the exchange gave up (for Chain::owe).
   const std::vector<std::string>& owes() const { return owes_; }
+  // Since when the debts this exchange paid had been open: a new debt it leaves keeps that age.
+  // An exchange that takes its own reply for a late one (the late one was lost or cut) would
+  // otherwise owe it again as new, every poll, and never reach the write-off.
+  std::optional<std::chrono::steady_clock::time_point> paid_debt_since() const {
+    return paid_debt_since_;
+  }
   const Reply& reply() const { return reply_; }
 
  private:
@@ -179,7 +191,8 @@ class Exchange {
   std::optional<int> reset_seen_;
   bool was_answering_ = false;
   std::vector<std::string> owes_;
-  void owe_rest();
+  std::optional<std::chrono::steady_clock::time_point> paid_debt_since_;
+  void owe_rest(std::size_t from);
   int confirmed_mode_ = 0;
   Reply reply_;
   bool finished_ = false;

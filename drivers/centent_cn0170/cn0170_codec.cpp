@@ -4,6 +4,7 @@
 
 #include <cctype>
 #include <charconv>
+#include <cmath>
 
 namespace fieldgate::cn0170 {
 
@@ -348,6 +349,29 @@ std::optional<Query> classify_query(std::string_view instruction) {
   return q;
 }
 
+bool starts_reply(std::string_view partial, int unit, const Query& query) {
+  std::string_view s = partial;
+  while (!s.empty() && (s.front() == '\r' || s.front() == '\n' || s.front() == ' '))
+    s.remove_prefix(1);
+  int sender = 0;
+  if (!s.empty() && s.front() >= '1' && s.front() <= '9') {
+    sender = s.front() - '0';
+    s.remove_prefix(1);
+    if (!s.empty() && (s.front() == ' ' || s.front() == ':')) s.remove_prefix(1);
+  }
+  if (sender != unit) return false;
+  const std::string u = upper(s);
+  if (query.kind == MessageKind::position) {
+    // X=…h, X+…h, X-…h (p.35) or XP=…h (p.2).
+    const char axis = query.key.front();
+    return u.size() >= 2 && u[0] == axis &&
+           (u[1] == '=' || u[1] == '+' || u[1] == '-' || (u.size() >= 3 && u.substr(1, 2) == "P="));
+  }
+  if (query.kind == MessageKind::mode) return u == "M";
+  return u.size() > query.key.size() && u.compare(0, query.key.size(), query.key) == 0 &&
+         u[query.key.size()] == '=';
+}
+
 int values_of_request(const std::vector<Query>& queries) {
   int n = 0;
   bool position = false;
@@ -433,6 +457,36 @@ std::optional<std::string> normalise_instruction(std::string_view instruction, s
     return s;
   }
   return signed_relative_distances(s);
+}
+
+std::vector<AbsoluteTarget> absolute_targets(std::string_view instruction) {
+  std::string s;
+  for (char c : upper(instruction))
+    if (c != ' ') s += c;
+  std::vector<AbsoluteTarget> out;
+  for (std::size_t i = 0; i + 2 < s.size(); ++i) {
+    const bool term_start = i == 0 || s[i - 1] == '&' || s[i - 1] == ',' || s[i - 1] == '^';
+    if (!term_start || (s[i] != 'X' && s[i] != 'Y') || s[i + 1] != '=') continue;
+    std::size_t end = i + 2;
+    while (end < s.size() && s[end] != '&' && s[end] != ',' && s[end] != '^') ++end;
+    const std::string_view n(s.data() + i + 2, end - (i + 2));
+    AbsoluteTarget t;
+    t.axis = s[i];
+    if (n.size() >= 2 && n.back() == 'H') {
+      uint64_t v = 0;
+      const auto digits = n.substr(0, n.size() - 1);
+      const auto [ptr, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), v, 16);
+      if (ec != std::errc() || ptr != digits.data() + digits.size() || v > 0xffffffffu) continue;
+      t.raw = static_cast<int32_t>(static_cast<uint32_t>(v));
+    } else {
+      double v = 0;
+      const auto [ptr, ec] = std::from_chars(n.data(), n.data() + n.size(), v);
+      if (ec != std::errc() || ptr != n.data() + n.size()) continue;
+      t.raw = std::llround(v * 1024);
+    }
+    out.push_back(t);
+  }
+  return out;
 }
 
 std::optional<std::string> normalise_request(std::string_view request, std::string& error) {

@@ -85,6 +85,10 @@ struct Query {
   bool hex = false;     // the reply is hex (the model's read format must say so)
 };
 
+// Whether an unterminated line is the beginning of `unit`'s reply to `query` ("2Y=0000", "X+0",
+// "1M"): prefix, then the reply's key and what follows a key. False when too short to tell.
+bool starts_reply(std::string_view partial, int unit, const Query& query);
+
 // "XP?" -> position/XP; nullopt for anything that is not a query of §5. Case-insensitive.
 std::optional<Query> classify_query(std::string_view instruction);
 
@@ -105,6 +109,15 @@ enum class InstructionKind {
   other,            // silent on success
 };
 InstructionKind classify_instruction(std::string_view instruction);
+
+// The absolute point-to-point terms of a move instruction: X=n / Y=n at its start or after '&',
+// ',' or '^' (linked, linear, circular forms), n in decimal steps or raw hex (…H). `raw` is the
+// target in 1/1024 step as the signed 32-bit view of the register (0FFFFF060H is -4000).
+struct AbsoluteTarget {
+  char axis = 'X';
+  int64_t raw = 0;
+};
+std::vector<AbsoluteTarget> absolute_targets(std::string_view instruction);
 
 // Rewrites that let a model pass numbers for the CN0170's symbolic forms (README "Command
 // rewrites"); nullopt with `error` set for a value the CN0170 does not accept:

@@ -363,11 +363,13 @@ asio::awaitable<Reply> CententFamily::read_replies(Link& link, cn0170::Exchange 
     } else {
       exchange.on_link_error(read.error.message());
     }
-    chain_.owe(exchange.unit(), exchange.owes(), std::chrono::steady_clock::now());
+    chain_.owe(exchange.unit(), exchange.owes(),
+               exchange.paid_debt_since().value_or(std::chrono::steady_clock::now()));
     co_return exchange.reply();
   }
   if (!exchange.finished()) exchange.on_too_many_lines();
-  chain_.owe(exchange.unit(), exchange.owes(), std::chrono::steady_clock::now());
+  chain_.owe(exchange.unit(), exchange.owes(),
+             exchange.paid_debt_since().value_or(std::chrono::steady_clock::now()));
   co_return exchange.reply();
 }
 

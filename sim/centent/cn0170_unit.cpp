@@ -519,8 +519,14 @@ bool Cn0170Unit::motion(const std::string& s, SimTime now) {
     if (t.op == '+') return here + std::round(amount);
     if (t.op == '-') return here - std::round(amount);
     // Absolute positions are unsigned registers: CW if the target is above the position.
-    const auto delta = static_cast<std::int64_t>(std::llround(amount)) -
-                       static_cast<std::int64_t>(position_register(t.axis, at));
+    // Read as signed (--absolute-compare signed), a move crosses 0 instead.
+    const auto target_raw = static_cast<std::uint32_t>(std::llround(amount));
+    const auto from_raw = position_register(t.axis, at);
+    const auto delta =
+        settings_.signed_absolute
+            ? static_cast<std::int64_t>(static_cast<std::int32_t>(target_raw)) -
+                  static_cast<std::int64_t>(static_cast<std::int32_t>(from_raw))
+            : static_cast<std::int64_t>(std::llround(amount)) - static_cast<std::int64_t>(from_raw);
     return here + static_cast<double>(delta);
   };
   const auto pair = [&](std::string_view text,

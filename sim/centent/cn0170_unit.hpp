@@ -16,7 +16,10 @@ namespace fieldgate::sim::centent {
 
 // Behaviour choices where the manual is ambiguous (README "Interpretations").
 struct UnitSettings {
-  bool position_reply_xp = false;         // XP=…h (p.2) instead of X=…h (p.35)
+  bool position_reply_xp = false;  // XP=…h (p.2) instead of X=…h (p.35)
+  // An absolute target compared with the position as signed 32-bit numbers, so a move crosses 0
+  // instead of running round the register ("positive only", §9 #20: either reading).
+  bool signed_absolute = false;
   bool accept_backslash_overflow = true;  // M1\- / M1\+ (p.5 headings)
   bool accept_plain_overflow = true;      // M1- / M1+ (p.6 heading, §9 #11)
   std::size_t staging = 8;                // per-unit motion staging (≥ 8 per motor, p.7)

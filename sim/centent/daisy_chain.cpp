@@ -212,6 +212,17 @@ DeviceReply DaisyChain::handle(std::string_view line, SimTime now) {
   }
   if (!delivered && !content.empty()) ++stats_.passed_through;
   advance(now);
+  if (drop_last_lines_ > 0) {
+    // A line lost on the wire: the last reply of a request that has more than one.
+    const std::string& t = options_.terminator;
+    const auto before_last = replies.size() >= 2 * t.size()
+                                 ? replies.rfind(t, replies.size() - t.size() - 1)
+                                 : std::string::npos;
+    if (before_last != std::string::npos) {
+      replies.resize(before_last + t.size());
+      --drop_last_lines_;
+    }
+  }
   DeviceReply reply;
   reply.bytes = outbox_ + replies;
   outbox_.clear();
@@ -245,6 +256,7 @@ std::string DaisyChain::control_help() {
          "number #P N      give the P-th unit on the chain number N (duplicates allowed)\n"
          "position N       positions, motion and mode of unit N\n"
          "stats [N]        line, selection and instruction counters (chain, or unit N)\n"
+         "drop-last-line N the next N replies of two or more lines lose their last line\n"
          "chain            unit numbers in chain order, with their state\n";
 }
 
@@ -310,6 +322,13 @@ std::optional<std::string> DaisyChain::control(std::string_view verb,
     if (!n || !d) return "error: usage: number #P N";
     n->unit->set_number(*d);
     return "ok number " + args[0] + " " + args[1];
+  }
+  if (verb == "drop-last-line") {
+    if (auto e = need(1, "drop-last-line N")) return e;
+    const auto v = parse_control_integer(args[0]);
+    if (!v || *v < 0) return "error: usage: drop-last-line N";
+    drop_last_lines_ = static_cast<int>(*v);
+    return "ok drop-last-line " + args[0];
   }
   if (verb == "position") {
     if (auto e = need(1, "position N|#P")) return e;

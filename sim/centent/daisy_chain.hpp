@@ -79,7 +79,8 @@ class DaisyChain {
 
   ChainOptions options_;
   std::vector<Node> nodes_;
-  std::string outbox_;  // unsolicited lines, sent ahead of the next reply
+  std::string outbox_;       // unsolicited lines, sent ahead of the next reply
+  int drop_last_lines_ = 0;  // replies of two or more lines still to lose their last line
   Stats stats_;
 };
 

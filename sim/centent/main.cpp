@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
   bool kill_upstream = false;
   bool prefix_unit_messages = false;
   std::string position_reply = "x";
+  std::string absolute_compare = "unsigned";
   std::string terminator = "cr";
   std::string overflow_mnemonic = "both";
   std::size_t queue = 20;
@@ -79,6 +80,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"none", "space", "colon"}));
   app.add_option("--position-reply", position_reply, "x: X=…h (p.35); xp: XP=…h (p.2)")
       ->check(CLI::IsMember({"x", "xp"}));
+  app.add_option("--absolute-compare", absolute_compare,
+                 "how an absolute target is compared with the position (\"positive only\", "
+                 "§9 #20): unsigned (a move to the other side of 0 runs the long way round the "
+                 "register) or signed (it crosses 0)")
+      ->check(CLI::IsMember({"unsigned", "signed"}));
   app.add_option("--terminator", terminator, "reply terminator")
       ->check(CLI::IsMember({"cr", "crlf", "lf"}));
   app.add_option("--overflow-mnemonic", overflow_mnemonic,
@@ -104,6 +110,7 @@ int main(int argc, char** argv) {
     options.kill_acts_upstream = kill_upstream;
     options.prefix_unit_messages = prefix_unit_messages;
     options.unit.position_reply_xp = position_reply == "xp";
+    options.unit.signed_absolute = absolute_compare == "signed";
     options.unit.accept_backslash_overflow = overflow_mnemonic != "plain";
     options.unit.accept_plain_overflow = overflow_mnemonic != "backslash";
     options.unit.immediate_queue = queue;

@@ -34,6 +34,10 @@ TEST(TraceLine, CandumpLikeFieldsWithEscapedBytesLast) {
   EXPECT_EQ(format_trace_line("copley-rs232", at_us(5), "axis_3", TraceDirection::rx, "unreachable",
                               printable_bytes("e 32\r")),
             "trace copley-rs232 (0.000005) axis_3 rx unreachable 'e 32\\r'");
+  // A two-word outcome stays one field (found on the demo: "garbled reply" broke the split).
+  EXPECT_EQ(format_trace_line("chain", at_us(5), "table_1", TraceDirection::tx, "device error",
+                              printable_bytes("X\r")),
+            "trace chain (0.000005) table_1 tx device_error 'X\\r'");
   // Outside a transaction neither node nor outcome is known; control bytes are escaped.
   EXPECT_EQ(format_trace_line("ims", at_us(1000000), "", TraceDirection::tx, "",
                               printable_bytes(std::string("\x1b\x03 x", 4))),

@@ -70,6 +70,43 @@ TEST_F(ChainTest, CommandsReselectAndAreConfirmed) {
   EXPECT_TRUE(q.expected.empty());
 }
 
+// Positions are "positive only" (§9 #20): a unit that compares an absolute target with its
+// position unsigned runs the long way round its 2^32 register (35 minutes at 2000 steps/s) to
+// reach a target on the other side of 0. Such moves are refused before anything is sent.
+TEST_F(ChainTest, AbsoluteMoveAcrossZeroIsRefused) {
+  const auto refused = [&](const char* c) {
+    const Plan p = plan_request(chain, options, 1, command(c));
+    return p.refused && p.refused->device_code == kInvalidValue;
+  };
+  // Position not polled yet: the register is 0 after power-up.
+  EXPECT_TRUE(refused("XV=200,2000;X=0FFFFF060H"));  // -4000 as the model renders it
+  EXPECT_TRUE(refused("X=-5"));
+  EXPECT_TRUE(refused("X=0BB8H,Y=0FFFFFC00H"));  // linear: the Y term
+  EXPECT_TRUE(refused("X=0BB8H & Y=-1"));
+  EXPECT_FALSE(refused("XV=200,2000;X=0BB8H"));
+  EXPECT_FALSE(refused("X-0FA0H"));        // relative moves are the way below 0
+  EXPECT_FALSE(refused("XP=0FFFFF060H"));  // declaring a position moves nothing
+  EXPECT_FALSE(refused("Y/X=0C0000000H"));
+  const auto text = plan_request(chain, options, 1, command("X=0FFFFF060H")).refused->text;
+  EXPECT_NE(text.find("to -4000 from 0"), std::string::npos) << text;
+  EXPECT_NE(text.find("move relative"), std::string::npos) << text;
+
+  // Below 0 now (a relative move went there): targets above 0 cross it, targets below do not.
+  ASSERT_TRUE(exchange(chain, options, 1, read("XP?;YP?"), {"1X=FFFFF060h\r", "1Y=00000400h\r"}));
+  EXPECT_TRUE(refused("X=0BB8H"));
+  EXPECT_TRUE(refused("X=0"));
+  EXPECT_FALSE(refused("X=0FFFFF000H"));
+  EXPECT_FALSE(refused("Y=0BB8H"));  // Y is still above 0
+  EXPECT_FALSE(refused("X+0FA0H"));
+  // Its reset clears the position register: above 0 again.
+  Exchange ex(chain, 1, plan_request(chain, options, 1, read("XP?")), "XP?");
+  (void)ex.on_line("U1\r");
+  EXPECT_FALSE(refused("X=0BB8H"));
+
+  options.guard_position_sign = false;
+  EXPECT_FALSE(refused("X=0FFFFF060H"));
+}
+
 TEST_F(ChainTest, ReadDemultiplexedByPrefixWithMotionWord) {
   const auto r = exchange(chain, options, 2, read("XP?;YP?"), {"2X=00000400h\r", "2Y-00000800h\r"});
   ASSERT_TRUE(r);
@@ -232,6 +269,64 @@ TEST_F(ChainTest, TimeoutForgetsTheSelection) {
   EXPECT_EQ(half.on_timeout("").status, Reply::Status::garbled);
   Exchange cut(chain, 1, plan, "XP?;YP?");
   EXPECT_EQ(cut.on_timeout("1X=000").text, "incomplete reply '1X=000' from unit 1 to 'XP?;YP?'");
+}
+
+// Seen on the demo under load: unit 2's Y reply was cut ('2Y=0000000', rest '0h' drained as a
+// fragment). It was owed anyway, so every later poll took its own Y reply for the late one,
+// waited for another, timed out and owed it again: garbled polls for good, the motion word
+// never read, a move busy until its timeout.
+TEST_F(ChainTest, ReplyCutInsideTheLineIsNotOwed) {
+  const auto t0 = std::chrono::steady_clock::now();
+  Plan plan = plan_request(chain, options, 2, read("XP?;YP?"));
+  Exchange cut(chain, 2, plan, "XP?;YP?");
+  EXPECT_FALSE(cut.on_line("2X=00000400h\r"));
+  EXPECT_EQ(cut.on_timeout("2Y=0000000").status, Reply::Status::garbled);
+  chain.owe(2, cut.owes(), t0);
+  EXPECT_TRUE(chain.owed[2].empty());
+  chain.absorb(parse_message("0h\r"));  // the rest, drained by the resync
+  const auto next =
+      exchange(chain, options, 2, read("XP?;YP?"), {"2X=00000400h\r", "2Y=00000800h\r"});
+  ASSERT_TRUE(next) << "the poll after the cut reply took its own Y reply for a late one";
+  EXPECT_EQ(next->status, Reply::Status::ok);
+  // Cut inside the first reply: the second is still on its way whole, and owed.
+  Exchange early(chain, 2, plan_request(chain, options, 2, read("XP?;YP?")), "XP?;YP?");
+  (void)early.on_timeout("2X=00");
+  EXPECT_EQ(early.owes(), std::vector<std::string>{"YP"});
+  EXPECT_TRUE(starts_reply("1XP=00", 1, *classify_query("XP?")));
+  EXPECT_TRUE(starts_reply("1M", 1, *classify_query("M?")));
+  EXPECT_TRUE(starts_reply("A\\X=8", 0, *classify_query("A\\X?")));
+  EXPECT_FALSE(starts_reply("1", 1, *classify_query("XP?")));  // too short to tell
+  EXPECT_FALSE(starts_reply("2Y=00", 1, *classify_query("YP?")));
+  EXPECT_FALSE(starts_reply("1P1=0", 1, *classify_query("P?")));
+}
+
+// A reply that never comes (lost, or cut where the key cannot be told) is owed; the next poll
+// takes its own reply for the late one and owes it again. The debt keeps its first age through
+// that, so it is written off after the window, not renewed by every poll.
+TEST_F(ChainTest, DebtRenewedByEachPollIsStillWrittenOff) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto window = std::chrono::milliseconds(250);
+  Plan plan = plan_request(chain, options, 2, read("XP?;YP?"));
+  Exchange lost(chain, 2, plan, "XP?;YP?");
+  EXPECT_FALSE(lost.on_line("2X=00000400h\r"));
+  (void)lost.on_timeout("");
+  chain.owe(2, lost.owes(), t0);
+  ASSERT_EQ(chain.owed[2].size(), 1u);
+  int garbled = 0;
+  for (int poll = 1; poll <= 20; ++poll) {
+    const auto now = t0 + poll * std::chrono::milliseconds(100);
+    chain.expire_owed(now, window);
+    Exchange ex(chain, 2, plan_request(chain, options, 2, read("XP?;YP?")), "XP?;YP?");
+    (void)ex.on_line("2X=00000400h\r");
+    if (ex.on_line("2Y=00000800h\r")) {
+      EXPECT_EQ(ex.reply().status, Reply::Status::ok);
+      break;
+    }
+    ++garbled;
+    (void)ex.on_timeout("");
+    chain.owe(2, ex.owes(), ex.paid_debt_since().value_or(now));
+  }
+  EXPECT_LE(garbled, 2) << "polls kept paying and renewing the same debt";
 }
 
 TEST_F(ChainTest, KillGoesToTheFirstUnitOfTheChain) {

@@ -18,7 +18,7 @@ constexpr int kXPosition = 0, kMotion = 4, kResets = 14, kOverflowWarnings = 16,
               kChainPosition = 23;                                      // input registers
 constexpr int kXProfile = 2, kOut1 = 4;                                 // holding registers
 constexpr int kCommand = 100, kActionStatus = 101, kActionError = 102;  // action block
-constexpr int kXTarget = 110, kXDistance = 114, kXResolution = 125;     // setpoints
+constexpr int kXTarget = 110, kXDistance = 114, kXSpeed = 118, kXResolution = 125;  // setpoints
 constexpr int kDiagLastGoodAge = 1001, kDiagNodeState = 1014;
 constexpr int kMoveXAbsolute = 1, kMoveXRelative = 2, kHomeX = 7, kQuit = 10, kKill = 12,
               kJogXCw = 15;
@@ -402,6 +402,156 @@ TEST_P(CententLateEndToEnd, NoWrongValueAndNoWrongConfirmation) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Bauds, CententLateEndToEnd, ::testing::Values("9600", "115200"));
+
+// README "Try it" writes a negative value to holding 110 with `-- -4000`; on unit 22 that was
+// an absolute move across 0. The CN0170's positions are "positive only" (§9 #20): a unit that
+// compares them unsigned (the simulator's default) ran the long way round the register, busy
+// for 35 minutes, and every later move queued behind it. Such a move is refused (0x04, code 4)
+// whichever reading the unit has; relative moves go below 0, absolute ones stay on their side.
+class CententPositionSign : public CententEndToEnd,
+                            public ::testing::WithParamInterface<std::string> {};
+
+TEST_P(CententPositionSign, AbsoluteMoveAcrossZeroIsRefusedRelativeGoesBelow) {
+  start("0,1,2", {0, 1, 2}, ", poll: {fast: 100ms, slow: 1s}", {"--absolute-compare", GetParam()});
+  wait_online({1, 2, 3});
+  const int id = 2;  // unit 1, Modbus unit ID 2 here (22 in the demo)
+  const auto run = [&](int setpoint, int32_t value, int command) {
+    EXPECT_TRUE(client_->write_i32(id, setpoint, value).ok());
+    const int exception = client_->write_single(id, kCommand, command).exception;
+    EXPECT_TRUE(wait_until([&] { return action_status(id) != 1; }, 30s))
+        << "action stuck busy, x_position " << client_->read_input_i32(id, kXPosition).value_or(-1);
+    return exception;
+  };
+  EXPECT_EQ(run(kXTarget, -4000, kMoveXAbsolute), kDeviceFailure);
+  EXPECT_EQ(action_status(id), 3);
+  EXPECT_EQ(client_->read_holding(id, kActionError, 1).values, std::vector<uint16_t>{4});
+  EXPECT_NE(plant_->control("position 1").find("x=0 "), std::string::npos)
+      << plant_->control("position 1");
+  // The second move of the report: it runs and ends.
+  EXPECT_EQ(run(kXTarget, 3000, kMoveXAbsolute), 0);
+  EXPECT_EQ(action_status(id), 2);
+  EXPECT_EQ(client_->read_input_i32(id, kXPosition), 3000);
+  // Below 0 by a relative move; absolute moves on that side run, across 0 they are refused.
+  EXPECT_EQ(run(kXDistance, -7000, kMoveXRelative), 0);
+  EXPECT_EQ(client_->read_input_i32(id, kXPosition), -4000);
+  EXPECT_EQ(run(kXTarget, -1000, kMoveXAbsolute), 0);
+  EXPECT_EQ(action_status(id), 2);
+  EXPECT_EQ(client_->read_input_i32(id, kXPosition), -1000);
+  EXPECT_EQ(run(kXTarget, 3000, kMoveXAbsolute), kDeviceFailure);
+  EXPECT_EQ(run(kXDistance, 4000, kMoveXRelative), 0);
+  EXPECT_EQ(client_->read_input_i32(id, kXPosition), 3000);
+}
+
+INSTANTIATE_TEST_SUITE_P(Readings, CententPositionSign, ::testing::Values("unsigned", "signed"));
+
+// Seen on the demo under load: one poll whose Y reply was cut or lost left it owed, and every
+// later poll took its own Y reply for the late one and was garbled in turn, so the motion word
+// was never read again and the move stayed busy. One poll that loses its Y reply costs that poll
+// (and at most the write-off window), and the move ends done where it should.
+TEST_F(CententEndToEnd, LostReplyLinesDuringAMoveDoNotKeepItBusy) {
+  start("1", {1}, ", poll: {fast: 100ms, slow: 3600s}");
+  wait_online({2});
+  const int id = 2;
+  ASSERT_TRUE(client_->write_single(id, kXSpeed, 500).ok());  // 3000 steps: 6 s
+  ASSERT_TRUE(client_->write_i32(id, kXTarget, 3000 * 1024).ok());
+  ASSERT_TRUE(client_->write_single(id, kCommand, kMoveXAbsolute).ok());
+  for (int i = 0; i < 3; ++i) {
+    std::this_thread::sleep_for(1s);
+    plant_->control("drop-last-line 1");  // the next poll gets "1X+…h\r" alone
+  }
+  ASSERT_TRUE(wait_until([&] { return action_status(id) != 1; }, 60s));
+  EXPECT_EQ(action_status(id), 2) << "error "
+                                  << client_->read_holding(id, kActionError, 1).values.at(0);
+  EXPECT_EQ(client_->read_input_i32(id, kXPosition), 3000 * 1024);
+  EXPECT_EQ(plant_->daemon().log().find("its end cannot be seen"), std::string::npos);
+}
+
+// Garbled replies leave a node online, so polls that keep coming back garbled never take it
+// offline; an action watching them stayed busy until its timeout (30 minutes for a move). It
+// fails once its condition point has gone unread for twenty poll periods (at least 15 s).
+TEST_F(CententEndToEnd, PersistentGarbledPollsFailAWatchedMoveInBoundedTime) {
+  start("0,1", {0, 1});
+  wait_online({1, 2});
+  const int id = 2;
+  ASSERT_TRUE(client_->write_single(id, kXSpeed, 10).ok());  // 3000 steps: 300 s
+  ASSERT_TRUE(client_->write_i32(id, kXTarget, 3000 * 1024).ok());
+  ASSERT_TRUE(client_->write_single(id, kCommand, kMoveXAbsolute).ok());
+  ASSERT_TRUE(wait_until([&] { return (motion(id) >> kXMovingBit & 1) == 1; }, 5s));
+  plant_->control("garbage 1000000");
+  ASSERT_TRUE(wait_until([&] { return action_status(id) != 1; }, 60s))
+      << "still busy while every poll is garbled";
+  EXPECT_EQ(action_status(id), 3);
+  const uint16_t error = client_->read_holding(id, kActionError, 1).values.at(0);
+  EXPECT_TRUE(error == 0xfffb || error == 0xfffd) << error;
+  EXPECT_NE(plant_->daemon().log().find("its end cannot be seen"), std::string::npos);
+}
+
+// Repeated moves of one axis, as in README "Try it": out, back to 0, again to 0 (no distance),
+// a relative move of 0, then out again. A move that starts and ends where the axis is never
+// shows "moving"; each action must still end (done), and the next one must run.
+class CententRepeatedMoves : public CententEndToEnd,
+                             public ::testing::WithParamInterface<std::string> {};
+
+TEST_P(CententRepeatedMoves, EveryMoveEndsIncludingZeroDistance) {
+  const std::string baud = GetParam();
+  std::vector<std::string> extra;
+  if (baud == "9600") extra = {"--emulate-wire", "--hop-delay-us", "500"};  // as scripts/demo
+  start("0,1,2", {0, 1, 2}, "", std::move(extra), baud);
+  wait_online({1, 2, 3});
+  const int id = 2;  // unit 1
+  struct Move {
+    int command;
+    int setpoint;
+    int32_t value;
+    int32_t expected_position;
+  };
+  const std::vector<Move> moves{{kMoveXAbsolute, kXTarget, 3000, 3000},
+                                {kMoveXAbsolute, kXTarget, 0, 0},
+                                {kMoveXAbsolute, kXTarget, 0, 0},
+                                {kMoveXRelative, kXDistance, 0, 0},
+                                {kMoveXAbsolute, kXTarget, 3000, 3000},
+                                {kMoveXAbsolute, kXTarget, 3000, 3000},
+                                {kMoveXAbsolute, kXTarget, 0, 0},
+                                {kMoveXAbsolute, kXTarget, 3000 * 1024, 3000 * 1024},
+                                {kMoveXAbsolute, kXTarget, 3000 * 1024, 3000 * 1024},
+                                {kMoveXAbsolute, kXTarget, 0, 0}};
+  for (std::size_t i = 0; i < moves.size(); ++i) {
+    const Move& m = moves[i];
+    SCOPED_TRACE("move " + std::to_string(i) + " to/by " + std::to_string(m.value));
+    ASSERT_TRUE(client_->write_i32(id, m.setpoint, m.value).ok());
+    ASSERT_TRUE(client_->write_single(id, kCommand, m.command).ok());
+    ASSERT_TRUE(wait_until([&] { return action_status(id) != 1; }, 30s))
+        << "action stuck busy, x_position " << client_->read_input_i32(id, kXPosition).value_or(-1);
+    ASSERT_EQ(action_status(id), 2)
+        << "error " << client_->read_holding(id, kActionError, 1).values.at(0);
+    EXPECT_EQ(client_->read_input_i32(id, kXPosition), m.expected_position);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Bauds, CententRepeatedMoves, ::testing::Values("9600", "115200"));
+
+// The same sequence while the units answer late now and then (a loaded machine): a move may
+// fail (no reply, error), but no action may stay busy.
+TEST_F(CententEndToEnd, RepeatedMovesWithLateRepliesNeverStayBusy) {
+  start("0,1,2", {0, 1, 2}, ", poll: {fast: 200ms, slow: 2s}",
+        {"--baud", "9600", "--emulate-wire", "--hop-delay-us", "500"}, "9600");
+  wait_online({1, 2, 3});
+  const int id = 2;
+  std::mt19937 random(7);
+  const int delays[] = {0, 0, 20, 40, 60, 90, 150};
+  const int32_t targets[] = {3000, 0, 0, 3000, 3000, 0, 3000};
+  for (int round = 0; round < 4; ++round)
+    for (std::size_t i = 0; i < std::size(targets); ++i) {
+      SCOPED_TRACE("round " + std::to_string(round) + " move " + std::to_string(i));
+      plant_->sim().send_line("delay " + std::to_string(delays[random() % std::size(delays)]));
+      if (!client_->write_i32(id, kXTarget, targets[i]).ok()) continue;
+      if (!client_->write_single(id, kCommand, kMoveXAbsolute).ok()) continue;
+      ASSERT_TRUE(wait_until([&] { return action_status(id) != 1; }, 30s))
+          << "action stuck busy, x_position "
+          << client_->read_input_i32(id, kXPosition).value_or(-1);
+    }
+  plant_->sim().send_line("delay 0");
+}
 
 }  // namespace
 }  // namespace fieldgate::test
