@@ -20,7 +20,14 @@ std::string_view to_string(Reply::Status status) {
   return "?";
 }
 
-void ProtocolFamily::validate_model(const Model&, Diagnostics&) const {}
+const ModelOptionSpecs& ProtocolFamily::model_options() const {
+  static const ModelOptionSpecs none;
+  return none;
+}
+
+void ProtocolFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
+  check_model_options(model, name(), model_options(), diagnostics);
+}
 
 void ProtocolFamily::configure_node(const NodeAddress&, const Model&) {}
 

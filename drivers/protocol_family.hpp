@@ -13,6 +13,7 @@
 #include "drivers/link.hpp"
 #include "mapping/diagnostics.hpp"
 #include "mapping/model.hpp"
+#include "mapping/model_options.hpp"
 
 namespace fieldgate {
 
@@ -59,7 +60,14 @@ class ProtocolFamily {
   virtual std::string_view name() const = 0;
   virtual std::optional<NodeAddress> parse_address(std::string_view text,
                                                    std::string& error) const = 0;
-  // Family-specific checks of a model once its family is known.
+  // The options a model of this family may set (`options:`), with types, defaults and ranges;
+  // validate_model checks a model's options against them with check_model_options.
+  virtual const ModelOptionSpecs& model_options() const;
+  // True where the options set the whole bus's behaviour (a chain's framing): every node of a
+  // bus must then run models whose options agree, which the configuration loader checks.
+  virtual bool model_options_apply_to_bus() const { return false; }
+  // Family-specific checks of a model once its family is known. The default checks the model's
+  // options against model_options().
   virtual void validate_model(const Model& model, Diagnostics& diagnostics) const;
   // Called for every configured node when its bus is built, with the node's model: model options
   // that change the exchange with that node (a pinned reply layout) reach the family here.

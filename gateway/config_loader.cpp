@@ -613,6 +613,15 @@ class ConfigParser {
         }
         if (bus.family && n.model && n.model->family == bus.protocol && !n.address.text.empty())
           bus.family->configure_node(n.address, *n.model);
+        if (bus.family && n.model && bus.family->model_options_apply_to_bus())
+          for (const auto& other : bus.nodes)
+            if (other.model && other.model != n.model && other.model->options != n.model->options) {
+              r_.error(*m, fmt::format("{}: model {}'s options differ from those of model {} (node "
+                                       "{}), but {} options apply to the whole bus",
+                                       where, n.model->name, other.model->name, other.name,
+                                       bus.protocol));
+              break;
+            }
       }
     }
     if (auto u = r_.require(node, "unit_id", where)) {

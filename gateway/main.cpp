@@ -1,7 +1,9 @@
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <iostream>
 
+#include "drivers/protocol_family.hpp"
 #include "gateway/config_loader.hpp"
 #include "gateway/daemon.hpp"
 #include "gateway/log.hpp"
@@ -43,6 +45,26 @@ std::vector<ListenerMap> listener_maps(const LoadedConfig& config) {
   return maps;
 }
 
+int run_models(const std::string& family) {
+  if (family.empty()) {
+    std::cout << "Families (fieldgate models --options FAMILY describes a family's model "
+                 "options):\n";
+    for (const auto& name : family_names())
+      std::cout << fmt::format("  {} ({} model option(s))\n", name,
+                               make_family(name)->model_options().size());
+    return 0;
+  }
+  const auto names = family_names();
+  if (std::find(names.begin(), names.end(), family) == names.end()) {
+    std::string known;
+    for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
+    std::cerr << fmt::format("fieldgate models: unknown family '{}' (known: {})\n", family, known);
+    return 2;
+  }
+  std::cout << describe_model_options(family, make_family(family)->model_options());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -63,7 +85,11 @@ int main(int argc, char** argv) {
   bool map_profile = false;
   map->add_flag("--profile", map_profile,
                 "write the axis profile page (with a config: and its profile units)");
+  auto* models = app.add_subcommand("models", "list the protocol families and their model options");
+  std::string models_family;
+  models->add_option("--options", models_family, "describe this family's model options");
   CLI11_PARSE(app, argc, argv);
+  if (*models) return run_models(models_family);
   if (*map && map_profile) {
     std::cout << write_axis_profile_document();
     if (map_path.empty()) return 0;

@@ -34,8 +34,10 @@ class ModelParser {
       if (auto s = r_.string(root["description"], "description")) model->description = *s;
     if (const auto options = root["options"]; options && r_.expect_map(options, "options")) {
       for (const auto& e : options)
-        if (auto s = r_.string(e.second, "option " + e.first.Scalar()))
+        if (auto s = r_.string(e.second, "option " + e.first.Scalar())) {
           model->options[e.first.Scalar()] = *s;
+          model->option_marks[e.first.Scalar()] = r_.mark(e.first);
+        }
     }
     parse_poll_classes(root["poll_classes"], *model);
     parse_points(root["points"], *model);

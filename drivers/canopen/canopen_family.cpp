@@ -17,10 +17,7 @@ std::optional<NodeAddress> CanopenFamily::parse_address(std::string_view text,
 }
 
 void CanopenFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
-  for (const auto& [key, value] : model.options)
-    diagnostics.error(model.mark, fmt::format("model {}: option '{}': the canopen family has no "
-                                              "options",
-                                              model.name, key));
+  check_model_options(model, name(), model_options(), diagnostics);
   const auto zero = [](std::string_view) { return int64_t{0}; };
   for (const auto& p : model.points) {
     const std::string where = fmt::format("model {}: point {}", model.name, p.name);

@@ -8,78 +8,65 @@ namespace fieldgate::cn0170 {
 
 namespace {
 
-std::optional<bool> boolean(const std::string& v) {
-  if (v == "true" || v == "yes" || v == "on") return true;
-  if (v == "false" || v == "no" || v == "off") return false;
-  return std::nullopt;
-}
-
 std::string unit_name(int unit) {
   return fmt::format("unit {}", unit);
 }
 
 }  // namespace
 
-Options parse_options(const std::map<std::string, std::string>& options,
-                      std::vector<std::string>& errors) {
-  Options o;
-  const auto flag = [&](const std::string& key, const std::string& value, bool& out) {
-    if (auto b = boolean(value))
-      out = *b;
-    else
-      errors.push_back(fmt::format("option {}: expected true or false, found '{}'", key, value));
+const ModelOptionSpecs& option_specs() {
+  static const ModelOptionSpecs specs{
+      flag_option("confirm_commands", "true",
+                  "follow every command with M? and wait for the mode reply (the CN0170 "
+                  "acknowledges nothing)"),
+      choice_option("overflow_mode", "warning", {"warning", "rts", "leave"},
+                    "what a unit in Immediate Mode does when its queue fills: send a warning, "
+                    "drop RTS, or leave the unit's setting alone"),
+      choice_option("overflow_command", "", {"M1\\-", "M1-", "M1\\+", "M1+"},
+                    "the overflow command to send; none: M1\\- (warning) or M1\\+ (rts), "
+                    "retried without the backslash if the unit rejects it"),
+      flag_option("leading_cr", "true",
+                  "start every transmission with a CR, so a unit that reset auto-bauds on it"),
+      flag_option("autobaud_cr", "true", "send a lone CR when the link opens"),
+      flag_option("discover_chain", "true", "ask .U? when the link opens"),
+      choice_option("kill_target", "first_unit", {"first_unit", "every_unit"},
+                    "where a kill (K) is sent: the first unit (it relays it down the chain) or "
+                    "every unit"),
+      flag_option("reselect_for_commands", "true", "select the unit again before every command"),
+      flag_option("guard_program_mode", "true",
+                  "refuse motor and I/O traffic to a unit in Program Mode (M2)"),
+      flag_option("guard_position_sign", "true",
+                  "refuse an absolute move whose target and the axis's last read position lie "
+                  "on opposite sides of 0 (a unit comparing positions unsigned would run the "
+                  "long way round its 32-bit register)"),
   };
-  for (const auto& [key, value] : options) {
-    if (key == "confirm_commands") {
-      flag(key, value, o.confirm_commands);
-    } else if (key == "leading_cr") {
-      flag(key, value, o.leading_cr);
-    } else if (key == "autobaud_cr") {
-      flag(key, value, o.autobaud_cr);
-    } else if (key == "discover_chain") {
-      flag(key, value, o.discover_chain);
-    } else if (key == "reselect_for_commands") {
-      flag(key, value, o.reselect_for_commands);
-    } else if (key == "guard_program_mode") {
-      flag(key, value, o.guard_program_mode);
-    } else if (key == "guard_position_sign") {
-      flag(key, value, o.guard_position_sign);
-    } else if (key == "overflow_mode") {
-      if (value == "warning")
-        o.overflow = Options::Overflow::warning;
-      else if (value == "rts")
-        o.overflow = Options::Overflow::rts;
-      else if (value == "leave")
-        o.overflow = Options::Overflow::leave;
-      else
-        errors.push_back(
-            fmt::format("option overflow_mode: expected warning, rts or leave, found '{}'", value));
-    } else if (key == "overflow_command") {
-      if (value != "M1\\-" && value != "M1-" && value != "M1\\+" && value != "M1+")
-        errors.push_back(fmt::format(
-            "option overflow_command: expected M1\\-, M1-, M1\\+ or M1+, found '{}'", value));
-      o.overflow_command = value;
-    } else if (key == "kill_target") {
-      if (value == "first_unit")
-        o.kill_target = Options::KillTarget::first_unit;
-      else if (value == "every_unit")
-        o.kill_target = Options::KillTarget::every_unit;
-      else
-        errors.push_back(fmt::format(
-            "option kill_target: expected first_unit or every_unit, found '{}'", value));
-    } else {
-      errors.push_back(fmt::format(
-          "unknown option '{}' (known: confirm_commands, overflow_mode, overflow_command, "
-          "leading_cr, autobaud_cr, discover_chain, kill_target, reselect_for_commands, "
-          "guard_program_mode, guard_position_sign)",
-          key));
-    }
-  }
+  return specs;
+}
+
+Options parse_options(const Model& model, Diagnostics& diagnostics) {
+  const auto v = check_model_options(model, "centent-cn0170", option_specs(), diagnostics);
+  Options o;
+  o.confirm_commands = v.flag("confirm_commands");
+  o.leading_cr = v.flag("leading_cr");
+  o.autobaud_cr = v.flag("autobaud_cr");
+  o.discover_chain = v.flag("discover_chain");
+  o.reselect_for_commands = v.flag("reselect_for_commands");
+  o.guard_program_mode = v.flag("guard_program_mode");
+  o.guard_position_sign = v.flag("guard_position_sign");
+  const std::string& mode = v.text("overflow_mode");
+  o.overflow = mode == "rts"     ? Options::Overflow::rts
+               : mode == "leave" ? Options::Overflow::leave
+                                 : Options::Overflow::warning;
+  o.kill_target = v.text("kill_target") == "every_unit" ? Options::KillTarget::every_unit
+                                                        : Options::KillTarget::first_unit;
+  o.overflow_command = v.text("overflow_command");
   if (!o.overflow_command.empty() && o.overflow != Options::Overflow::leave) {
     const bool rts = o.overflow_command.find('+') != std::string::npos;
     if (rts != (o.overflow == Options::Overflow::rts))
-      errors.push_back(fmt::format("option overflow_command '{}' contradicts overflow_mode",
-                                   o.overflow_command));
+      diagnostics.error(v.mark("overflow_command"),
+                        fmt::format("model {}: option overflow_command '{}' contradicts "
+                                    "overflow_mode {}",
+                                    model.name, o.overflow_command, mode));
   }
   return o;
 }

@@ -44,9 +44,10 @@ struct Options {
   bool guard_position_sign = true;
 };
 
-// Parses a model's options; unknown keys and bad values are errors.
-Options parse_options(const std::map<std::string, std::string>& options,
-                      std::vector<std::string>& errors);
+// The options a CN0170 model may set, and a model's options read through them; unknown keys,
+// bad values and contradictions are errors at the option's file:line:col.
+const ModelOptionSpecs& option_specs();
+Options parse_options(const Model& model, Diagnostics& diagnostics);
 
 // Family-defined device error codes (the CN0170 itself has none).
 inline constexpr int64_t kRejected = 1;         // the unit answered "…" ?

@@ -19,11 +19,6 @@ constexpr int kMaxLinesPerExchange = 64;
 
 const FrameSplitter kLineSplitter = cn0170::frame_length;
 
-// validate_model runs once per model per configuration load, on the family of the first bus
-// that uses it; a second bus with the same model finds its options here.
-std::mutex g_options_mutex;
-std::map<std::string, std::map<std::string, std::string>> g_options_by_model;
-
 void write_to_stderr(int level, std::string_view text) {
   const std::string line = fmt::format("<{}>{}\n", level, text);
   std::fwrite(line.data(), 1, line.size(), stderr);
@@ -65,7 +60,7 @@ std::optional<NodeAddress> CententFamily::parse_address(std::string_view text,
 
 void CententFamily::set_options(const cn0170::Options& options) {
   options_ = options;
-  own_options_ = true;
+  options_bound_ = true;
 }
 
 std::vector<int> CententFamily::configured_units() const {
@@ -73,22 +68,7 @@ std::vector<int> CententFamily::configured_units() const {
 }
 
 void CententFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
-  std::vector<std::string> errors;
-  const auto options = cn0170::parse_options(model.options, errors);
-  for (const auto& e : errors)
-    diagnostics.error(model.mark, fmt::format("model {}: {}", model.name, e));
-  if (errors.empty()) {
-    std::lock_guard lock(g_options_mutex);
-    for (const auto& [other, other_options] : g_options_by_model)
-      if (own_options_ && other != model.name && other_options != model.options)
-        diagnostics.error(model.mark,
-                          fmt::format("model {}: its options differ from model {}'s, but CN0170 "
-                                      "options apply to a whole chain",
-                                      model.name, other));
-    g_options_by_model[model.name] = model.options;
-    options_ = options;
-    own_options_ = true;
-  }
+  (void)cn0170::parse_options(model, diagnostics);
 
   const auto check_command = [&](const CommandTemplate& t, const SourceMark& mark,
                                  const std::string& what, bool in_action, bool bus_wide) {
@@ -206,20 +186,13 @@ void CententFamily::validate_model(const Model& model, Diagnostics& diagnostics)
   }
 }
 
-void CententFamily::adopt_options() {
-  if (options_adopted_) return;
-  options_adopted_ = true;
-  if (own_options_) return;
-  std::lock_guard lock(g_options_mutex);
-  if (g_options_by_model.empty()) return;
-  const auto& first = g_options_by_model.begin()->second;
-  for (const auto& [name, options] : g_options_by_model)
-    if (options != first) {
-      chain_.log(4, "CN0170 models disagree on their options; this chain uses the defaults");
-      return;
-    }
-  std::vector<std::string> errors;
-  options_ = cn0170::parse_options(first, errors);
+void CententFamily::configure_node(const NodeAddress&, const Model& model) {
+  // Options apply to the whole chain: its first node's model sets them (validate_model refuses
+  // models whose options differ). Errors were reported by validate_model.
+  if (options_bound_) return;
+  Diagnostics reported;
+  options_ = cn0170::parse_options(model, reported);
+  options_bound_ = true;
 }
 
 void CententFamily::flush_log(Link& link) {
@@ -241,7 +214,6 @@ asio::awaitable<void> CententFamily::collect(
 }
 
 asio::awaitable<void> CententFamily::on_link_open(Link& link, const LinkTiming& timing) {
-  adopt_options();
   chain_.link_opened();
   link.discard_input();
   if (options_.autobaud_cr) {
@@ -465,7 +437,6 @@ asio::awaitable<Reply> CententFamily::local_read(Link& link, int unit, const Req
 
 asio::awaitable<Reply> CententFamily::transact(Link& link, const NodeAddress& node,
                                                const Request& request, const LinkTiming& timing) {
-  adopt_options();
   const int unit = node.number;
   Reply reply;
   if (!request.command.empty() && request.command.front() == '@') {

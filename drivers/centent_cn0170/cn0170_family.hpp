@@ -24,7 +24,10 @@ class CententFamily final : public ProtocolFamily {
   std::optional<NodeAddress> parse_address(std::string_view text,
                                            std::string& error) const override;
   // Also takes the model's options as the chain's settings.
+  const ModelOptionSpecs& model_options() const override { return cn0170::option_specs(); }
+  bool model_options_apply_to_bus() const override { return true; }
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
+  void configure_node(const NodeAddress& node, const Model& model) override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   // The bus's resync (quiet for a guard time); late replies among what it drained pay their
   // units' debts (README "Late replies").
@@ -55,17 +58,14 @@ class CententFamily final : public ProtocolFamily {
   // Reads lines until none arrives within the reply timeout; hands each to `on_message`.
   asio::awaitable<void> collect(Link& link, const LinkTiming& timing,
                                 const std::function<void(const cn0170::Message&)>& on_message);
-  void adopt_options();
   void flush_log(Link& link);
   std::vector<int> configured_units() const;
 
   cn0170::Chain chain_;
-  // parse_address and validate_model are const in the interface but are the only places a
-  // family learns its nodes and its models' options (README "What the core could change").
+  // parse_address is const in the interface but is where a family learns its nodes.
   mutable std::set<int> configured_;
-  mutable cn0170::Options options_;
-  mutable bool own_options_ = false;
-  bool options_adopted_ = false;
+  cn0170::Options options_;
+  bool options_bound_ = false;
   LogSink log_sink_;
   bool routed_ = false;  // the sink names the bus: lines need not name the device
 };

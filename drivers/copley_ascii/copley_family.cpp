@@ -18,6 +18,7 @@ std::optional<NodeAddress> CopleyFamily::parse_address(std::string_view text,
 }
 
 void CopleyFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
+  check_model_options(model, name(), model_options(), diagnostics);
   const auto check = [&](const CommandTemplate& t, const SourceMark& mark,
                          const std::string& what) {
     const std::string& s = t.source();

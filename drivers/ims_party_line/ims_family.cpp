@@ -590,60 +590,33 @@ struct ModelOptions {
   bool addressed_soft_stop = false;
 };
 
-constexpr std::string_view kKnownOptions =
-    "firmware, line_limit, line_limit_counts_name, addressed_soft_stop, result_placement, "
-    "echo_linefeed";
-
-std::optional<bool> parse_bool(std::string_view s) {
-  if (s == "true" || s == "yes" || s == "on") return true;
-  if (s == "false" || s == "no" || s == "off") return false;
-  return std::nullopt;
+const ModelOptionSpecs& ims_model_options() {
+  static const ModelOptionSpecs specs{
+      number_option("firmware", "1.09", 0.01, 99,
+                    "the indexers' firmware version; 1.15 and later know the `*` global address"),
+      integer_option("line_limit", std::to_string(ims::kLineLimit), 2, 64,
+                     "the longest command line a unit accepts (the manual says 12)"),
+      flag_option("line_limit_counts_name", "false", "the unit name counts towards line_limit"),
+      flag_option("addressed_soft_stop", "false",
+                  "the units stop on an addressed soft stop (else actions may use only the "
+                  "global one)"),
+      choice_option("result_placement", "auto", {"auto", "next_line", "echo_line"},
+                    "where a query's result comes: detected per unit (auto), on a line of its "
+                    "own, or on the echo's line"),
+      choice_option("echo_linefeed", "auto", {"auto", "at_once", "at_execution"},
+                    "when a non-query's echoed LF comes: detected per unit (auto), at once, or "
+                    "when the command has run"),
+  };
+  return specs;
 }
 
 ModelOptions read_options(const Model& model, Diagnostics& diagnostics) {
+  const auto v = check_model_options(model, "ims-party-line", ims_model_options(), diagnostics);
   ModelOptions o;
-  for (const auto& option : model.options) {
-    // Named references, not a structured binding: clang before 16 cannot capture bindings.
-    const std::string& key = option.first;
-    const std::string& value = option.second;
-    const auto bad = [&](std::string_view expected) {
-      diagnostics.error(model.mark, fmt::format("model {}: option {}: expected {}, found '{}'",
-                                                model.name, key, expected, value));
-    };
-    if (key == "firmware") {
-      double v = 0;
-      const auto [p, ec] = std::from_chars(value.data(), value.data() + value.size(), v);
-      if (ec != std::errc{} || p != value.data() + value.size() || v <= 0)
-        bad("the indexer firmware version, e.g. 1.09 or 1.15");
-      else
-        o.firmware = v;
-    } else if (key == "line_limit") {
-      unsigned v = 0;
-      const auto [p, ec] = std::from_chars(value.data(), value.data() + value.size(), v);
-      if (ec != std::errc{} || p != value.data() + value.size() || v < 2 || v > 64)
-        bad("the longest command line a unit accepts, 2..64 (the manual says 12)");
-      else
-        o.line_limit = v;
-    } else if (key == "line_limit_counts_name" || key == "addressed_soft_stop") {
-      const auto v = parse_bool(value);
-      if (!v)
-        bad("true or false");
-      else
-        (key == "addressed_soft_stop" ? o.addressed_soft_stop : o.line_limit_counts_name) = *v;
-    } else if (key == "result_placement") {
-      std::optional<ims::ResultPlacement> pinned;
-      if (!ims::parse_result_placement(value, pinned))
-        bad("auto, next_line (the result on a line of its own) or echo_line (on the echo's line)");
-    } else if (key == "echo_linefeed") {
-      std::optional<ims::EchoLinefeed> pinned;
-      if (!ims::parse_echo_linefeed(value, pinned))
-        bad("auto, at_once or at_execution (when a non-query's echoed LF comes)");
-    } else {
-      diagnostics.error(model.mark, fmt::format("model {}: unknown ims-party-line option '{}' "
-                                                "(known: {})",
-                                                model.name, key, kKnownOptions));
-    }
-  }
+  o.firmware = v.number("firmware");
+  o.line_limit = static_cast<std::size_t>(v.integer("line_limit"));
+  o.line_limit_counts_name = v.flag("line_limit_counts_name");
+  o.addressed_soft_stop = v.flag("addressed_soft_stop");
   return o;
 }
 
@@ -823,6 +796,10 @@ void check_command(const CommandTemplate& t, const RangeOf& range_of, Use use,
 }
 
 }  // namespace
+
+const ModelOptionSpecs& ImsPartyLineFamily::model_options() const {
+  return ims_model_options();
+}
 
 void ImsPartyLineFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
   const ModelOptions options = read_options(model, diagnostics);

@@ -25,6 +25,7 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   std::string_view name() const override { return "ims-party-line"; }
   std::optional<NodeAddress> parse_address(std::string_view text,
                                            std::string& error) const override;
+  const ModelOptionSpecs& model_options() const override;
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
   // Takes the node's pinned readings (options result_placement, echo_linefeed).
   void configure_node(const NodeAddress& node, const Model& model) override;

@@ -21,14 +21,6 @@ using std::chrono::microseconds;
 // Long waits are read in slices so a stop sent meanwhile ends them promptly.
 constexpr microseconds kWaitSlice{std::chrono::milliseconds(20)};
 
-// Every techno-c model validated in this process. A bus whose family instance validated none
-// (its models were first seen on another bus) times its motions from these.
-std::mutex registry_mutex;
-std::map<std::string, techno::Profile>& registry() {
-  static std::map<std::string, techno::Profile> profiles;
-  return profiles;
-}
-
 microseconds seconds_to_us(double seconds) {
   return microseconds(static_cast<int64_t>(std::llround(seconds * 1e6)));
 }
@@ -91,27 +83,22 @@ std::optional<NodeAddress> TechnoFamily::parse_address(std::string_view text,
 }
 
 void TechnoFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
-  const auto before = diagnostics.errors().size();
-  techno::Profile p = techno::read_profile(model, diagnostics);
+  const techno::Profile p = techno::read_profile(model, diagnostics);
   techno::check_model(model, p, diagnostics);
-  if (diagnostics.errors().size() != before) return;
-  validated_.push_back(p);
+}
+
+void TechnoFamily::configure_node(const NodeAddress&, const Model& model) {
+  // Errors were reported by validate_model; a model with errors never runs.
+  Diagnostics reported;
+  techno::Profile p = techno::read_profile(model, reported);
+  for (const auto& bound : bound_)
+    if (bound.model == p.model) return;
+  bound_.push_back(std::move(p));
   profile_.reset();
-  const std::lock_guard lock(registry_mutex);
-  registry()[p.model] = std::move(p);
 }
 
 const techno::Profile& TechnoFamily::profile() {
-  if (!profile_) {
-    if (!validated_.empty()) {
-      profile_ = techno::merge_profiles(validated_);
-    } else {
-      std::vector<techno::Profile> all;
-      const std::lock_guard lock(registry_mutex);
-      for (const auto& [_, p] : registry()) all.push_back(p);
-      profile_ = techno::merge_profiles(all);
-    }
-  }
+  if (!profile_) profile_ = techno::merge_profiles(bound_);
   return *profile_;
 }
 

@@ -22,7 +22,9 @@ class TechnoFamily final : public ProtocolFamily {
   std::string_view name() const override { return "techno-c"; }
   std::optional<NodeAddress> parse_address(std::string_view text,
                                            std::string& error) const override;
+  const ModelOptionSpecs& model_options() const override { return techno::option_specs(); }
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
+  void configure_node(const NodeAddress& node, const Model& model) override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing) override;
@@ -87,9 +89,9 @@ class TechnoFamily final : public ProtocolFamily {
   asio::awaitable<void> check_single_handshake(Link& link, const techno::Command& c, Reply& reply,
                                                const LinkTiming& timing);
 
-  // validate_model() is the only way a model reaches the family, and it is const.
-  mutable std::vector<techno::Profile> validated_;
-  mutable std::optional<techno::Profile> profile_;
+  // The profiles of the models this bus's nodes run (configure_node), merged by profile().
+  std::vector<techno::Profile> bound_;
+  std::optional<techno::Profile> profile_;
   std::map<int, NodeState> nodes_;
   // Devices this family sent the axes definition to since the link opened: a later `4` means the
   // controller lost it (power cycle) and its positions with it.

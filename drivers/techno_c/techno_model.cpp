@@ -14,18 +14,6 @@ namespace fieldgate::techno {
 
 namespace {
 
-constexpr std::string_view kOptionKeys[] = {
-    "variant",         "axes",
-    "acceleration",    "home_speed",
-    "travel",          "timeout_factor",
-    "timeout_margin",  "program_timeout",
-    "stop_settle",     "steps_per_unit",
-    "unit_resolution", "position_reply",
-    "stop_bytes",      "stop_on_timeout",
-    "init_on_connect", "init_when_undefined",
-    "motion_settle",
-};
-
 std::optional<double> parse_number(std::string_view text) {
   if (text.empty()) return std::nullopt;
   const std::string s(text);
@@ -51,12 +39,6 @@ std::optional<std::array<double, 3>> parse_per_axis(std::string_view text) {
   }
   if (values.size() == 1) return std::array<double, 3>{values[0], values[0], values[0]};
   if (values.size() == 3) return std::array<double, 3>{values[0], values[1], values[2]};
-  return std::nullopt;
-}
-
-std::optional<bool> parse_bool(std::string_view text) {
-  if (text == "true" || text == "yes") return true;
-  if (text == "false" || text == "no") return false;
   return std::nullopt;
 }
 
@@ -384,135 +366,104 @@ class ModelChecker {
 
 }  // namespace
 
+const ModelOptionSpecs& option_specs() {
+  using std::chrono::microseconds;
+  const microseconds zero{0}, hour = std::chrono::hours(1);
+  static const ModelOptionSpecs specs{
+      required(choice_option("variant", "", {"it116g", "c10", "c116", "c142"},
+                             "the controller: IT116G (one axis), C10, C116 or C142")),
+      integer_option("axes", "", {"1", "3", "5", "7"},
+                     "the axes definition sent at initialisation: 1 X, 3 XY, 5 XZ, 7 XYZ "
+                     "(default 1 on the IT116G, else 7)"),
+      integer_option("acceleration", "", {"25", "50", "75", "100"},
+                     "the card's acceleration jumper in Hz/ms (default 25 on the IT116G, else "
+                     "75; p.4.5)"),
+      integer_option("home_speed", "2000", static_cast<double>(kMinSpeed),
+                     static_cast<double>(kMaxSpeed),
+                     "reference run speed in steps/s, sent with `d` (p.63)"),
+      text_option("travel", "50000",
+                  "steps > 0, one value or X,Y,Z: the furthest an axis can be from home"),
+      number_option("timeout_factor", "1.25", 1, 100,
+                    "a motion's reply timeout: its computed duration times this, plus "
+                    "timeout_margin"),
+      duration_option("timeout_margin", "1s", zero, hour,
+                      "added to every motion's computed duration"),
+      duration_option("program_timeout", "60s", zero, hour,
+                      "reply timeout of a stored program's start"),
+      duration_option("stop_settle", "500ms", zero, hour,
+                      "time the axes take to stand still after a stop"),
+      duration_option("motion_settle", "300ms", zero, hour,
+                      "a lower-case (non-waiting) motion is over once the polled positions "
+                      "stood still this long"),
+      text_option("steps_per_unit", "",
+                  "steps per user unit > 0, one value or X,Y,Z (2540 per inch at 4 mm pitch, "
+                  "100 per mm); none: positions in steps"),
+      number_option("unit_resolution", "0.001", 1e-9, 1e9,
+                    "user units per register count (with steps_per_unit)"),
+      choice_option("position_reply", "auto", {"auto", "bare", "ack"},
+                    "the position query's reply: detected (auto), the bare value, or after an "
+                    "ack"),
+      integer_option("stop_bytes", "2", {"1", "2"}, "bytes of the stop command"),
+      flag_option("stop_on_timeout", "true",
+                  "send a stop when a motion's reply does not come in time"),
+      flag_option("init_on_connect", "false",
+                  "initialise the controller (axes definition) on every connect"),
+      flag_option("init_when_undefined", "true",
+                  "answer a `4` (axes not defined: the controller powered up) by initialising "
+                  "and sending the request again"),
+  };
+  return specs;
+}
+
 Profile read_profile(const Model& model, Diagnostics& diagnostics) {
   Profile p;
   p.model = model.name;
-  const auto fail = [&](const std::string& key, const std::string& value, std::string_view expect) {
-    diagnostics.error(model.mark, fmt::format("model {}: option {}: '{}' is not {}", model.name,
-                                              key, value, expect));
+  const auto v = check_model_options(model, "techno-c", option_specs(), diagnostics);
+  const auto fail = [&](const std::string& key, std::string_view expect) {
+    diagnostics.error(v.mark(key), fmt::format("model {}: option {}: '{}' is not {}", model.name,
+                                               key, v.text(key), expect));
   };
-  for (const auto& [key, value] : model.options)
-    if (std::find(std::begin(kOptionKeys), std::end(kOptionKeys), key) == std::end(kOptionKeys)) {
-      std::string known;
-      for (const auto k : kOptionKeys) known += (known.empty() ? "" : ", ") + std::string(k);
-      diagnostics.error(
-          model.mark, fmt::format("model {}: unknown techno-c option '{}' (known: {})", model.name,
-                                  key, known));
-    }
-  const auto option = [&](const char* key) -> const std::string* {
-    const auto it = model.options.find(key);
-    return it == model.options.end() ? nullptr : &it->second;
-  };
-
-  if (const auto* v = option("variant")) {
-    if (*v == "it116g")
-      p.variant = Variant::it116g;
-    else if (*v == "c10")
-      p.variant = Variant::c10;
-    else if (*v == "c116")
-      p.variant = Variant::c116;
-    else if (*v == "c142")
-      p.variant = Variant::c142;
-    else
-      fail("variant", *v, "one of it116g, c10, c116, c142");
-  } else {
-    diagnostics.error(model.mark, fmt::format("model {}: option variant is required (it116g, c10, "
-                                              "c116 or c142)",
-                                              model.name));
-  }
+  const std::string& variant = v.text("variant");
+  p.variant = variant == "it116g" ? Variant::it116g
+              : variant == "c10"  ? Variant::c10
+              : variant == "c116" ? Variant::c116
+                                  : Variant::c142;
   p.acceleration = p.variant == Variant::it116g ? 25'000 : 75'000;  // jumper defaults (p.4.5)
   p.axes = p.variant == Variant::it116g ? 1 : 7;
-  if (const auto* v = option("axes")) {
-    const auto n = parse_integer_text(*v);
-    if (!n || !valid_axes_definition(static_cast<int>(*n)))
-      fail("axes", *v, "an axes definition: 1 X, 3 XY, 5 XZ or 7 XYZ");
-    else if (p.variant == Variant::it116g && *n != 1)
-      fail("axes", *v, "1: the IT116G is a single-axis controller");
+  if (v.given("axes")) {
+    if (p.variant == Variant::it116g && v.integer("axes") != 1)
+      fail("axes", "1: the IT116G is a single-axis controller");
     else
-      p.axes = static_cast<int>(*n);
+      p.axes = static_cast<int>(v.integer("axes"));
   }
-  if (const auto* v = option("acceleration")) {
-    const auto n = parse_integer_text(*v);
-    if (!n || (*n != 25 && *n != 50 && *n != 75 && *n != 100))
-      fail("acceleration", *v, "a jumper setting in Hz/ms: 25, 50, 75 or 100");
-    else
-      p.acceleration = static_cast<double>(*n) * 1000;
-  }
-  if (const auto* v = option("home_speed")) {
-    const auto n = parse_integer_text(*v);
-    if (!n || *n < kMinSpeed || *n > kMaxSpeed)
-      fail("home_speed", *v, "a speed 30..10000 steps/s");
-    else
-      p.home_speed = static_cast<double>(*n);
-  }
-  if (const auto* v = option("travel")) {
-    if (auto t = parse_per_axis(*v))
-      p.travel = *t;
-    else
-      fail("travel", *v, "steps > 0, one value or X,Y,Z");
-  }
-  if (const auto* v = option("timeout_factor")) {
-    const auto f = parse_number(*v);
-    if (!f || *f < 1 || *f > 100)
-      fail("timeout_factor", *v, "a factor 1..100");
-    else
-      p.timeout_factor = *f;
-  }
-  const auto duration = [&](const char* key, std::chrono::microseconds& out) {
-    if (const auto* v = option(key)) {
-      if (auto d = parse_duration_text(*v))
-        out = *d;
-      else
-        fail(key, *v, "a duration such as 500ms or 2s");
-    }
-  };
-  duration("timeout_margin", p.timeout_margin);
-  duration("program_timeout", p.program_timeout);
-  duration("stop_settle", p.stop_settle);
-  duration("motion_settle", p.motion_settle);
-  if (const auto* v = option("steps_per_unit")) {
-    if (auto s = parse_per_axis(*v))
+  if (v.given("acceleration"))
+    p.acceleration = static_cast<double>(v.integer("acceleration")) * 1000;
+  p.home_speed = static_cast<double>(v.integer("home_speed"));
+  if (auto t = parse_per_axis(v.text("travel")))
+    p.travel = *t;
+  else
+    fail("travel", "steps > 0, one value or X,Y,Z");
+  p.timeout_factor = v.number("timeout_factor");
+  p.timeout_margin = v.duration("timeout_margin");
+  p.program_timeout = v.duration("program_timeout");
+  p.stop_settle = v.duration("stop_settle");
+  p.motion_settle = v.duration("motion_settle");
+  if (v.given("steps_per_unit")) {
+    if (auto s = parse_per_axis(v.text("steps_per_unit")))
       p.steps_per_unit = *s;
     else
-      fail("steps_per_unit", *v,
-           "steps per user unit > 0, one value or X,Y,Z (2540 per inch "
-           "at 4 mm pitch, 100 per mm)");
+      fail("steps_per_unit",
+           "steps per user unit > 0, one value or X,Y,Z (2540 per inch at 4 mm pitch, 100 per mm)");
   }
-  if (const auto* v = option("unit_resolution")) {
-    const auto r = parse_number(*v);
-    if (!r || *r <= 0)
-      fail("unit_resolution", *v, "a positive number (user units per register count)");
-    else
-      p.unit_resolution = *r;
-  }
-  if (const auto* v = option("position_reply")) {
-    if (*v == "auto")
-      p.position_reply = PositionReply::automatic;
-    else if (*v == "bare")
-      p.position_reply = PositionReply::bare;
-    else if (*v == "ack")
-      p.position_reply = PositionReply::ack;
-    else
-      fail("position_reply", *v, "auto, bare or ack");
-  }
-  if (const auto* v = option("stop_bytes")) {
-    const auto n = parse_integer_text(*v);
-    if (!n || (*n != 1 && *n != 2))
-      fail("stop_bytes", *v, "1 or 2");
-    else
-      p.stop_bytes = static_cast<int>(*n);
-  }
-  const auto flag = [&](const char* key, bool& out) {
-    if (const auto* v = option(key)) {
-      if (auto b = parse_bool(*v))
-        out = *b;
-      else
-        fail(key, *v, "true or false");
-    }
-  };
-  flag("stop_on_timeout", p.stop_on_timeout);
-  flag("init_on_connect", p.init_on_connect);
-  flag("init_when_undefined", p.init_when_undefined);
+  p.unit_resolution = v.number("unit_resolution");
+  const std::string& reply = v.text("position_reply");
+  p.position_reply = reply == "bare"  ? PositionReply::bare
+                     : reply == "ack" ? PositionReply::ack
+                                      : PositionReply::automatic;
+  p.stop_bytes = static_cast<int>(v.integer("stop_bytes"));
+  p.stop_on_timeout = v.flag("stop_on_timeout");
+  p.init_on_connect = v.flag("init_on_connect");
+  p.init_when_undefined = v.flag("init_when_undefined");
   return p;
 }
 

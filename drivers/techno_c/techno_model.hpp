@@ -9,6 +9,7 @@
 #include "drivers/techno_c/techno_codec.hpp"
 #include "mapping/diagnostics.hpp"
 #include "mapping/model.hpp"
+#include "mapping/model_options.hpp"
 
 // What a techno-c model's `options:` say, and the load-time checks that keep every Modbus write
 // from reaching the controller with a value count or range it would refuse.
@@ -55,7 +56,9 @@ struct Profile {
   bool operator==(const Profile&) const = default;
 };
 
-// Reads and checks a model's options; errors carry the model's mark.
+// The options a techno-c model may set, and a model's options read through them; errors carry
+// the option's mark.
+const ModelOptionSpecs& option_specs();
 Profile read_profile(const Model& model, Diagnostics& diagnostics);
 
 // Checks every read, write and action step of a model against the grammar and the profile:

@@ -106,13 +106,9 @@ std::optional<NodeAddress> WhedcoFamily::parse_address(std::string_view text,
 }
 
 void WhedcoFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
-  for (const auto& [key, value] : model.options)
-    diagnostics.error(model.mark,
-                      fmt::format("model {}: option '{}' is not a whedco-cmc option (the family "
-                                  "has none: the communication format is set per node in "
-                                  "'address', e.g. 4/non-echo; reply layouts by each read's "
-                                  "'format' and 'field')",
-                                  model.name, key));
+  check_model_options(model, name(), model_options(), diagnostics,
+                      "the communication format is set per node in 'address', e.g. 4/non-echo; "
+                      "reply layouts by each read's 'format' and 'field'");
   const auto render = [](const CommandTemplate& t) {
     return t.render([](std::string_view) { return int64_t{1}; });
   };

@@ -318,5 +318,50 @@ TEST_F(ConfigLoaderTest, ForwardedCopleyNodesGetAReplyTimeoutBeyondTheCanTimeout
             std::chrono::milliseconds(160));
 }
 
+// CN0170 options set a whole chain's framing: one chain cannot mix models whose options differ,
+// while two chains each with its own options can.
+TEST_F(ConfigLoaderTest, CententOptionsAgreeWithinAChainOnly) {
+  fs::create_directories(dir_ / "models");
+  fs::copy_file(FIELDGATE_SOURCE_DIR "/config/models/centent-cn0170.yaml",
+                dir_ / "models/centent-cn0170.yaml");
+  {
+    std::ifstream in(FIELDGATE_SOURCE_DIR "/config/models/centent-cn0170.yaml");
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const auto at = text.find("model: centent-cn0170");
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, std::string("model: centent-cn0170").size(), "model: centent-rts");
+    const auto mode = text.find("overflow_mode: warning");
+    ASSERT_NE(mode, std::string::npos);
+    text.replace(mode, std::string("overflow_mode: warning").size(), "overflow_mode: rts");
+    std::ofstream(dir_ / "models/centent-rts.yaml") << text;
+  }
+  const auto chain = [](const std::string& name, const std::string& device,
+                        const std::string& nodes) {
+    return "  - name: " + name + "\n    protocol: centent-cn0170\n    serial: {device: " + device +
+           ", baud: 9600}\n    nodes:\n" + nodes;
+  };
+  const auto load_with = [&](const std::string& buses) {
+    const auto path = dir_ / "gw.yaml";
+    std::ofstream(path) << "models: [models]\nbuses:\n" << buses;
+    Diagnostics d;
+    (void)load_gateway_config(path.string(), d);
+    return d.to_text();
+  };
+  const std::string mixed =
+      load_with(chain("c", "/dev/null",
+                      "      - {name: a, address: 0, model: centent-cn0170, unit_id: 1}\n"
+                      "      - {name: b, address: 1, model: centent-rts, unit_id: 2}\n"));
+  EXPECT_NE(
+      mixed.find("node b: model centent-rts's options differ from those of model "
+                 "centent-cn0170 (node a), but centent-cn0170 options apply to the whole bus"),
+      std::string::npos)
+      << mixed;
+  EXPECT_EQ(load_with(chain("c1", "/dev/null",
+                            "      - {name: a, address: 0, model: centent-cn0170, unit_id: 1}\n") +
+                      chain("c2", "/dev/zero",
+                            "      - {name: b, address: 0, model: centent-rts, unit_id: 2}\n")),
+            "");
+}
+
 }  // namespace
 }  // namespace fieldgate

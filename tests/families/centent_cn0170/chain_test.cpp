@@ -401,22 +401,40 @@ TEST_F(ChainTest, RandomLinesNeverCrashAndAlwaysEndTheExchange) {
   }
 }
 
+Model model_with(std::map<std::string, std::string> options) {
+  Model m;
+  m.name = "m";
+  m.options = std::move(options);
+  return m;
+}
+
 TEST(Cn0170Options, ParsedAndChecked) {
-  std::vector<std::string> errors;
+  Diagnostics d;
   const auto o = parse_options(
-      {{"overflow_mode", "rts"}, {"confirm_commands", "false"}, {"kill_target", "every_unit"}},
-      errors);
-  EXPECT_TRUE(errors.empty());
+      model_with(
+          {{"overflow_mode", "rts"}, {"confirm_commands", "off"}, {"kill_target", "every_unit"}}),
+      d);
+  EXPECT_TRUE(d.ok()) << d.to_text();
   EXPECT_EQ(o.overflow, Options::Overflow::rts);
   EXPECT_FALSE(o.confirm_commands);
   EXPECT_EQ(o.kill_target, Options::KillTarget::every_unit);
-  (void)parse_options({{"overflow_mode", "loud"}, {"leading_cr", "maybe"}, {"speed", "1"}}, errors);
-  ASSERT_EQ(errors.size(), 3u);
-  EXPECT_EQ(errors[0], "option leading_cr: expected true or false, found 'maybe'");
-  errors.clear();
-  (void)parse_options({{"overflow_command", "M1+"}}, errors);
-  EXPECT_EQ(errors,
-            std::vector<std::string>{"option overflow_command 'M1+' contradicts overflow_mode"});
+  EXPECT_TRUE(o.leading_cr);  // the declared default
+  (void)parse_options(
+      model_with({{"overflow_mode", "loud"}, {"leading_cr", "maybe"}, {"speed", "1"}}), d);
+  ASSERT_EQ(d.errors().size(), 3u) << d.to_text();
+  const std::string text = d.to_text();
+  EXPECT_NE(text.find("unknown centent-cn0170 option 'speed'"), std::string::npos) << text;
+  EXPECT_NE(text.find("option overflow_mode: expected warning, rts or leave, found 'loud'"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("option leading_cr: expected true or false, found 'maybe'"),
+            std::string::npos)
+      << text;
+  Diagnostics contradiction;
+  (void)parse_options(model_with({{"overflow_command", "M1+"}}), contradiction);
+  ASSERT_EQ(contradiction.errors().size(), 1u);
+  EXPECT_EQ(contradiction.errors()[0].message,
+            "model m: option overflow_command 'M1+' contradicts overflow_mode warning");
 }
 
 }  // namespace

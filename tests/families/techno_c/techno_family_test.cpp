@@ -63,6 +63,7 @@ class TechnoBench : public ::testing::Test {
     ASSERT_TRUE(model_ && d.ok()) << d.to_text();
     family_.validate_model(*model_, d);
     ASSERT_TRUE(d.ok()) << d.to_text();
+    family_.configure_node(NodeAddress{"0", 0, 0}, *model_);
   }
 
   static sim::techno::ControllerOptions defined() {

@@ -211,10 +211,13 @@ TEST(TechnoModels, OptionsAreChecked) {
                       "init_on_connect: perhaps, timeout_margin: soon",
                       "", "", "  k: {code: 1, steps: [k]}\n"));
   for (const char* fragment :
-       {"option variant: 'c999'", "option axes: '6'", "option acceleration: '60'",
-        "unknown techno-c option 'speed_up'", "option position_reply: 'maybe'",
-        "option stop_bytes: '3'", "option travel: '-5'", "option init_on_connect: 'perhaps'",
-        "option timeout_margin: 'soon'"})
+       {"option variant: expected it116g, c10, c116 or c142, found 'c999'",
+        "option axes: expected 1, 3, 5 or 7, found '6'",
+        "option acceleration: expected 25, 50, 75 or 100, found '60'",
+        "unknown techno-c option 'speed_up'", "option position_reply: expected auto, bare or ack",
+        "option stop_bytes: expected 1 or 2, found '3'", "option travel: '-5'",
+        "option init_on_connect: expected true or false, found 'perhaps'",
+        "option timeout_margin: expected a duration"})
     EXPECT_NE(e.find(fragment), std::string::npos) << fragment << "\n" << e;
   EXPECT_NE(errors_of(model("variant: it116g, axes: 7", "", "", "  k: {code: 1, steps: [k]}\n"))
                 .find("single-axis"),

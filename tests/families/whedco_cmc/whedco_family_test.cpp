@@ -372,7 +372,9 @@ actions:
   WhedcoFamily().validate_model(*model, d);
   const std::string all = d.to_text();
   for (const char* expected : {
-           "bad.yaml:1:1: error: model bad: option 'echo' is not a whedco-cmc option",
+           "bad.yaml:3:11: error: model bad: option 'echo': the whedco-cmc family has no model "
+           "options "
+           "(the communication format is set per node in 'address'",
            "bad.yaml:6:7: error: point p1 read: 'AMX5' is no query",
            "bad.yaml:7:7: error: point p2 write: 'RPX' is a query",
            "bad.yaml:8:7: error: point p3: Whedco replies are decimal or hex",
