@@ -58,6 +58,21 @@ axis_family_start() {
       axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
                  --refused-target 2000000)
       ;;
+    whedco-cmc)
+      "$build/sim/whedco/fieldgate-sim-whedco" --link "$dir/port" --units 4 --axes WXYZ \
+        --baud 38400 </dev/null >"$dir/sim.log" 2>&1 &
+      bus="protocol: whedco-cmc
+    serial: {device: $dir/port, baud: 38400}
+    timing: {reply_timeout: 50ms, byte_timeout: 10ms, probe_interval: 300ms}
+    nodes:
+      - {name: cmc_4, address: 4, model: whedco-cmc, unit_id: 1,
+         axis_units: {x: 41, y: 42, w: 43, z: 44},
+         limits: {x_target: {min: -1000000, max: 1000000}, y_target: {min: -1000000, max: 1000000},
+                  w_target: {min: -1000000, max: 1000000}, z_target: {min: -1000000, max: 1000000}}}"
+      units=41,42,43,44
+      axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
+                 --refused-target 2000000)
+      ;;
     techno-c142 | techno-it116g)
       variant=${family#techno-}
       "$build/sim/techno/fieldgate-sim-techno" --link "$dir/port" --variant "$variant" \
