@@ -6,7 +6,9 @@
 # The error each family can give (tools/axis.py): Techno refuses a move beyond its travel ('2');
 # Copley and Whedco report a latched fault (injected); Copley also refuses motion while disabled.
 # IMS and Centent have no error to provoke: their manuals define no error reply to a well-formed
-# command and no fault state, and they report none (the gateway's limit refusal is checked).
+# command (Centent's only one is for syntax) and no fault state; IMS's encoder-error input (]1
+# bit 2, encoder option) has no stated active level, so the model does not map it, and the
+# simulator has no encoder. The gateway's limit refusal is checked instead.
 # Usage: axis_family_start FAMILY BUILD_DIR DIR
 axis_family_start() {
   local family=$1 build=$2 dir=$3 variant units_yaml
