@@ -132,8 +132,22 @@ asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index,
                                                        std::chrono::microseconds patience,
                                                        Confirmation& confirmation) {
   auto pending = std::make_shared<ReplyChannel>(executor_, 1);
+  // The patience counts from the moment the command goes on the wire, not from the queue: a
+  // command still waiting behind a slow poll or a resync is not running, and a stop sent on the
+  // strength of an early confirmation would reach the controller before the move it stops.
+  auto sent = std::make_shared<bool>(false);
+  auto sent_signal = std::make_shared<asio::steady_timer>(executor_, SteadyTime::max());
+  options.on_sent = [sent, sent_signal] {
+    *sent = true;
+    sent_signal->cancel();
+  };
   asio::co_spawn(executor_, submit_into(bus, node_index, request, options, pending),
                  asio::detached);
+  if (!*sent) {
+    auto queued =
+        co_await (pending->async_receive(use_tuple) || sent_signal->async_wait(use_tuple));
+    if (queued.index() == 0) co_return reply_of(std::get<0>(std::move(queued)));
+  }
   asio::steady_timer timer(executor_, patience);
   auto first = co_await (pending->async_receive(use_tuple) || timer.async_wait(use_tuple));
   if (first.index() == 0) co_return reply_of(std::get<0>(std::move(first)));
@@ -171,7 +185,9 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
     }
     Request request{step.command.render(lookup), Request::Expect::ack, NumberFormat::decimal,
                     action.bus_wide};
-    const CommandOptions options{step.accept_no_reply, step.urgent};
+    CommandOptions options;
+    options.accept_no_reply = step.accept_no_reply;
+    options.urgent = step.urgent;
     if (step.confirm_after && confirmation && !confirmation->given) {
       reply = co_await submit_confirming(bus, node_index, request, options, *step.confirm_after,
                                          *confirmation);

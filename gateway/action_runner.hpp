@@ -21,9 +21,9 @@ struct CommandOptions;
 // before the next, then watches the done/failed condition on freshly polled values and keeps
 // the node's action status (busy, done, error) up to date for the PLC's handshake.
 //
-// A step with confirm_after answers the Modbus write early: once it has been submitted that long
-// without a reply (a move acknowledged only at its end). The rest of the action then runs in the
-// background and ends in done or error like any other.
+// A step with confirm_after answers the Modbus write early: once it has been on the wire that long
+// without a reply (a move acknowledged only at its end); time in the bus's queue does not count.
+// The rest of the action then runs in the background and ends in done or error like any other.
 class ActionRunner {
  public:
   using BusOf = std::function<Bus&(int node_index)>;

@@ -21,6 +21,9 @@ struct CommandOptions {
   // Sent at once, even while another transaction occupies the line (e.g. a stop byte during a
   // move that holds the line until it ends); the family decides what that means on the wire.
   bool urgent = false;
+  // Called when the command leaves the bus's queue for the wire. An early-confirmed step counts
+  // its patience from then: queued behind a slow poll, the command is not running yet.
+  std::function<void()> on_sent;
 };
 
 // Upper bounds (seconds) of the transaction latency histogram buckets; the last is +Inf.

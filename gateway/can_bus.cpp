@@ -985,6 +985,7 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
     // NMT has no answer and no per-node transfer: it goes out at once.
     if (op && op->kind == Operation::Kind::nmt) {
       ++counters_.commands;
+      if (options.on_sent) options.on_sent();
       const bool sent = co_await send_frame(nmt_frame(op->nmt, request.bus_wide ? 0 : n.id));
       co_return sent ? make_reply(Reply::Status::ok, {})
                      : make_reply(Reply::Status::link_down, "bus link is down");
@@ -1139,9 +1140,11 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
       Reply reply;
       if (n.image->state == NodeState::offline && !cmd->request.bus_wide)
         reply = make_reply(Reply::Status::unreachable, "node is offline");
-      else
+      else {
         // Commands are not retried: a lost answer may hide a command the node carried out.
+        if (cmd->options.on_sent) cmd->options.on_sent();
         reply = co_await execute(n, cmd->request, cmd->options.accept_no_reply, BusClock::now());
+      }
       cmd->done.try_send(boost::system::error_code{}, std::move(reply));
       continue;
     }

@@ -148,6 +148,7 @@ asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, Comman
   if (options.urgent) {
     // Not queued: the line may be held by a transaction that only ends when this gets through.
     ++counters_.commands;
+    if (options.on_sent) options.on_sent();
     co_return co_await config_.family->send_urgent(link_, n.config->address, request);
   }
   // A bus-wide command (a global stop) concerns every node: only the link must be up.
@@ -462,6 +463,7 @@ asio::awaitable<void> SerialBus::run() {
         reply.text = "node is offline";
       } else {
         // Commands are not retried: a lost reply may hide a command the device already ran.
+        if (cmd->options.on_sent) cmd->options.on_sent();
         reply = co_await transact(n, cmd->request, 0, cmd->options.accept_no_reply, false);
         if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled) {
           ++(*n.image).counters.unknown_writes;

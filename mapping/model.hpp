@@ -95,7 +95,7 @@ struct ActionStep {
   std::vector<int> accept_errors;
   bool accept_no_reply = false;
   bool urgent = false;  // sent at once, not queued behind a transaction holding the line
-  // Confirms the Modbus write once this step has been submitted for this long without a reply
+  // Confirms the Modbus write once this step has been on the wire for this long without a reply
   // (a reply that comes sooner, e.g. an error, answers the write as usual). For commands whose
   // handshake only comes at the end of a motion: the action stays busy until the reply arrives
   // and then goes on (later steps, done/failed watch) or ends in error with the reply's code.

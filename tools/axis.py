@@ -7,10 +7,15 @@ controller family behind it.
 
 Per axis: reset if in ErrorStop, power on, home, move absolute, move relative, jog + and stop,
 jog - and halt, a repeated sequence number (ignored), every unsupported command (exception 0x01),
-an error (a move while Disabled, or beyond --beyond position for an axis that cannot be switched
-off; or a target beyond the node's limit, --refused-target), and reset. Exit status 0 only if every check passed. Needs Debian's python3-pymodbus (3.0).
+errors and their reset: a move while Disabled (axes with power_off); a device error that puts the
+axis in ErrorStop (--beyond: a target the controller refuses; --fault-command: a fault it
+reports), where a move is refused until reset returns to Standstill; a target beyond the node's
+configured limit (--refused-target, exception 0x03). One of --beyond, --fault-command or
+--no-device-error (the controller has no error to provoke) is required. Exit status 0 only
+if every check passed. Needs Debian's python3-pymodbus (3.0).
 """
 import argparse
+import subprocess
 import sys
 import time
 
@@ -31,6 +36,7 @@ COMMANDS = {"power_on": 1, "power_off": 2, "home": 3, "move_absolute": 4, "move_
 IDLE, BUSY, DONE, ERROR, ABORTED = 0, 1, 2, 3, 4
 STATUS_NAMES = ["idle", "busy", "done", "error", "aborted"]
 ERR_DISABLED = 0xFFF0
+ERR_ERROR_STOP = 0xFFEF
 
 # The PLCopen state diagram: the transitions a profile axis may show between two reads.
 ALLOWED = {
@@ -162,6 +168,19 @@ class Axis:
                        "still %s" % p["state"])
             time.sleep(0.02)
 
+    def error_stop_and_reset(self, p):
+        """In ErrorStop: the error ID is set, a move is refused, reset returns to Standstill."""
+        self.log("ErrorStop: error ID 0x%04x, command error 0x%04x" % (p["error_id"],
+                                                                        p["cmd_error"]))
+        self.check("ErrorStop: error ID set", p["error_id"] != 0, str(p))
+        self.set_setpoints(target=p["position"])
+        _, q = self.command("move_absolute", expect=ERROR)
+        self.check("ErrorStop refuses a move: command error 0x%04x" % ERR_ERROR_STOP,
+                   q["state"] == "ErrorStop" and q["cmd_error"] == ERR_ERROR_STOP, str(q))
+        self.command("reset")
+        p = self.wait_state({"Standstill"})
+        self.check("reset clears the error", p["error_id"] == 0 and not p["error"], str(p))
+
     def run(self):
         a = self.args
         p = self.page()
@@ -284,7 +303,7 @@ class Axis:
         for name in COMMANDS:
             if not self.supports(name):
                 self.expect_exception(name, 0x01)
-        # An error, then reset.
+        # Errors, then reset: every way the options and the axis allow.
         if self.supports("power_off"):
             self.command("power_off")
             self.wait_state({"Disabled"})
@@ -296,7 +315,8 @@ class Axis:
             self.command("reset")
             self.command("power_on")
             self.wait_state({"Standstill"})
-        elif a.beyond is not None:
+        if a.beyond is not None:
+            # A target the controller itself refuses (or fails on): ErrorStop with its code.
             self.set_setpoints(target=a.beyond)
             r = self.send("move_absolute")
             self.check("move beyond the limit: write answered or refused by the device",
@@ -305,16 +325,19 @@ class Axis:
             p = self.wait_state({"ErrorStop"})
             self.check("move beyond the limit: command error", p["cmd_status"] == ERROR and
                        p["cmd_error"] != 0, str(p))
-            self.check("ErrorStop: error ID set", p["error_id"] != 0, str(p))
-            self.set_setpoints(target=p["position"])
-            _, q = self.command("move_absolute", expect=ERROR)
-            self.check("ErrorStop refuses a move", q["state"] == "ErrorStop")
-            self.command("reset")
-            p = self.wait_state({"Standstill"})
-            self.check("reset clears the error ID", p["error_id"] == 0)
-        elif a.refused_target is not None:
-            # No device error to provoke: a target beyond the node's configured limit is refused
-            # by the gateway before anything moves.
+            self.error_stop_and_reset(p)
+        if a.fault_command:
+            # A fault the controller reports by itself (for a simulator: injected on its control
+            # channel): ErrorStop from the error bit, with the device's code.
+            command = a.fault_command.replace("{unit}", str(self.unit))
+            self.check("fault command runs", subprocess.run(command, shell=True).returncode == 0,
+                       command)
+            p = self.wait_state({"ErrorStop"})
+            self.check("device fault: error bit", p["error"], str(p))
+            self.error_stop_and_reset(p)
+        if a.refused_target is not None:
+            # A target beyond the node's configured limit is refused by the gateway before
+            # anything moves.
             before = self.page()
             self.set_setpoints(target=a.refused_target)
             self.expect_exception("move_absolute", 0x03)
@@ -325,9 +348,6 @@ class Axis:
                        str(p))
             self.command("reset")
             self.check("reset: Standstill", self.wait_state({"Standstill"})["error_id"] == 0)
-        else:
-            raise Failed("no way to provoke an error: the axis has no power_off and neither "
-                         "--beyond nor --refused-target was given")
         self.log("all %d checks passed" % self.checks)
 
 
@@ -343,13 +363,22 @@ def main():
                     help="velocity register for home (0: leave it)")
     ap.add_argument("--jog-velocity", type=int, default=0, help="jog velocity (0: as --velocity)")
     ap.add_argument("--tolerance", type=int, default=2, help="position tolerance")
-    ap.add_argument("--beyond", type=int, help="a target beyond a limit, for axes without power")
+    ap.add_argument("--beyond", type=int,
+                    help="a target the controller refuses or fails on (a device error)")
+    ap.add_argument("--fault-command",
+                    help="shell command that makes the controller report a fault ({unit}: the "
+                         "profile unit), e.g. a simulator's fault injection")
+    ap.add_argument("--no-device-error", action="store_true",
+                    help="the controller has no error to provoke: ErrorStop is not exercised")
     ap.add_argument("--refused-target", type=int,
                     help="a target beyond the node's configured limit (exception 0x03)")
     ap.add_argument("--expect-homed", action="store_true", help="require the homed bit")
     ap.add_argument("--timeout", type=float, default=20.0, help="seconds per command")
     ap.add_argument("-v", "--verbose", action="store_true")
     args = ap.parse_args()
+    if args.beyond is None and not args.fault_command and not args.no_device_error:
+        ap.error("no device error to provoke, so ErrorStop would not be exercised: give --beyond "
+                 "or --fault-command, or --no-device-error for a controller that has none")
     units = [int(u) for arg in args.unit for u in arg.split(",") if u]
     client = ModbusTcpClient(args.host, port=args.port, timeout=5)
     if not client.connect():

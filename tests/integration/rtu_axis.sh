@@ -26,7 +26,7 @@ while [ $# -gt 0 ]; do
     --velocity) velocity=$2; shift 2 ;;
     --home-velocity) home_velocity=$2; shift 2 ;;
     --tolerance) tolerance=$2; shift 2 ;;
-    --expect-homed) shift ;;
+    --expect-homed | --no-device-error) shift ;;
     *) shift 2 ;;
   esac
 done

@@ -65,7 +65,9 @@ TEST(AxisProfileModels, EveryShippedMotionModelMapsEveryCommandOrListsIt) {
   ModelLibrary library;
   library.load_directory(std::string(FIELDGATE_SOURCE_DIR) + "/config/models", d);
   ASSERT_TRUE(d.ok()) << d.to_text();
-  for (const char* name : {"copley-amplifier", "ims-indexer", "centent-cn0170", "whedco-cmc-xy"}) {
+  for (const char* name :
+       {"copley-amplifier", "ims-indexer", "centent-cn0170", "whedco-cmc-xy", "whedco-cmc",
+        "techno-c10", "techno-c116", "techno-c142", "techno-it116g", "canopen-cia402"}) {
     const auto model = library.find(name);
     ASSERT_TRUE(model) << name;
     ASSERT_FALSE(model->profile_axes.empty()) << name;
@@ -76,6 +78,7 @@ TEST(AxisProfileModels, EveryShippedMotionModelMapsEveryCommandOrListsIt) {
     }
   }
   EXPECT_EQ(library.find("centent-cn0170")->profile_axes.size(), 2u);
+  EXPECT_EQ(library.find("whedco-cmc")->profile_axes.size(), 4u);
   EXPECT_FALSE(library.find("ims-indexer")->profile_axes[0].supports(ProfileCommand::power_on));
 }
 

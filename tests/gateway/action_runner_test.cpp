@@ -1,0 +1,116 @@
+// ActionRunner's early confirmation (confirm_after) against a bus whose queue holds the command:
+// the patience counts from the moment the command goes on the wire, so a move still waiting
+// behind a slow poll is not reported as running (a stop sent then would reach the controller
+// before the move).
+#include <gtest/gtest.h>
+
+#include <boost/asio/as_tuple.hpp>
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/detached.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/use_awaitable.hpp>
+
+#include "gateway/action_runner.hpp"
+#include "gateway/bus.hpp"
+#include "gateway/wire_trace.hpp"
+#include "mapping/model_loader.hpp"
+
+namespace fieldgate {
+namespace {
+
+using namespace std::chrono_literals;
+namespace asio = boost::asio;
+
+// Holds each command in its queue until send(), then in flight until answer().
+class QueueingBus : public Bus {
+ public:
+  explicit QueueingBus(asio::any_io_executor executor)
+      : send_(executor, SteadyTime::max()), answer_(executor, SteadyTime::max()), trace_("test") {}
+
+  void send() {
+    may_send_ = true;
+    send_.cancel();
+  }
+  void answer() {
+    may_answer_ = true;
+    answer_.cancel();
+  }
+  bool sent() const { return sent_; }
+
+  asio::awaitable<void> run() override { co_return; }
+  void stop() override {}
+  asio::awaitable<Reply> submit(int, Request, CommandOptions options) override {
+    while (!may_send_) co_await send_.async_wait(asio::as_tuple(asio::use_awaitable));
+    sent_ = true;
+    if (options.on_sent) options.on_sent();
+    while (!may_answer_) co_await answer_.async_wait(asio::as_tuple(asio::use_awaitable));
+    Reply reply;
+    reply.status = Reply::Status::ok;
+    co_return reply;
+  }
+  const BusConfig& config() const override { return config_; }
+  const BusCounters& counters() const override { return counters_; }
+  WireTrace& trace() override { return trace_; }
+  const NodeConfig& node_config(int) const override { return node_; }
+  std::vector<std::shared_ptr<NodeImage>> node_images() const override { return {}; }
+  void rebind(int, NodeUpdated) override {}
+
+ private:
+  asio::steady_timer send_, answer_;
+  bool may_send_ = false, may_answer_ = false, sent_ = false;
+  BusConfig config_;
+  BusCounters counters_;
+  WireTrace trace_;
+  NodeConfig node_;
+};
+
+TEST(ActionRunnerEarlyConfirmation, PatienceCountsFromTheWireNotFromTheQueue) {
+  Diagnostics d;
+  const ModelPtr model = load_model_text(R"(model: m
+family: techno-c
+actions:
+  move:
+    code: 1
+    steps:
+      - {send: "M100,2000", confirm_after: 20ms}
+)",
+                                         "m.yaml", d);
+  ASSERT_TRUE(model) << d.to_text();
+  asio::io_context io;
+  QueueingBus bus(io.get_executor());
+  ProcessImage image({std::make_shared<NodeImage>()});
+  ActionRunner runner(io.get_executor(), image, [&](int) -> Bus& { return bus; });
+  bool confirmed = false, sent_when_confirmed = false;
+  Reply reply;
+  asio::co_spawn(
+      io,
+      [&]() -> asio::awaitable<void> {
+        reply = co_await runner.start(0, model, model->actions.front());
+        sent_when_confirmed = bus.sent();
+        confirmed = true;
+      },
+      asio::detached);
+  // Queued for ten times the patience: not confirmed, the line is not held.
+  io.run_for(200ms);
+  EXPECT_FALSE(confirmed);
+  EXPECT_FALSE(image.node(0).action.holding_line);
+  EXPECT_EQ(image.node(0).action.status, ActionStatus::busy);
+  // On the wire and no reply within the patience: confirmed, and the move holds the line.
+  bus.send();
+  for (int i = 0; i < 100 && !confirmed; ++i) io.run_for(10ms);
+  ASSERT_TRUE(confirmed);
+  EXPECT_TRUE(sent_when_confirmed);
+  EXPECT_EQ(reply.status, Reply::Status::ok);
+  EXPECT_TRUE(image.node(0).action.holding_line);
+  // The handshake at the end of the motion ends the action.
+  bus.answer();
+  for (int i = 0; i < 100 && image.node(0).action.status == ActionStatus::busy; ++i)
+    io.run_for(10ms);
+  EXPECT_EQ(image.node(0).action.status, ActionStatus::done);
+  EXPECT_FALSE(image.node(0).action.holding_line);
+  runner.stop();
+}
+
+}  // namespace
+}  // namespace fieldgate
