@@ -62,6 +62,7 @@ std::optional<RefusalReply> ChainShadow::check(char name, std::string_view comma
 
 void ChainShadow::motion_started(Unit& unit, std::string_view command) {
   unit.moving = true;
+  unit.jogging = false;
   switch (command.front()) {
     case 'F':
       unit.step_rate = std::abs(field(command, 0).value_or(0));
@@ -92,6 +93,7 @@ void ChainShadow::acknowledged(char name, std::string_view command, Clock::time_
     case CommandClass::velocity:
       if (const double v = field(command, 0).value_or(0); v != 0) {
         unit.moving = true;
+        unit.jogging = true;
         unit.step_rate = std::abs(v);
       }
       // M0 ramps down from the current speed: still fast until `^` says idle.
@@ -101,6 +103,7 @@ void ChainShadow::acknowledged(char name, std::string_view command, Clock::time_
         unit.status_seen = true;
         if ((*result & status::meaningful) == 0) {
           unit.moving = false;
+          unit.jogging = false;
           unit.step_rate = 0;
         } else {
           unit.moving = true;  // e.g. started by the jog inputs or a program
@@ -121,6 +124,7 @@ void ChainShadow::global(std::string_view command, Clock::time_point now) {
     case kEscape:
       for (auto& [name, unit] : units_) {
         unit.moving = false;
+        unit.jogging = false;
         unit.step_rate = 0;
       }
       return;
@@ -128,6 +132,7 @@ void ChainShadow::global(std::string_view command, Clock::time_point now) {
       // Every unit reloads its saved parameters and forgets the motion (§1 "Reset").
       for (auto& [name, unit] : units_) {
         unit.moving = false;
+        unit.jogging = false;
         unit.step_rate = 0;
         unit.slew.reset();
       }
@@ -153,6 +158,11 @@ double ChainShadow::step_rate(char name) const {
 bool ChainShadow::moving(char name) const {
   const auto it = units_.find(name);
   return it != units_.end() && it->second.moving;
+}
+
+bool ChainShadow::jogging(char name) const {
+  const auto it = units_.find(name);
+  return it != units_.end() && it->second.moving && it->second.jogging;
 }
 
 }  // namespace fieldgate::ims

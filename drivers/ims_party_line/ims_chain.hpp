@@ -57,12 +57,16 @@ class ChainShadow {
   // The step rate the shadow assumes for a unit (0 when it is known to stand still).
   double step_rate(char name) const;
   bool moving(char name) const;
+  // The unit's motion is a jog (M with a speed, or its ramp after M0) that `^` has not yet shown
+  // ended: an index for it is taken as "abort the jog, then index" (ImsPartyLineFamily).
+  bool jogging(char name) const;
 
  private:
   struct Unit {
     std::optional<double> slew;  // last V sent; unknown after a reset
     double step_rate = 0;        // of the motion last started, until `^` says idle
     bool moving = false;         // a motion command was acknowledged and `^` has not shown idle
+    bool jogging = false;        // that motion is a jog (M)
     bool status_seen = false;    // the model polls `^`, so `moving` gets cleared
     std::optional<Clock::time_point> last_save;
   };

@@ -366,6 +366,10 @@ asio::awaitable<Reply> ImsPartyLineFamily::transact(Link& link, const NodeAddres
                                                     const LinkTiming& timing) {
   if (request.bus_wide) co_return co_await transact_global(link, request, timing);
   const char name = name_of(node);
+  if (ims::classify(request.command) == ims::CommandClass::index && shadow_.jogging(name)) {
+    Reply stopped = co_await end_jog(link, node, request, timing);
+    if (stopped.status != Reply::Status::ok) co_return stopped;
+  }
   if (auto refusal = shadow_.check(name, request.command, Clock::now()))
     co_return refused(*refusal);
 
@@ -396,6 +400,38 @@ asio::awaitable<Reply> ImsPartyLineFamily::transact(Link& link, const NodeAddres
         reply.values.empty() ? std::nullopt : std::optional<int64_t>(reply.values.front()));
   }
   co_return reply;
+}
+
+// A move aborts a jog (docs/axis-profile.md, buffer mode Aborting): an index sent to a jogging
+// unit would wait behind the jog's ramp and answer nothing until it starts (p.13), so the jog is
+// ramped down with M0 first and `^` read until the unit is idle; then the index goes out.
+asio::awaitable<Reply> ImsPartyLineFamily::end_jog(Link& link, const NodeAddress& node,
+                                                   const Request& request,
+                                                   const LinkTiming& timing) {
+  const char name = name_of(node);
+  const Request ramp_down{"M0", Request::Expect::ack, NumberFormat::decimal};
+  Reply r = co_await transact(link, node, ramp_down, timing);
+  const auto deadline = Clock::now() + kJogRampDownPatience;
+  const Request status{"^", Request::Expect::values, NumberFormat::decimal};
+  while (r.status == Reply::Status::ok && shadow_.moving(name)) {
+    if (Clock::now() >= deadline) {
+      co_return refused(
+          {ims::Refusal::axis_moving,
+           fmt::format("unit {}: the jog did not come to rest within {} s of M0; "
+                       "'{}' not sent",
+                       name, kJogRampDownPatience.count(), ims::printable(request.command))});
+    }
+    co_await link.pause(kJogPollInterval);
+    r = co_await transact(link, node, status, timing);
+  }
+  if (r.status != Reply::Status::ok) {
+    r.text = fmt::format("ending the jog before '{}': {}", ims::printable(request.command),
+                         r.text.empty() ? std::string(to_string(r.status)) : r.text);
+    co_return r;
+  }
+  log(6, fmt::format("unit {}: jog ramped down (M0) before '{}'", name,
+                     ims::printable(request.command)));
+  co_return r;
 }
 
 asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddress& node,

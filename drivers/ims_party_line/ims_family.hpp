@@ -1,5 +1,6 @@
 #pragma once
 
+#include <chrono>
 #include <functional>
 #include <map>
 #include <optional>
@@ -59,6 +60,11 @@ class ImsPartyLineFamily final : public ProtocolFamily {
                                          const LinkTiming& timing);
   asio::awaitable<Reply> exchange(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing, bool paced);
+  // M0, then `^` until the unit is idle: the jog a new index for it aborts.
+  asio::awaitable<Reply> end_jog(Link& link, const NodeAddress& node, const Request& request,
+                                 const LinkTiming& timing);
+  static constexpr std::chrono::seconds kJogRampDownPatience{10};
+  static constexpr std::chrono::milliseconds kJogPollInterval{50};
   // Everything waiting in the input, read and accounted (LateReplies::stray), then dropped.
   asio::awaitable<void> flush(Link& link);
   // After a bad reply: read until the line has been quiet for a byte timeout, accounting it.

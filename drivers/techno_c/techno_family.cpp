@@ -244,8 +244,10 @@ asio::awaitable<Reply> TechnoFamily::transact(Link& link, const NodeAddress& nod
   }
   Reply reply = co_await exchange(link, node, request, timing);
   if (!(p.init_when_undefined && reply.status == Reply::Status::device_error &&
-        reply.device_code == '4' && c.kind != CommandKind::specify_axes))
+        reply.device_code == '4' && c.kind != CommandKind::specify_axes)) {
+    co_await await_motion_position(link, node, request, reply, timing);
     co_return reply;
+  }
   // The controller powered up (p.69: the axes definition comes before any other operation).
   const bool lost_definition = defined_by_us_[node.number];
   const Request init{std::to_string(p.axes), Request::Expect::ack, NumberFormat::decimal};
@@ -266,7 +268,43 @@ asio::awaitable<Reply> TechnoFamily::transact(Link& link, const NodeAddress& nod
     reply.text += "; the axes are defined again, but positions were lost: home before moving";
     co_return reply;
   }
-  co_return co_await exchange(link, node, request, timing);
+  Reply again = co_await exchange(link, node, request, timing);
+  co_await await_motion_position(link, node, request, again, timing);
+  co_return again;
+}
+
+// A lower-case move or home answers at its start. A controller that answers queries during a
+// motion answers the `P` sent right after it at once; one that keeps a line arriving during a
+// motion in its input buffer (p.73, Stop: "the buffered command will start running") answers it
+// when the motion has ended [both readings]. Waiting for that reply here keeps the step, and
+// with the model's confirm_after the action's held line, busy for as long as the axis runs under
+// the second reading: the axis reads as moving from the acknowledge on (the polls queue behind
+// it and could not tell), and STOP still goes out past it.
+asio::awaitable<void> TechnoFamily::await_motion_position(Link& link, const NodeAddress& node,
+                                                          const Request& request, Reply& reply,
+                                                          const LinkTiming& timing) {
+  const Command c = techno::classify(request.command);
+  const bool move_or_home = c.kind == CommandKind::move_absolute ||
+                            c.kind == CommandKind::move_relative || c.kind == CommandKind::home;
+  if (reply.status != Reply::Status::ok || c.handshake != Handshake::at_start || !move_or_home)
+    co_return;
+  const uint64_t interrupts_at_start = interrupts_;
+  const Request query{"P", Request::Expect::values, NumberFormat::hex24};
+  const Reply position = co_await exchange(link, node, query, timing);
+  if (interrupts_ != interrupts_at_start) {
+    // It was acknowledged, but a stop or reset ended it before the axes came to rest.
+    reply = device_error(last_interrupt_);
+    reply.text = fmt::format("'{}' ended by {} while it ran", request.command,
+                             last_interrupt_ == techno::kStopByte ? "stop (0xFF)" : "reset (0xFE)");
+    co_return;
+  }
+  // The motion runs (it was acknowledged); the polls report on it from here.
+  if (position.status != Reply::Status::ok)
+    link.note(
+        fmt::format("techno-c device {}: '{}' acknowledged, the position query after it "
+                    "failed ({}): the polls follow the motion",
+                    node.number, request.command,
+                    position.text.empty() ? to_string(position.status) : position.text));
 }
 
 asio::awaitable<void> TechnoFamily::collect_motion_error(Link& link, NodeState& state,
@@ -329,6 +367,7 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
   const auto ec = co_await link.send(techno::encode_command(node.number, request.command));
   writing_ = false;
   if (ec) co_return link_down(ec);
+  const auto sent_at = Clock::now();
 
   const auto mode = profile().position_reply;
   FrameSplitter splitter = techno::handshake_frame;
@@ -386,7 +425,39 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
                                  : "reset (0xFE)");
   if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled)
     resync_ = true;
-  after_reply(nodes_[node.number], c, values, reply);
+  auto& state = nodes_[node.number];
+  // No reply takes longer than the reply timeout but one the controller held back until the
+  // running motion (or a stop's ramp) ended.
+  const bool answered_after_motion = c.kind == CommandKind::position &&
+                                     reply.status == Reply::Status::ok && state.motion_pending &&
+                                     Clock::now() - sent_at > timing.reply_timeout;
+  if (c.kind == CommandKind::position && reply.status == Reply::Status::ok &&
+      state.motion_pending) {
+    // Answered at once with the axes still on their way: the positions changed since the last
+    // reply and the motion has a while to go.
+    const bool running_on =
+        Clock::now() + timing.reply_timeout < state.motion_estimated_end && state.last_reported &&
+        reply.values.size() >= 3 &&
+        *state.last_reported !=
+            std::array<int64_t, 3>{reply.values[0], reply.values[1], reply.values[2]};
+    std::optional<bool> deferred;
+    if (answered_after_motion)
+      deferred = true;
+    else if (running_on && !state.queries_deferred)
+      deferred = false;
+    if (deferred && deferred != state.queries_deferred) {
+      state.queries_deferred = deferred;
+      if (*deferred)
+        link.note(
+            fmt::format("techno-c device {}: 'P' during a motion was answered only when "
+                        "the motion had ended (a buffered line, p.73): motions count as "
+                        "running until that reply",
+                        node.number));
+      else
+        link.note(fmt::format("techno-c device {}: 'P' is answered during a motion", node.number));
+    }
+  }
+  after_reply(state, c, values, reply, answered_after_motion);
   if (c.kind == CommandKind::specify_axes && reply.status == Reply::Status::ok)
     defined_by_us_[node.number] = true;
   co_return reply;
@@ -434,7 +505,8 @@ asio::awaitable<void> TechnoFamily::check_single_handshake(Link& link, const Com
 }
 
 void TechnoFamily::after_reply(NodeState& state, const Command& c,
-                               const std::vector<int64_t>& values, Reply& reply) {
+                               const std::vector<int64_t>& values, Reply& reply,
+                               bool answered_after_motion) {
   const auto& p = profile();
   const auto now = Clock::now();
   if (reply.status == Reply::Status::device_error && reply.device_code == '4') {
@@ -450,7 +522,7 @@ void TechnoFamily::after_reply(NodeState& state, const Command& c,
       return;
     case CommandKind::position: {
       const std::array<int64_t, 3> xyz{reply.values[0], reply.values[1], reply.values[2]};
-      const int64_t moving = in_motion(state, xyz);
+      const int64_t moving = in_motion(state, xyz, answered_after_motion);
       state.last_reported = xyz;
       for (std::size_t i = 0; i < 3; ++i) state.position[i] = xyz[i];
       reply.values.resize(3);
@@ -512,7 +584,8 @@ void TechnoFamily::after_reply(NodeState& state, const Command& c,
 // the polled positions stand still: at the commanded end (once they moved, or once the estimated
 // time is up), or anywhere after moving for motion_settle. The estimate is only an upper bound,
 // so a motion is not reported running for the worst case of an unknown start or a full travel.
-int64_t TechnoFamily::in_motion(NodeState& state, const std::array<int64_t, 3>& xyz) {
+// at_rest: the controller answered only once the motion had ended.
+int64_t TechnoFamily::in_motion(NodeState& state, const std::array<int64_t, 3>& xyz, bool at_rest) {
   if (!state.motion_pending) return 0;
   const auto now = Clock::now();
   const bool changed = state.last_reported && *state.last_reported != xyz;
@@ -525,8 +598,8 @@ int64_t TechnoFamily::in_motion(NodeState& state, const std::array<int64_t, 3>& 
   bool at_end = end_known;
   for (std::size_t i = 0; i < 3; ++i)
     if (state.expected_end[i] && *state.expected_end[i] != xyz[i]) at_end = false;
-  const bool still = state.last_reported && !changed;
-  const bool estimate_passed = now >= state.motion_estimated_end;
+  const bool still = at_rest || (state.last_reported && !changed);
+  const bool estimate_passed = at_rest || now >= state.motion_estimated_end;
   const bool settled = state.moved && now - state.last_change >= profile().motion_settle;
   bool over = state.motion_error != 0 || now >= state.motion_deadline;
   if (still && at_end && (state.moved || estimate_passed)) over = true;

@@ -60,6 +60,9 @@ class TechnoFamily final : public ProtocolFamily {
     Clock::time_point last_change{};
     int64_t motion_error = 0;  // field kFieldMotionError
     bool initialised = false;  // init_on_connect has run since the link opened
+    // Whether this controller answers `P` during a lower-case motion (false: it keeps the query
+    // in its input buffer until the motion ends, p.73), once seen.
+    std::optional<bool> queries_deferred;
   };
 
   struct Waited {
@@ -75,14 +78,19 @@ class TechnoFamily final : public ProtocolFamily {
                                      std::chrono::microseconds budget, const LinkTiming& timing);
   asio::awaitable<Reply> send_raw(Link& link, techno::CommandKind kind);
   void after_interrupt(techno::CommandKind kind);
+  // answered_after_motion: a `P` answered later than any reply takes, so the controller held it
+  // until the running motion had ended.
   void after_reply(NodeState& state, const techno::Command& command,
-                   const std::vector<int64_t>& values, Reply& reply);
+                   const std::vector<int64_t>& values, Reply& reply, bool answered_after_motion);
+  asio::awaitable<void> await_motion_position(Link& link, const NodeAddress& node,
+                                              const Request& request, Reply& reply,
+                                              const LinkTiming& timing);
   // An error character the controller sent on its own after acknowledging a lower-case motion
   // (`2`: limit or E-stop): read before the next request so it is neither lost nor taken for
   // that request's answer.
   asio::awaitable<void> collect_motion_error(Link& link, NodeState& state,
                                              const LinkTiming& timing);
-  int64_t in_motion(NodeState& state, const std::array<int64_t, 3>& xyz);
+  int64_t in_motion(NodeState& state, const std::array<int64_t, 3>& xyz, bool at_rest);
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
   void take_leading_motion_error(NodeState& state, const Request& request, std::string_view frame,
                                  Reply& reply);

@@ -555,6 +555,23 @@ std::optional<int64_t> parse_bit_string(std::string_view body) {
   return bits;
 }
 
+std::string_view to_string(StatusLayout layout) {
+  return layout == StatusLayout::outputs
+             ? "outputs (bit 0 set point A, 1 set point B, 2 busy, 3 fault)"
+             : "busy_first (bit 0 busy, 1 fault)";
+}
+
+int64_t to_model_layout(int64_t word, StatusLayout layout) {
+  if (layout == StatusLayout::busy_first) return word;
+  const int64_t busy = (word >> 2) & 1, fault = (word >> 3) & 1;
+  const int64_t set_a = word & 1, set_b = (word >> 1) & 1;
+  return (word & ~int64_t{0x30f}) | busy | (fault << 1) | (set_a << 8) | (set_b << 9);
+}
+
+bool shows_outputs_layout(int64_t word) {
+  return (word & 4) != 0 && (word & 1) == 0;
+}
+
 std::string_view to_string(StatusForm form) {
   switch (form) {
     case StatusForm::decimal:

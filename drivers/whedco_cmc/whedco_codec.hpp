@@ -137,6 +137,20 @@ std::optional<int64_t> parse_bit_string(std::string_view body);
 enum class StatusForm { decimal, hex, binary };
 std::string_view to_string(StatusForm form);
 
+// The bit layout of RS/RSa (§4.3.1 missing). busy_first: bit 0 busy, 1 fault, then the bits the
+// models name (RS 2 profile running, 3 defining; RSa 2 auxiliary equation, 3 homing, 4 home
+// input; RS 7 Memory Lost) - the layout the models are written in. outputs: like the unit's
+// hardware status outputs in pin order (A.2: set point A, set point B, Busy, Fault; RS 7 Memory
+// Lost).
+enum class StatusLayout { busy_first, outputs };
+std::string_view to_string(StatusLayout layout);
+// A word a unit printed in `layout`, in the busy_first layout the models read: outputs' busy
+// and fault move to bits 0 and 1, its set points A and B to bits 8 and 9; bits 4-7 stay.
+int64_t to_model_layout(int64_t word, StatusLayout layout);
+// Whether a word can only be the outputs layout: bit 2 (busy there) without bit 0 (busy in the
+// other layout, which sets it with every bit 2 condition: a profile or an equation running).
+bool shows_outputs_layout(int64_t word);
+
 struct StatusWord {
   int64_t value = 0;
   // The form the text proves (binary digits, hex letters, four digits with a leading zero);

@@ -288,11 +288,32 @@ asio::awaitable<void> WhedcoFamily::resync(Link& link, const LinkTiming& timing)
   link.discard_input();
 }
 
+const ModelOptionSpecs& WhedcoFamily::model_options() const {
+  static const ModelOptionSpecs specs{
+      choice_option("status_layout", "auto", {"auto", "busy_first", "outputs"},
+                    "bit order of RS status words (the manual's section 4.3.1 is missing): busy "
+                    "at bit 0 until a word shows bit 2 without bit 0 (auto), busy at bit 0, or "
+                    "the hardware outputs' order (set point A, B, busy, fault)"),
+  };
+  return specs;
+}
+
+void WhedcoFamily::configure_node(const NodeAddress& node, const Model& model) {
+  Diagnostics reported;  // validate_model reported them; a model with errors never runs
+  const std::string layout =
+      check_model_options(model, name(), model_options(), reported).text("status_layout");
+  pinned_layouts_.erase(node.number);
+  if (layout == "auto") return;
+  pinned_layouts_[node.number] =
+      layout == "outputs" ? whedco::StatusLayout::outputs : whedco::StatusLayout::busy_first;
+}
+
 asio::awaitable<void> WhedcoFamily::on_link_open(Link& link, const LinkTiming& timing) {
   // The port may have been closed for a while: unit ratios may have changed, and a unit may hold
   // part of a line from before.
   unit_ratios_.clear();
   contacted_.clear();
+  found_layouts_.clear();
   unit_functional_.clear();
   resync_ = Resync::void_and_drain;
   co_await resync(link, timing);
@@ -344,6 +365,8 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const NodeAddress& nod
         link.note(fmt::format("whedco-cmc unit {}: status words are printed in {} (reply to '{}')",
                               node.number, whedco::to_string(*findings_.status_form), x.line));
       }
+      if (kind == QueryKind::status_word && r.status == Reply::Status::ok && !r.values.empty())
+        r.values[0] = model_layout(link, node, x.line, r.values[0]);
       co_return r;
     case LinkRead::Status::timeout:
       if (read.partial.empty()) {
@@ -368,6 +391,29 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const NodeAddress& nod
       co_return r;
   }
   co_return r;
+}
+
+// The models read status words with busy at bit 0 (busy_first). A unit whose words are laid out
+// like its hardware outputs (busy at bit 2) is found by the first word with bit 2 and without
+// bit 0 - under busy_first bit 2 (a profile or an equation running) never comes without busy -
+// and its words are rearranged from then on; a model's status_layout pins either layout.
+int64_t WhedcoFamily::model_layout(Link& link, const NodeAddress& node, const std::string& line,
+                                   int64_t word) {
+  whedco::StatusLayout layout = whedco::StatusLayout::busy_first;
+  if (const auto pinned = pinned_layouts_.find(node.number); pinned != pinned_layouts_.end()) {
+    layout = pinned->second;
+  } else if (const auto found = found_layouts_.find(node.number); found != found_layouts_.end()) {
+    layout = found->second;
+  } else if (whedco::shows_outputs_layout(word)) {
+    layout = whedco::StatusLayout::outputs;
+    found_layouts_[node.number] = layout;
+    link.note(
+        fmt::format("whedco-cmc unit {}: status word {} (reply to '{}') has bit 2 without "
+                    "bit 0: its status words are laid out as {}; busy and fault are "
+                    "reported at bits 0 and 1 from now on",
+                    node.number, word, line, whedco::to_string(layout)));
+  }
+  return whedco::to_model_layout(word, layout);
 }
 
 asio::awaitable<Reply> WhedcoFamily::transact(Link& link, const NodeAddress& node,

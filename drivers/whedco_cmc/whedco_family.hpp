@@ -31,6 +31,8 @@ class WhedcoFamily final : public ProtocolFamily {
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing) override;
+  const ModelOptionSpecs& model_options() const override;
+  void configure_node(const NodeAddress& node, const Model& model) override;
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
 
   // The communication format a node was configured with (NodeAddress::axis carries it: the
@@ -44,6 +46,8 @@ class WhedcoFamily final : public ProtocolFamily {
                                   Request::Expect expect, NumberFormat format,
                                   whedco::QueryKind kind, int unit_ratio, const LinkTiming& timing);
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
+  // A status word as the models read it (busy at bit 0), whatever the unit's layout.
+  int64_t model_layout(Link& link, const NodeAddress& node, const std::string& line, int64_t word);
   // The first exchange with a unit since the port opened: reads FC, and clears the power-up
   // state (Power Failure, every axis faulted) with WB, as the manual asks after power-up.
   asio::awaitable<void> first_contact(Link& link, const NodeAddress& node,
@@ -53,6 +57,9 @@ class WhedcoFamily final : public ProtocolFamily {
   std::map<int, bool> contacted_;
   std::map<int, whedco::StatusForm> status_forms_;
   std::map<int, int64_t> unit_functional_;
+  // How each unit lays out its status words (model option status_layout; auto: found per unit).
+  std::map<int, whedco::StatusLayout> pinned_layouts_;
+  std::map<int, whedco::StatusLayout> found_layouts_;
   WhedcoFindings findings_;  // of the last exchange
   Resync resync_ = Resync::none;
 };

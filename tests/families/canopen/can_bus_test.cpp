@@ -259,7 +259,7 @@ TEST_F(CanBusTest, ModelStepsEnableAndMove) {
         const auto it = values.find(std::string(k));
         return it == values.end() ? int64_t{0} : it->second;
       });
-      const auto r = submit(0, text, {step.accept_no_reply, step.urgent});
+      const auto r = submit(0, text, {step.accept_no_reply, step.urgent, {}});
       if (r.status != Reply::Status::ok) {
         ADD_FAILURE() << name << ": '" << text << "': " << r.text << "\n" << wire_text();
         return false;
@@ -307,13 +307,13 @@ TEST_F(CanBusTest, UrgentCommandInterruptsAWait) {
       },
       asio::detached);
   run_until([] { return false; }, 100ms);
-  const auto r = submit(0, "write controlword 0x02", {false, true});
+  const auto r = submit(0, "write controlword 0x02", {false, true, {}});
   EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
   ASSERT_TRUE(run_until([&] { return waited.has_value(); }, 1s));
   EXPECT_EQ(waited->status, Reply::Status::device_error);
   EXPECT_NE(waited->text.find("interrupted by an urgent command"), std::string::npos);
   // NMT as urgent goes out at once.
-  EXPECT_EQ(submit(0, "nmt start", {false, true}).status, Reply::Status::ok);
+  EXPECT_EQ(submit(0, "nmt start", {false, true, {}}).status, Reply::Status::ok);
 }
 
 TEST_F(CanBusTest, HeartbeatLossAndReturn) {

@@ -234,6 +234,28 @@ TEST_F(ImsTransact, MovesAndTheMotionGuard) {
   EXPECT_EQ(transact('A', write("R0")).status, Reply::Status::ok);
 }
 
+// A move aborts a jog (axis profile, buffer mode Aborting): an index for a jogging unit ramps the
+// jog down with M0, reads `^` until the unit is idle, and then goes out.
+TEST_F(ImsTransact, AnIndexForAJoggingUnitEndsTheJogFirst) {
+  ASSERT_EQ(transact('A', write("V2000")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', write("K50 50")).status, Reply::Status::ok);
+  ASSERT_EQ(transact('A', write("M3000")).status, Reply::Status::ok);
+  std::this_thread::sleep_for(200ms);  // past the 0.12 s ramp
+  ASSERT_NE(transact('A', read("^")).values.at(0) & 1, 0);
+  transport_->clear_writes();
+  const Reply moved = transact('A', write("R0"));
+  ASSERT_EQ(moved.status, Reply::Status::ok) << moved.text;
+  const auto writes = transport_->writes();
+  ASSERT_GE(writes.size(), 3u);
+  EXPECT_EQ(writes.front(), "AM0\n");
+  EXPECT_EQ(writes[writes.size() - 2], "A^\n");  // the last status read showed it idle
+  EXPECT_EQ(writes.back(), "AR0\n");
+  EXPECT_NE(status_of('A') & 1, 0);  // the index runs
+  // An index for a unit that runs an index is still refused: that is not a jog.
+  const Reply again = transact('A', write("R100"));
+  EXPECT_EQ(again.device_code, static_cast<int64_t>(ims::Refusal::axis_moving));
+}
+
 TEST_F(ImsTransact, LateCompletionOfAQueuedIndexDoesNotDisturbPolls) {
   // Without status polls the guard is off, so the second index queues in the unit (§6): its
   // CR LF comes when the first move ends, in the middle of later exchanges.

@@ -397,19 +397,63 @@ TEST_F(TechnoBench, AHandshakeFollowedByMoreBytesIsGarbled) {
   EXPECT_EQ(interpret_techno_reply(ack("n7"), "0").status, Reply::Status::ok);
 }
 
-TEST_F(TechnoBench, QueriesDeferredDuringMotionWaitForItsEnd) {
+// A lower-case move answers at its start; the `P` the family sends right after it is answered
+// at once by a controller that answers during motions, and only at the motion's end by one that
+// buffers it (p.73). Either way the step's reply says where the motion stands: under the second
+// reading the step lasts the motion (a model's confirm_after then holds the line, so the axis
+// reads as moving), and the first poll after it finds the axis at rest at its target.
+class TechnoQueryReadings : public TechnoBench, public ::testing::WithParamInterface<bool> {};
+
+TEST_P(TechnoQueryReadings, QueriesDeferredDuringMotionWaitForItsEnd) {
+  const bool live = GetParam();
+  auto o = defined();
+  o.queries_during_motion = live;
+  start(o);
+  ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
+  const auto t0 = Clock::now();
+  const auto moved = transact(ack("a1000,2500,0,30,0,30,0,30"));  // 0.4 s
+  ASSERT_EQ(moved.status, Reply::Status::ok) << moved.text;
+  if (live)
+    EXPECT_LT(Clock::now() - t0, 300ms);
+  else
+    EXPECT_GE(Clock::now() - t0, 300ms);
+  const auto p = transact(query("P"));
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+  if (live) {
+    EXPECT_EQ(p.values[3], 1);
+  } else {
+    EXPECT_EQ(p.values[0], 1000);
+    EXPECT_EQ(p.values[3], 0);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Techno, TechnoQueryReadings, ::testing::Bool());
+
+// STOP during a lower-case move whose position query the controller holds: the stop goes out,
+// the held query is answered when the ramp has ended, and the move reports that it was stopped.
+TEST_F(TechnoBench, StopEndsALowerCaseMoveWhoseQueryIsHeld) {
   auto o = defined();
   o.queries_during_motion = false;
   start(o);
   ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
-  ASSERT_EQ(transact(ack("a1000,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
-  const auto t0 = Clock::now();
-  const auto p = transact(query("P"));  // the controller answers only at the end of the motion
-  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
-  EXPECT_GE(Clock::now() - t0, 300ms);
-  EXPECT_EQ(p.values[0], 1000);
-  EXPECT_EQ(p.values[3], 1);  // the positions changed since the last poll
-  EXPECT_EQ(transact(query("P")).values[3], 0);
+  std::optional<Reply> stop;
+  asio::co_spawn(io_, urgent_after(family_, *link_, 150ms, "<stop>"),
+                 [&](std::exception_ptr, Reply r) { stop = r; });
+  const auto moved = transact(ack("a5000,1000,0,30,0,30,0,30"));  // 5 s without the stop
+  ASSERT_TRUE(stop);
+  EXPECT_EQ(stop->status, Reply::Status::ok);
+  EXPECT_EQ(moved.device_code, 0xff) << moved.text;
+  Reply p;
+  for (int i = 0; i < 20; ++i) {
+    p = transact(query("P"));
+    ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+    if (p.values[3] == 0) break;
+    std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_EQ(p.values[3], 0);
+  EXPECT_GT(p.values[0], 0);
+  EXPECT_LT(p.values[0], 1000);
+  EXPECT_EQ(p.values[8], 0);  // stopped, not short of a target
 }
 
 TEST_F(TechnoBench, PositionReplyWithHandshakeAndNoTerminator) {

@@ -312,6 +312,63 @@ TEST(WhedcoScripted, OverlongReplyIsGarbled) {
   EXPECT_EQ(r.status, Status::garbled);
 }
 
+// Section 4.3.1 (the status word layout) is missing. Words laid out like the hardware outputs
+// (A.2: set point A, set point B, Busy, Fault) are found by bit 2 without bit 0 and reported in
+// the layout the models read (busy bit 0, fault bit 1, set points at 8 and 9).
+TEST(WhedcoScripted, StatusWordsLaidOutLikeTheOutputsAreFoundAndRearranged) {
+  asio::io_context io;
+  test::LineTransport transport(
+      io, test::LineTransport::scripted(
+              {"0\r\n*", "0\r\n*", "1\r\n*", "4\r\n*", "13\r\n*", "1\r\n*", "136\r\n*"}));
+  Link link(transport);
+  WhedcoFamily family;
+  const auto word = [&](const char* command) {
+    const auto r = test::run(io, family.transact(link, node("4"), read(command), kTiming));
+    EXPECT_EQ(r.status, Status::ok) << r.text;
+    return r.values.empty() ? int64_t{-1} : r.values[0];
+  };
+  EXPECT_EQ(word("RS"), 0);
+  EXPECT_EQ(word("RS"), 1);      // bit 0 alone: either layout; taken as busy until found
+  EXPECT_EQ(word("RSX"), 1);     // bit 2 without bit 0: the outputs layout, busy
+  EXPECT_EQ(word("RS"), 0x103);  // busy, fault, set point A
+  EXPECT_EQ(word("RS"), 0x100);  // set point A alone is no longer busy
+  EXPECT_EQ(word("RS"), 0x82);   // fault, Memory Lost (bit 7) stays
+  const auto notes = link.take_notes();
+  ASSERT_EQ(notes.size(), 1u);
+  EXPECT_NE(notes[0].find("laid out as outputs"), std::string::npos) << notes[0];
+}
+
+TEST(WhedcoScripted, StatusLayoutPinnedByTheModel) {
+  for (const auto& [layout, expected] :
+       std::vector<std::pair<std::string, int64_t>>{{"busy_first", 4}, {"outputs", 1}}) {
+    const std::string text = "model: m\nfamily: whedco-cmc\noptions: {status_layout: " + layout +
+                             "}\npoll_classes: {fast: 100ms}\npoints:\n"
+                             "  s: {type: uint16, read: RS, poll: fast}\n";
+    Diagnostics d;
+    const auto model = load_model_text(text, "m.yaml", d);
+    ASSERT_TRUE(model && d.ok()) << d.to_text();
+    WhedcoFamily family;
+    family.validate_model(*model, d);
+    ASSERT_TRUE(d.ok()) << d.to_text();
+    family.configure_node(node("4"), *model);
+    asio::io_context io;
+    test::LineTransport transport(io, test::LineTransport::scripted({"0\r\n*", "4\r\n*"}));
+    Link link(transport);
+    const auto r = test::run(io, family.transact(link, node("4"), read("RS"), kTiming));
+    ASSERT_EQ(r.status, Status::ok) << r.text;
+    EXPECT_EQ(r.values, std::vector<int64_t>{expected}) << layout;
+  }
+  Diagnostics d;
+  const auto bad = load_model_text("model: m\nfamily: whedco-cmc\noptions: {status_layout: pins}\n",
+                                   "m.yaml", d);
+  ASSERT_TRUE(bad) << d.to_text();
+  WhedcoFamily().validate_model(*bad, d);
+  EXPECT_NE(d.to_text().find("option status_layout: expected auto, busy_first or outputs, found "
+                             "'pins'"),
+            std::string::npos)
+      << d.to_text();
+}
+
 TEST(WhedcoFamilyTest, AddressKeepsTheFormatButNotInItsText) {
   EXPECT_EQ(node("4/echo").text, "4");
   EXPECT_EQ(WhedcoFamily::echo_mode(node("4/echo")), EchoMode::echo);
@@ -372,9 +429,9 @@ actions:
   WhedcoFamily().validate_model(*model, d);
   const std::string all = d.to_text();
   for (const char* expected : {
-           "bad.yaml:3:11: error: model bad: option 'echo': the whedco-cmc family has no model "
-           "options "
-           "(the communication format is set per node in 'address'",
+           "bad.yaml:3:11: error: model bad: unknown whedco-cmc option 'echo' (known: "
+           "status_layout; `fieldgate models --options whedco-cmc` describes them) (the "
+           "communication format is set per node in 'address'",
            "bad.yaml:6:7: error: point p1 read: 'AMX5' is no query",
            "bad.yaml:7:7: error: point p2 write: 'RPX' is a query",
            "bad.yaml:8:7: error: point p3: Whedco replies are decimal or hex",
