@@ -28,7 +28,7 @@ buses:
   - name: canopen
     protocol: canopen
     can: {interface: $ifname}
-    timing: {reply_timeout: 100ms, retries: 1, offline_after: 3, probe_interval: 300ms,
+    timing: {reply_timeout: 500ms, retries: 1, offline_after: 3, probe_interval: 300ms,
              heartbeat_timeout: 500ms, start_nodes: true}
     nodes:
       - {name: drive_2, address: 2, model: canopen-cia402, unit_id: 1, profile_unit: 21}
