@@ -139,7 +139,9 @@ std::uint16_t Drive402::statusword() const {
     switch (homing_) {
       case HomingStatus::not_started:
       case HomingStatus::interrupted:
-        sw |= kSwTargetReached;
+        // Interrupted by halt or bit 4 falling: "target reached" means the axis stands (CiA 402
+        // homing-mode statusword, halt = 1: velocity 0), not that the halt was taken.
+        if (motion_ == Motion::idle) sw |= kSwTargetReached;
         break;
       case HomingStatus::in_progress:
         break;

@@ -628,11 +628,29 @@ TEST(Homing, InterruptedAndError) {
   bus.controlword(0x1F);
   bus.advance(50ms);
   bus.controlword(0x0F);  // bit 4 falling: interrupt
+  EXPECT_EQ(bus.statusword() & 0x3400, 0x0000) << "interrupted, still decelerating";
   bus.advance(500ms);
   EXPECT_EQ(bus.statusword() & 0x3400, 0x0400);
   bus.download(0x6098, 0, 0, 1);
   bus.controlword(0x1F);
   EXPECT_EQ(bus.statusword() & 0x3400, 0x2400) << "homing error, velocity 0";
+}
+
+TEST(Homing, HaltStandsBeforeTargetReached) {
+  Bus bus;
+  bus.enable(Drive402::kModeHoming);
+  bus.download(0x6098, 0, 17, 1);
+  bus.controlword(0x1F);
+  bus.advance(100ms);
+  bus.controlword(0x011F);  // halt
+  EXPECT_EQ(bus.statusword() & 0x3400, 0x0000) << "interrupted, still decelerating";
+  const auto braking_from = bus.position();
+  bus.advance(500ms);
+  EXPECT_EQ(bus.statusword() & 0x3400, 0x0400) << "interrupted, standing";
+  EXPECT_LT(bus.position(), braking_from) << "the axis decelerated, it did not stop dead";
+  const auto stood_at = bus.position();
+  bus.advance(200ms);
+  EXPECT_EQ(bus.position(), stood_at);
 }
 
 // --- TPDO1 -------------------------------------------------------------------------------------
