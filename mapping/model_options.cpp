@@ -206,7 +206,9 @@ ModelOptionValues check_model_options(const Model& model, std::string_view famil
     const auto it = model.option_marks.find(name);
     return it == model.option_marks.end() ? model.mark : it->second;
   };
-  for (const auto& [name, value] : model.options) {
+  for (const auto& option : model.options) {
+    // A named reference, not a structured binding: clang before 16 cannot capture bindings.
+    const std::string& name = option.first;
     const bool known = std::any_of(specs.begin(), specs.end(),
                                    [&](const ModelOptionSpec& s) { return s.name == name; });
     if (known) continue;

@@ -25,7 +25,8 @@ buses:
     serial: {device: $dir/copley, baud: 115200}
     timing: {reply_timeout: 150ms, probe_interval: 300ms}
     nodes:
-      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21}
+      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21,
+         limits: {target: {min: -100000000, max: 100000000}}}
       - {name: amp7, address: 7, model: copley-amplifier, unit_id: 3, profile_unit: 23}
   - name: ims
     protocol: ims-party-line
