@@ -347,7 +347,10 @@ void AxisProfileServer::abort_shared_stops(const ProfileUnit& unit, ProfileComma
   for (std::size_t other = 0; other < axes.size() && other < node.profile_axes.size(); ++other) {
     if (static_cast<int>(other) == unit.axis) continue;
     auto& rt = node.profile_axes[other];
-    if (rt.status != CommandStatus::busy) continue;
+    // A running stop or halt of that axis still ends as it should: the axis stands still.
+    if (rt.status != CommandStatus::busy || rt.command == ProfileCommand::stop ||
+        rt.command == ProfileCommand::halt)
+      continue;
     const auto shares = [&](ProfileCommand c) {
       const auto it = axes[other].commands.find(c);
       return it != axes[other].commands.end() && it->second == names;
