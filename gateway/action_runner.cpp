@@ -93,9 +93,14 @@ void ActionRunner::node_updated(int node_index) {
   for (auto* t : image_.node(node_index).waiters) t->cancel();
 }
 
+ActionState& ActionRunner::state_of(int node_index, const std::shared_ptr<ActionState>& slot) {
+  return slot ? *slot : image_.node(node_index).action;
+}
+
 asio::awaitable<Reply> ActionRunner::start(int node_index, ModelPtr model_ptr,
-                                           const ActionDef& action) {
-  auto& state = image_.node(node_index).action;
+                                           const ActionDef& action,
+                                           std::shared_ptr<ActionState> slot) {
+  auto& state = state_of(node_index, slot);
   const uint64_t generation = ++state.generation;
   state.status = ActionStatus::busy;
   state.code = action.code;
@@ -104,11 +109,12 @@ asio::awaitable<Reply> ActionRunner::start(int node_index, ModelPtr model_ptr,
   const bool confirms_early =
       std::any_of(action.steps.begin(), action.steps.end(),
                   [](const ActionStep& s) { return s.confirm_after.has_value(); });
-  if (!confirms_early) co_return co_await run_steps(node_index, model_ptr, action, generation, {});
+  if (!confirms_early)
+    co_return co_await run_steps(node_index, model_ptr, action, generation, slot, {});
   auto confirmation = std::make_shared<Confirmation>(executor_);
   asio::co_spawn(
       executor_,
-      run_in_background(node_index, std::move(model_ptr), action, generation, confirmation),
+      run_in_background(node_index, std::move(model_ptr), action, generation, slot, confirmation),
       asio::detached);
   auto [ec, reply] = co_await confirmation->channel.async_receive(use_tuple);
   if (ec) {
@@ -122,15 +128,18 @@ asio::awaitable<Reply> ActionRunner::start(int node_index, ModelPtr model_ptr,
 
 asio::awaitable<void> ActionRunner::run_in_background(int node_index, ModelPtr model_ptr,
                                                       const ActionDef& action, uint64_t generation,
+                                                      std::shared_ptr<ActionState> slot,
                                                       std::shared_ptr<Confirmation> confirmation) {
-  co_await run_steps(node_index, std::move(model_ptr), action, generation, confirmation);
+  co_await run_steps(node_index, std::move(model_ptr), action, generation, std::move(slot),
+                     confirmation);
 }
 
 asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index,
                                                        const Request& request,
                                                        CommandOptions options,
                                                        std::chrono::microseconds patience,
-                                                       Confirmation& confirmation) {
+                                                       Confirmation& confirmation, uint16_t code,
+                                                       std::shared_ptr<ActionState> slot) {
   auto pending = std::make_shared<ReplyChannel>(executor_, 1);
   // The patience counts from the moment the command goes on the wire, not from the queue: a
   // command still waiting behind a slow poll or a resync is not running, and a stop sent on the
@@ -156,18 +165,23 @@ asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index,
   Reply accepted;
   accepted.status = Reply::Status::ok;
   confirmation.give(accepted);
+  // The line is the node's whoever started the action: the native layout sees it held too.
   auto& action = image_.node(node_index).action;
   action.holding_line = true;
+  action.holding_code = code;
+  if (slot) slot->holding_line = true;
   auto late = co_await pending->async_receive(use_tuple);
   action.holding_line = false;
+  if (slot) slot->holding_line = false;
   co_return reply_of(std::move(late));
 }
 
 asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_ptr,
                                                const ActionDef& action, uint64_t generation,
+                                               std::shared_ptr<ActionState> slot,
                                                std::shared_ptr<Confirmation> confirmation) {
   const Model& model = *model_ptr;
-  auto& state = image_.node(node_index).action;
+  auto& state = state_of(node_index, slot);
   auto& bus = bus_of_(node_index);
   const auto& setpoints = image_.node(node_index).setpoints;
   const auto lookup = [&](std::string_view name) -> int64_t {
@@ -190,7 +204,7 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
     options.urgent = step.urgent;
     if (step.confirm_after && confirmation && !confirmation->given) {
       reply = co_await submit_confirming(bus, node_index, request, options, *step.confirm_after,
-                                         *confirmation);
+                                         *confirmation, action.code, slot);
     } else {
       reply = co_await bus.submit(node_index, request, options);
     }
@@ -218,7 +232,7 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
     if (state.generation == generation) state.status = ActionStatus::done;
     co_return reply;
   }
-  asio::co_spawn(executor_, watch(node_index, model_ptr, action, generation, Clock::now()),
+  asio::co_spawn(executor_, watch(node_index, model_ptr, action, generation, slot, Clock::now()),
                  asio::detached);
   co_return reply;
 }
@@ -276,6 +290,7 @@ bool ActionRunner::refreshed_since(const NodeImage& node, const Model& model,
 // Holds the model so a reload cannot free the action it watches.
 asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
                                           const ActionDef& action, uint64_t generation,
+                                          std::shared_ptr<ActionState> slot,
                                           SteadyTime acknowledged) {
   const Model& model = *model_ptr;
   asio::steady_timer wake(executor_);
@@ -283,15 +298,16 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
   list.push_back(&wake);
   const auto deadline = acknowledged + action.timeout;
   auto& node = image_.node(node_index);
+  auto& state = state_of(node_index, slot);
   std::optional<SteadyTime> settled_since;
   const auto blind_after = completion_blind_after(model, action);
   for (;;) {
-    if (stopping_ || node.action.generation != generation) break;
+    if (stopping_ || state.generation != generation) break;
     if (action.failed && evaluate(node, model, *action.failed, acknowledged).value_or(false)) {
-      node.action.status = ActionStatus::error;
-      node.action.error = kActionErrorFailedCondition;
+      state.status = ActionStatus::error;
+      state.error = kActionErrorFailedCondition;
       if (const auto code = point_value(node, model, action.failed->error_from); code && *code > 0)
-        node.action.error = static_cast<uint16_t>(*code);
+        state.error = static_cast<uint16_t>(*code);
       break;
     }
     if (action.done && !settled_since &&
@@ -300,12 +316,12 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
     // Done only once every point polled with the condition's point was read again after the
     // condition held, so a PLC that reads the position on `done` sees where the axis stopped.
     if (settled_since && refreshed_since(node, model, action.done->point, *settled_since)) {
-      node.action.status = ActionStatus::done;
+      state.status = ActionStatus::done;
       break;
     }
     if (Clock::now() >= deadline) {
-      node.action.status = ActionStatus::error;
-      node.action.error = kActionErrorTimeout;
+      state.status = ActionStatus::error;
+      state.error = kActionErrorTimeout;
       log::warning("node {}: action {} did not complete within {} ms", node_index, action.name,
                    std::chrono::duration_cast<std::chrono::milliseconds>(action.timeout).count());
       break;

@@ -33,25 +33,31 @@ class ActionRunner {
 
   // Returns once every step was acknowledged (the reply of the failing step otherwise), or once
   // a confirm_after step has waited that long for its reply. The completion watch goes on in the
-  // background.
-  asio::awaitable<Reply> start(int node_index, ModelPtr model, const ActionDef& action);
+  // background. The action's status goes to `slot` if given (a profile axis keeps its own, so
+  // two axes of one node do not supersede each other), else to the node's action register.
+  asio::awaitable<Reply> start(int node_index, ModelPtr model, const ActionDef& action,
+                               std::shared_ptr<ActionState> slot = nullptr);
   // Called when a poll brought new values for a node.
   void node_updated(int node_index);
   void stop();
 
  private:
   struct Confirmation;
+  ActionState& state_of(int node_index, const std::shared_ptr<ActionState>& slot);
   asio::awaitable<Reply> run_steps(int node_index, ModelPtr model, const ActionDef& action,
-                                   uint64_t generation, std::shared_ptr<Confirmation> confirmation);
+                                   uint64_t generation, std::shared_ptr<ActionState> slot,
+                                   std::shared_ptr<Confirmation> confirmation);
   asio::awaitable<Reply> submit_confirming(Bus& bus, int node_index, const Request& request,
                                            CommandOptions options,
                                            std::chrono::microseconds patience,
-                                           Confirmation& confirmation);
+                                           Confirmation& confirmation, uint16_t code,
+                                           std::shared_ptr<ActionState> slot);
   asio::awaitable<void> run_in_background(int node_index, ModelPtr model, const ActionDef& action,
-                                          uint64_t generation,
+                                          uint64_t generation, std::shared_ptr<ActionState> slot,
                                           std::shared_ptr<Confirmation> confirmation);
   asio::awaitable<void> watch(int node_index, ModelPtr model, const ActionDef& action,
-                              uint64_t generation, SteadyTime acknowledged);
+                              uint64_t generation, std::shared_ptr<ActionState> slot,
+                              SteadyTime acknowledged);
   bool refreshed_since(const NodeImage& node, const Model& model,
                        const std::string& condition_point, SteadyTime since) const;
   std::optional<bool> evaluate(const NodeImage& node, const Model& model, const Condition& c,

@@ -103,6 +103,7 @@ ProfileAxisRuntime& AxisProfileServer::runtime(const ProfileUnit& unit) {
   if (node.profile_axes.size() < unit.model->profile_axes.size())
     node.profile_axes.resize(unit.model->profile_axes.size());
   auto& rt = node.profile_axes[static_cast<std::size_t>(unit.axis)];
+  if (!rt.action) rt.action = std::make_shared<ActionState>();
   if (!rt.initialised) {
     // The model's own defaults (or the node's configured setpoints), so a PLC that never writes
     // a velocity still moves at a sane one.
@@ -134,8 +135,14 @@ AxisObservation AxisProfileServer::observe(const ProfileUnit& unit,
   const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
   AxisObservation o;
   o.enabled = status_bit(model, node, axis, StatusBit::enabled);
-  // While a step holds the line (a motion answered at its end) nothing is polled: it moves.
-  o.moving = status_bit(model, node, axis, StatusBit::moving) || node.action.holding_line;
+  // While a step holds the line (a motion answered at its end) nothing is polled: it moves, if
+  // the step is this axis's or the native layout's (not another profile axis's).
+  const bool held_by_an_axis =
+      std::any_of(node.profile_axes.begin(), node.profile_axes.end(),
+                  [](const ProfileAxisRuntime& a) { return a.action && a.action->holding_line; });
+  o.moving = status_bit(model, node, axis, StatusBit::moving) ||
+             (rt.action && rt.action->holding_line) ||
+             (node.action.holding_line && !held_by_an_axis);
   o.error = status_bit(model, node, axis, StatusBit::error);
   o.error_latched = rt.error_latched;
   o.command = rt.command;
@@ -295,6 +302,7 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
     rt.error_id = 0;
     co_return modbus::WriteResult::success();
   }
+  abort_shared_stops(unit, cmd);
   for (const auto& [index, value] : passes) node.setpoints[index] = value;
   rt.status = CommandStatus::busy;
   for (const auto& [point, value] : point_writes) {
@@ -313,11 +321,12 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
     image_.node(unit.node_index).points[static_cast<std::size_t>(point - model.points.data())] = {
         value, std::chrono::steady_clock::now(), true};
   }
-  const uint64_t action_generation = node.action.generation + 1;
-  const Reply reply = co_await actions_.start(unit.node_index, unit.model, *first);
+  const uint64_t action_generation = rt.action->generation + 1;
+  const auto slot = rt.action;
+  const Reply reply = co_await actions_.start(unit.node_index, unit.model, *first, slot);
   if (rt.generation != generation) co_return modbus::WriteResult::success();  // superseded
   if (reply.status != Reply::Status::ok) {
-    finish_with_error(rt, node.action.error);
+    finish_with_error(rt, slot->error);
     if (auto ex = exception_for(reply)) co_return *ex;
     co_return ExceptionCode::server_device_failure;
   }
@@ -327,8 +336,33 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
   co_return modbus::WriteResult::success();
 }
 
+// A stop or halt that the model gives the same action on other axes of the node (Centent Q,
+// Whedco HT stop both axes of the unit) stops those axes too: their running commands end
+// aborted. Any other command of one axis leaves the other axes' commands alone.
+void AxisProfileServer::abort_shared_stops(const ProfileUnit& unit, ProfileCommand cmd) {
+  if (cmd != ProfileCommand::stop && cmd != ProfileCommand::halt) return;
+  const auto& axes = unit.model->profile_axes;
+  const auto& names = axes[static_cast<std::size_t>(unit.axis)].commands.at(cmd);
+  auto& node = image_.node(unit.node_index);
+  for (std::size_t other = 0; other < axes.size() && other < node.profile_axes.size(); ++other) {
+    if (static_cast<int>(other) == unit.axis) continue;
+    auto& rt = node.profile_axes[other];
+    // A running stop or halt of that axis still ends as it should: the axis stands still.
+    if (rt.status != CommandStatus::busy || rt.command == ProfileCommand::stop ||
+        rt.command == ProfileCommand::halt)
+      continue;
+    const auto shares = [&](ProfileCommand c) {
+      const auto it = axes[other].commands.find(c);
+      return it != axes[other].commands.end() && it->second == names;
+    };
+    if (!shares(ProfileCommand::stop) && !shares(ProfileCommand::halt)) continue;
+    ++rt.generation;  // its follow-up ends here
+    rt.status = CommandStatus::aborted;
+  }
+}
+
 // Waits for each action of the command to complete and starts the next; ends the command in
-// done, error (the axis goes to ErrorStop) or aborted (another command took the node's actions).
+// done, error (the axis goes to ErrorStop) or aborted (another command of the axis took over).
 asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t generation,
                                                 uint64_t action_generation, std::size_t step,
                                                 std::shared_ptr<bool> alive) {
@@ -339,29 +373,29 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
     timer.expires_after(kFollowInterval);
     co_await timer.async_wait(asio::as_tuple(asio::use_awaitable));
     if (!*alive) co_return;
-    auto& node = image_.node(unit.node_index);
     auto& rt = runtime(unit);
     if (rt.generation != generation) co_return;
-    if (node.action.generation != action_generation) {
+    const auto slot = rt.action;
+    if (slot->generation != action_generation) {
       rt.status = CommandStatus::aborted;
       co_return;
     }
-    if (node.action.status == ActionStatus::busy) continue;
-    if (node.action.status == ActionStatus::error) {
-      finish_with_error(rt, node.action.error);
+    if (slot->status == ActionStatus::busy) continue;
+    if (slot->status == ActionStatus::error) {
+      finish_with_error(rt, slot->error);
       co_return;
     }
     const auto& axis = unit.model->profile_axes[static_cast<std::size_t>(unit.axis)];
     const auto& names = axis.commands.at(rt.command);
     if (++step < names.size()) {
       const ActionDef* next = unit.model->find_action(names[step]);
-      action_generation = node.action.generation + 1;
-      const Reply reply = co_await actions_.start(unit.node_index, unit.model, *next);
+      action_generation = slot->generation + 1;
+      const Reply reply = co_await actions_.start(unit.node_index, unit.model, *next, slot);
       if (!*alive) co_return;
       auto& again = runtime(unit);
       if (again.generation != generation) co_return;
       if (reply.status != Reply::Status::ok) {
-        finish_with_error(again, image_.node(unit.node_index).action.error);
+        finish_with_error(again, slot->error);
         co_return;
       }
       continue;

@@ -39,6 +39,7 @@ class AxisProfileServer {
   AxisObservation observe(const ProfileUnit& unit, const ProfileAxisRuntime& rt) const;
   asio::awaitable<modbus::WriteResult> command(ProfileUnit unit, ProfileCommand command,
                                                uint16_t sequence);
+  void abort_shared_stops(const ProfileUnit& unit, ProfileCommand cmd);
   asio::awaitable<void> follow(ProfileUnit unit, uint64_t generation, uint64_t action_generation,
                                std::size_t step, std::shared_ptr<bool> alive);
 

@@ -51,6 +51,7 @@ struct ActionState {
   // A step confirmed early (confirm_after) is still waiting for its reply, so its bus is held
   // until the motion ends: writes that need the bus answer 0x06 at once (register map).
   bool holding_line = false;
+  uint16_t holding_code = 0;  // the action whose step holds the line (the node's register only)
 };
 
 // Action errors that are not device codes.

@@ -25,7 +25,7 @@ Table to_table(modbus::BitTable t) {
 int64_t held_line_view(const UnitMap& unit, const NodeImage& node, const RegisterEntry& e,
                        int64_t value) {
   if (!node.action.holding_line) return value;
-  const ActionDef* action = unit.model->find_action(node.action.code);
+  const ActionDef* action = unit.model->find_action(node.action.holding_code);
   if (!action || !action->done || !action->done->bit) return value;
   if (unit.model->points[static_cast<std::size_t>(e.index)].name != action->done->point)
     return value;

@@ -431,6 +431,38 @@ std::string signed_relative_distances(std::string s) {
   return s;
 }
 
+// The first absolute position (X=n, XP=n, also inside linked and interpolated forms) below 0:
+// a decimal with a minus sign, or raw hex of 2^31 and more (a negative int32 target rendered as
+// hex). The position register "accepts only positive signed numbers" (Set Position, p.35) and
+// X=n moves CW when n is greater than the register (p.21): 0FFFFD800H is not 10 steps CCW of
+// 0 but a run CW towards 4,194,294 full steps. Ratio (Y/X=) and analog (A\X) keys are skipped.
+std::optional<std::string> negative_absolute_position(const std::string& u) {
+  for (std::size_t i = 0; i < u.size(); ++i) {
+    if (!is_axis(u[i]) || (i > 0 && (u[i - 1] == '/' || u[i - 1] == '\\'))) continue;
+    std::size_t j = i + 1;
+    if (j < u.size() && u[j] == 'P') ++j;
+    if (j >= u.size() || u[j] != '=') continue;
+    ++j;
+    while (j < u.size() && u[j] == ' ') ++j;
+    const std::size_t start = j;
+    if (j < u.size() && u[j] == '-') {
+      std::size_t end = j + 1;
+      while (end < u.size() && (is_digit(u[end]) || u[end] == '.')) ++end;
+      if (end > j + 1) return u.substr(i, end - i);
+      continue;
+    }
+    while (j < u.size() && (is_digit(u[j]) || (u[j] >= 'A' && u[j] <= 'F'))) ++j;
+    if (j >= u.size() || u[j] != 'H' || j == start) continue;
+    std::string_view digits(u.data() + start, j - start);
+    while (digits.size() > 1 && digits.front() == '0') digits.remove_prefix(1);
+    if (digits.size() > 8) continue;
+    uint64_t v = 0;
+    std::from_chars(digits.data(), digits.data() + digits.size(), v, 16);
+    if (v >= 0x80000000u) return u.substr(i, j + 1 - i);
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 std::optional<std::string> normalise_instruction(std::string_view instruction, std::string& error) {
@@ -455,6 +487,14 @@ std::optional<std::string> normalise_instruction(std::string_view instruction, s
       return std::nullopt;
     }
     return s;
+  }
+  if (const auto negative = negative_absolute_position(u)) {
+    error = fmt::format(
+        "'{}': a negative absolute position; the CN0170's position register "
+        "takes only positive numbers (manual p.35) and the axis would run the "
+        "other way (p.21)",
+        *negative);
+    return std::nullopt;
   }
   return signed_relative_distances(s);
 }

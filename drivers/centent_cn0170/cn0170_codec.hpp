@@ -126,6 +126,8 @@ std::vector<AbsoluteTarget> absolute_targets(std::string_view instruction);
 //   XRn                     -> n must be 1, 2, 10 or 125
 //   X+-5 (decimal)          -> X-5
 //   X+0FFFFFC00H (raw hex >= 2^31, a negative 32-bit distance) -> X-0400H
+//   X=n, XP=n below 0 (decimal -n, or raw hex >= 2^31)  -> refused: the position register
+//                           takes only positive numbers (p.35), X=n runs CW if n > position
 std::optional<std::string> normalise_instruction(std::string_view instruction, std::string& error);
 // Every instruction of a request, joined with ';'.
 std::optional<std::string> normalise_request(std::string_view request, std::string& error);

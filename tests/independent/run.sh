@@ -2,7 +2,8 @@
 # tools/axis.py's full cycle (power, home, moves, jogs, stop, halt, error, reset) through the
 # daemon against an independent implementation of one controller family (written from the
 # manuals, not the project's simulators). Usage: run.sh FAMILY FIELDGATE_BIN AXIS_PY [SCENARIO]
-# With SCENARIO, scenarios.py runs that scenario (home-position, abort-jog, cross-axis) instead.
+# With SCENARIO, scenarios.py runs that scenario (home-position, abort-jog, cross-axis,
+# shared-stop, negative-target) instead.
 set -euo pipefail
 family=$1 fieldgate=$2 axis_py=$3 scenario=${4:-}
 here=$(cd "$(dirname "$0")" && pwd)

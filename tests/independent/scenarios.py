@@ -10,6 +10,10 @@ Exit status 2: not applicable (the axis has no jog).
 
 abort-jog      move_absolute during a jog aborts the jog and reaches the target (Aborting mode)
 cross-axis     a jog on axis V does not change axis U's running jog (two profile axes of a node)
+shared-stop    stop on axis U of a controller whose stop halts every axis of the node (Centent Q,
+               Whedco HT) ends axis V's running move aborted, not done short of its target
+negative-target  (Centent: the position register takes only positive numbers, p.35) a negative
+               absolute target is refused with exception 0x03 and the axis does not move
 """
 import argparse
 import sys
@@ -128,9 +132,45 @@ def cross_axis(pr, units, args):
         pu["state"] == "ContinuousMotion"
 
 
+def shared_stop(pr, units, args):
+    u, v = units[0], units[1]
+    pr.setpoints(v, velocity=args.velocity or None)
+    start = pr.page(v)
+    pr.setpoints(v, target=start["position"] + 5 * args.distance)
+    print("move_absolute V:", pr.command(v, MOVE_ABSOLUTE))
+    moving = pr.wait(v, lambda p: p["moving"], 10)
+    print("V moving:", moving)
+    print("stop U:", pr.command(u, STOP))
+    pu = pr.wait(u, lambda p: p["cmd_status"] != BUSY and not p["moving"], 30)
+    pv = pr.wait(v, lambda p: p["cmd_status"] != BUSY and not p["moving"], 30)
+    print("U:", pu)
+    print("V:", pv)
+    return moving["moving"] and pu["cmd_status"] == DONE and pv["cmd_status"] == ABORTED and \
+        pv["state"] == "Standstill"
+
+
+def negative_target(pr, units, args):
+    u = units[0]
+    before = pr.page(u)
+    pr.setpoints(u, target=-10240, velocity=args.velocity or None)
+    r = pr.command(u, MOVE_ABSOLUTE)
+    print("move_absolute to -10240:", r)
+    time.sleep(1.0)
+    after = pr.page(u)
+    print("before:", before)
+    print("after:", after)
+    refused = r.isError() and getattr(r, "exception_code", None) == 3
+    if after["moving"]:
+        print("stop:", pr.command(u, STOP))
+        pr.wait(u, lambda p: not p["moving"], 10)
+    return refused and not after["moving"] and abs(after["position"] - before["position"]) <= 2
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scenario", choices=["home-position", "abort-jog", "cross-axis"])
+    ap.add_argument("scenario",
+                    choices=["home-position", "abort-jog", "cross-axis", "shared-stop",
+                             "negative-target"])
     ap.add_argument("--port", type=int, required=True)
     ap.add_argument("--unit", required=True)
     ap.add_argument("--distance", type=int, default=2000)
@@ -139,7 +179,9 @@ def main():
     units = [int(x) for x in args.unit.split(",") if x]
     pr = Profile(args.port)
     ok = {"home-position": home_position, "abort-jog": abort_jog,
-          "cross-axis": cross_axis}[args.scenario](pr, units, args)
+          "cross-axis": cross_axis, "shared-stop": shared_stop,
+          "negative-target": negative_target}[args.scenario](
+              pr, units, args)
     if ok is None:
         print("%s: not applicable (no jog on this axis)" % args.scenario)
         return 2

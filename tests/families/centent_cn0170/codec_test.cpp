@@ -257,7 +257,29 @@ TEST(Cn0170Codec, RewritesForNumericRegisters) {
   EXPECT_EQ(normalised("X+-5.5"), "X-5.5");
   EXPECT_EQ(normalised("XV=200,2000;X+0FFFFFC00H,Y+0400H"), "XV=200,2000;X-0400H,Y+0400H");
   // Not distances: speed control, ratio enable, triggers, positions.
-  EXPECT_EQ(normalised("X++500;X--;Y/X+;XP+;XP=0FFFFFC00H"), "X++500;X--;Y/X+;XP+;XP=0FFFFFC00H");
+  EXPECT_EQ(normalised("X++500;X--;Y/X+;XP+;XP=0FFFFFC00H"),
+            "error: 'XP=0FFFFFC00H': a negative absolute position; the CN0170's position "
+            "register takes only positive numbers (manual p.35) and the axis would run the other "
+            "way (p.21)");
+  EXPECT_EQ(normalised("X++500;X--;Y/X+;XP+;XP=0400H"), "X++500;X--;Y/X+;XP+;XP=0400H");
+}
+
+// Set Position (p.35): the register takes only positive numbers; X=n runs CW when n is greater
+// than the register (p.21). A negative int32 target rendered as hex is never sent.
+TEST(Cn0170Codec, NegativeAbsolutePositionsAreRefused) {
+  const std::string why =
+      ": a negative absolute position; the CN0170's position register takes only positive "
+      "numbers (manual p.35) and the axis would run the other way (p.21)";
+  EXPECT_EQ(normalised("XV=200,2000;X=0FFFFD800H"), "error: 'X=0FFFFD800H'" + why);
+  EXPECT_EQ(normalised("Y=080000000H"), "error: 'Y=080000000H'" + why);
+  EXPECT_EQ(normalised("XP=0FFFFFC00H"), "error: 'XP=0FFFFFC00H'" + why);
+  EXPECT_EQ(normalised("X=-5"), "error: 'X=-5'" + why);
+  EXPECT_EQ(normalised("XYV=200,2000;X=0400H,Y=0FFFFFC00H"), "error: 'Y=0FFFFFC00H'" + why);
+  EXPECT_EQ(normalised("X=2000 & Y=-3.5"), "error: 'Y=-3.5'" + why);
+  // Zero and positive positions, relative moves, ratio and velocity registers pass.
+  EXPECT_EQ(normalised("X=00H;XP=0H;Y=07FFFFFFFH"), "X=00H;XP=0H;Y=07FFFFFFFH");
+  EXPECT_EQ(normalised("X+0FFFFD800H"), "X-02800H");
+  EXPECT_EQ(normalised("Y/X=0C0000000H;XYV=0FFFFH"), "Y/X=0C0000000H;XYV=0FFFFH");
 }
 
 TEST(Cn0170Codec, UnitAddresses) {
