@@ -113,7 +113,10 @@ if [ -n "$scenario" ]; then
   /usr/bin/python3 "$here/scenarios.py" "$scenario" --port "$port" --unit "$units" \
     "${axis_args[@]}" || rc=$?
 else
-  /usr/bin/python3 "$axis_py" --port "$port" --unit "$units" "${axis_args[@]}" -v || rc=$?
+  # The independent units model no device fault that Modbus alone could provoke: the gateway's
+  # refusals (--refused-target) are the error these runs check.
+  /usr/bin/python3 "$axis_py" --port "$port" --unit "$units" "${axis_args[@]}" --no-device-error \
+    -v || rc=$?
 fi
 echo "--- unit log (command lines as received, each shown at most 3 times) ---"
 cat "$dir/unit.log"

@@ -84,19 +84,23 @@ TEST_F(ChainTest, AbsoluteMoveAcrossZeroIsRefused) {
   EXPECT_TRUE(refused("X=0BB8H,Y=0FFFFFC00H"));  // linear: the Y term
   EXPECT_TRUE(refused("X=0BB8H & Y=-1"));
   EXPECT_FALSE(refused("XV=200,2000;X=0BB8H"));
-  EXPECT_FALSE(refused("X-0FA0H"));        // relative moves are the way below 0
-  EXPECT_FALSE(refused("XP=0FFFFF060H"));  // declaring a position moves nothing
+  EXPECT_FALSE(refused("X-0FA0H"));       // relative moves are the way below 0
+  EXPECT_TRUE(refused("XP=0FFFFF060H"));  // a negative position cannot be declared either
   EXPECT_FALSE(refused("Y/X=0C0000000H"));
+  // A negative target is refused by the codec whatever the position (the register takes
+  // positive numbers only); the sign guard covers a positive target from below 0.
   const auto text = plan_request(chain, options, 1, command("X=0FFFFF060H")).refused->text;
-  EXPECT_NE(text.find("to -4000 from 0"), std::string::npos) << text;
-  EXPECT_NE(text.find("move relative"), std::string::npos) << text;
+  EXPECT_NE(text.find("a negative absolute position"), std::string::npos) << text;
 
   // Below 0 now (a relative move went there): targets above 0 cross it, targets below do not.
   ASSERT_TRUE(exchange(chain, options, 1, read("XP?;YP?"), {"1X=FFFFF060h\r", "1Y=00000400h\r"}));
   EXPECT_TRUE(refused("X=0BB8H"));
   EXPECT_TRUE(refused("X=0"));
-  EXPECT_FALSE(refused("X=0FFFFF000H"));
-  EXPECT_FALSE(refused("Y=0BB8H"));  // Y is still above 0
+  const auto crossing = plan_request(chain, options, 1, command("X=0BB8H")).refused->text;
+  EXPECT_NE(crossing.find("to 3000 from -4000"), std::string::npos) << crossing;
+  EXPECT_NE(crossing.find("move relative"), std::string::npos) << crossing;
+  EXPECT_TRUE(refused("X=0FFFFF000H"));  // negative: the codec's refusal
+  EXPECT_FALSE(refused("Y=0BB8H"));      // Y is still above 0
   EXPECT_FALSE(refused("X+0FA0H"));
   // Its reset clears the position register: above 0 again.
   Exchange ex(chain, 1, plan_request(chain, options, 1, read("XP?")), "XP?");
@@ -104,7 +108,9 @@ TEST_F(ChainTest, AbsoluteMoveAcrossZeroIsRefused) {
   EXPECT_FALSE(refused("X=0BB8H"));
 
   options.guard_position_sign = false;
-  EXPECT_FALSE(refused("X=0FFFFF060H"));
+  ASSERT_TRUE(exchange(chain, options, 1, read("XP?;YP?"), {"1X=FFFFF060h\r", "1Y=00000400h\r"}));
+  EXPECT_FALSE(refused("X=0BB8H"));      // the guard is off
+  EXPECT_TRUE(refused("X=0FFFFF060H"));  // the codec's refusal is not an option
 }
 
 TEST_F(ChainTest, ReadDemultiplexedByPrefixWithMotionWord) {

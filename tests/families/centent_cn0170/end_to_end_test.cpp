@@ -23,7 +23,7 @@ constexpr int kDiagLastGoodAge = 1001, kDiagNodeState = 1014;
 constexpr int kMoveXAbsolute = 1, kMoveXRelative = 2, kHomeX = 7, kQuit = 10, kKill = 12,
               kJogXCw = 15;
 constexpr int kXMovingBit = 0, kMovingBit = 4;
-constexpr int kDeviceFailure = 0x04, kTargetFailed = 0x0B;
+constexpr int kIllegalValue = 0x03, kDeviceFailure = 0x04, kTargetFailed = 0x0B;
 
 std::string nodes(const std::vector<int>& units, const std::string& poll) {
   std::string out;
@@ -406,8 +406,8 @@ INSTANTIATE_TEST_SUITE_P(Bauds, CententLateEndToEnd, ::testing::Values("9600", "
 // README "Try it" writes a negative value to holding 110 with `-- -4000`; on unit 22 that was
 // an absolute move across 0. The CN0170's positions are "positive only" (§9 #20): a unit that
 // compares them unsigned (the simulator's default) ran the long way round the register, busy
-// for 35 minutes, and every later move queued behind it. Such a move is refused (0x04, code 4)
-// whichever reading the unit has; relative moves go below 0, absolute ones stay on their side.
+// for 35 minutes, and every later move queued behind it. A negative target is refused (0x03),
+// and from below 0 a positive one (0x04, code 4); relative moves go below 0.
 class CententPositionSign : public CententEndToEnd,
                             public ::testing::WithParamInterface<std::string> {};
 
@@ -422,23 +422,24 @@ TEST_P(CententPositionSign, AbsoluteMoveAcrossZeroIsRefusedRelativeGoesBelow) {
         << "action stuck busy, x_position " << client_->read_input_i32(id, kXPosition).value_or(-1);
     return exception;
   };
-  EXPECT_EQ(run(kXTarget, -4000, kMoveXAbsolute), kDeviceFailure);
-  EXPECT_EQ(action_status(id), 3);
-  EXPECT_EQ(client_->read_holding(id, kActionError, 1).values, std::vector<uint16_t>{4});
+  // A negative target cannot even be written: the model's minimum is 0 (and the codec refuses
+  // one a model lets through).
+  EXPECT_EQ(client_->write_i32(id, kXTarget, -4000).exception, kIllegalValue);
   EXPECT_NE(plant_->control("position 1").find("x=0 "), std::string::npos)
       << plant_->control("position 1");
   // The second move of the report: it runs and ends.
   EXPECT_EQ(run(kXTarget, 3000, kMoveXAbsolute), 0);
   EXPECT_EQ(action_status(id), 2);
   EXPECT_EQ(client_->read_input_i32(id, kXPosition), 3000);
-  // Below 0 by a relative move; absolute moves on that side run, across 0 they are refused.
+  // Below 0 by a relative move; an absolute move from there to a positive target crosses 0 and
+  // is refused (0x04, code 4) whichever reading the unit has.
   EXPECT_EQ(run(kXDistance, -7000, kMoveXRelative), 0);
   EXPECT_EQ(client_->read_input_i32(id, kXPosition), -4000);
-  EXPECT_EQ(run(kXTarget, -1000, kMoveXAbsolute), 0);
-  EXPECT_EQ(action_status(id), 2);
-  EXPECT_EQ(client_->read_input_i32(id, kXPosition), -1000);
   EXPECT_EQ(run(kXTarget, 3000, kMoveXAbsolute), kDeviceFailure);
-  EXPECT_EQ(run(kXDistance, 4000, kMoveXRelative), 0);
+  EXPECT_EQ(action_status(id), 3);
+  EXPECT_EQ(client_->read_holding(id, kActionError, 1).values, std::vector<uint16_t>{4});
+  EXPECT_EQ(client_->read_input_i32(id, kXPosition), -4000);
+  EXPECT_EQ(run(kXDistance, 7000, kMoveXRelative), 0);
   EXPECT_EQ(client_->read_input_i32(id, kXPosition), 3000);
 }
 
