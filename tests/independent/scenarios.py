@@ -23,7 +23,7 @@ from pymodbus.client import ModbusTcpClient
 
 STATES = ["Disabled", "Standstill", "Homing", "DiscreteMotion", "ContinuousMotion", "Stopping",
           "ErrorStop"]
-HOME, MOVE_ABSOLUTE, JOG_POSITIVE, STOP = 3, 4, 6, 8
+POWER_ON, HOME, MOVE_ABSOLUTE, JOG_POSITIVE, STOP = 1, 3, 4, 6, 8
 BUSY, DONE, ABORTED = 1, 2, 4
 
 
@@ -70,6 +70,19 @@ class Profile:
             if pred(p) or time.monotonic() > deadline:
                 return p
             time.sleep(0.02)
+
+
+def ready(pr, unit):
+    """Until the first polls have told the axis's state: a unit that powers up enabled reads
+    Disabled for a moment after it came online. One still Disabled after that is powered on
+    where the axis has the command (supported_commands bit 1)."""
+    p = pr.wait(unit, lambda p: p["state"] != "Disabled", 5)
+    if p["state"] != "Disabled":
+        return
+    r = pr.c.read_input_registers(11, 1, slave=unit)
+    if not r.isError() and r.registers[0] >> 1 & 1:
+        pr.command(unit, POWER_ON)
+        pr.wait(unit, lambda p: p["state"] == "Standstill", 30)
 
 
 def home_position(pr, units, args):
@@ -178,6 +191,8 @@ def main():
     args, _ = ap.parse_known_args()
     units = [int(x) for x in args.unit.split(",") if x]
     pr = Profile(args.port)
+    for u in units:
+        ready(pr, u)
     ok = {"home-position": home_position, "abort-jog": abort_jog,
           "cross-axis": cross_axis, "shared-stop": shared_stop,
           "negative-target": negative_target}[args.scenario](
