@@ -6,8 +6,8 @@
 #include <boost/asio/detached.hpp>
 #include <boost/asio/ip/address.hpp>
 
-#include "gateway/log.hpp"
-#include "gateway/metrics.hpp"
+#include "gateway/lifecycle/log.hpp"
+#include "gateway/metrics/metrics.hpp"
 #include "gateway/sparkplug/edge_node.hpp"
 
 namespace fieldgate {

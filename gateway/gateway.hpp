@@ -6,14 +6,14 @@
 #include <string>
 #include <vector>
 
-#include "gateway/action_runner.hpp"
-#include "gateway/bus.hpp"
-#include "gateway/config_loader.hpp"
-#include "gateway/metrics_server.hpp"
+#include "gateway/bus/bus.hpp"
+#include "gateway/config/config_loader.hpp"
+#include "gateway/image/process_image.hpp"
+#include "gateway/metrics/metrics_server.hpp"
+#include "gateway/modbus/modbus_rtu_port.hpp"
 #include "gateway/modbus/tcp_server.hpp"
-#include "gateway/modbus_rtu_port.hpp"
-#include "gateway/process_image.hpp"
-#include "gateway/register_map_handler.hpp"
+#include "gateway/register_map/action_runner.hpp"
+#include "gateway/register_map/register_map_handler.hpp"
 
 namespace fieldgate {
 

@@ -24,9 +24,9 @@
 #include <sstream>
 #include <thread>
 
-#include "gateway/can_bus.hpp"
-#include "gateway/config_loader.hpp"
-#include "gateway/log.hpp"
+#include "gateway/bus/can_bus.hpp"
+#include "gateway/config/config_loader.hpp"
+#include "gateway/lifecycle/log.hpp"
 
 extern char** environ;
 

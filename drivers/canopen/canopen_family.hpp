@@ -5,7 +5,7 @@
 namespace fieldgate {
 
 // CANopen (CiA 301 client side) on a SocketCAN interface. The family checks addresses and
-// models at load; the transfers themselves run in the CAN bus runtime (gateway/can_bus.cpp),
+// models at load; the transfers themselves run in the CAN bus runtime (gateway/bus/can_bus.cpp),
 // which overlaps SDO transfers of different nodes and consumes heartbeat, EMCY and PDOs, so
 // the byte-stream transact() of serial families does not apply.
 class CanopenFamily final : public ProtocolFamily {

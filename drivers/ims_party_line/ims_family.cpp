@@ -357,8 +357,8 @@ asio::awaitable<Reply> ImsPartyLineFamily::send_urgent(Link& link, const NodeAdd
 }
 
 // GCC 12 at -O2 inlines Asio's aligned coroutine-frame allocation into large coroutines and then
-// flags the frame's own sized delete as a mismatch (a false positive; gateway/action_runner.cpp
-// trips it too).
+// flags the frame's own sized delete as a mismatch (a false positive;
+// gateway/register_map/action_runner.cpp trips it too).
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"
 asio::awaitable<Reply> ImsPartyLineFamily::transact(Link& link, const NodeAddress& node,

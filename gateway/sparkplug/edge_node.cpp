@@ -5,7 +5,7 @@
 
 #include <algorithm>
 
-#include "gateway/log.hpp"
+#include "gateway/lifecycle/log.hpp"
 #include "gateway/sparkplug/command_executor.hpp"
 
 #ifndef FIELDGATE_VERSION

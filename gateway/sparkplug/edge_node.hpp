@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "gateway/config_loader.hpp"
-#include "gateway/process_image.hpp"
-#include "gateway/register_map_handler.hpp"
+#include "gateway/config/config_loader.hpp"
+#include "gateway/image/process_image.hpp"
+#include "gateway/register_map/register_map_handler.hpp"
 #include "gateway/sparkplug/metric_mapping.hpp"
 #include "gateway/sparkplug/mqtt_connection.hpp"
 #include "gateway/sparkplug/primary_host_state.hpp"

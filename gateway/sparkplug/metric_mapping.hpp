@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "gateway/process_image.hpp"
+#include "gateway/image/process_image.hpp"
 #include "gateway/sparkplug/payload.hpp"
 #include "gateway/sparkplug/sparkplug_config.hpp"
 #include "mapping/model.hpp"

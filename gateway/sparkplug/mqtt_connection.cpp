@@ -8,7 +8,7 @@
 #include <algorithm>
 #include <mutex>
 
-#include "gateway/log.hpp"
+#include "gateway/lifecycle/log.hpp"
 
 namespace fieldgate::sparkplug {
 

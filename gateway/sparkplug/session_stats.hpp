@@ -4,7 +4,7 @@
 
 namespace fieldgate::sparkplug {
 
-// Counters of the MQTT session, for the Prometheus endpoint (gateway/metrics.cpp).
+// Counters of the MQTT session, for the Prometheus endpoint (gateway/metrics/metrics.cpp).
 struct SessionStats {
   bool connected = false;  // MQTT session up (CONNACK accepted)
   bool born = false;       // NBIRTH published in this session

@@ -1,6 +1,6 @@
 #include <gtest/gtest.h>
 
-#include "gateway/access_control.hpp"
+#include "gateway/modbus/access_control.hpp"
 
 namespace fieldgate {
 namespace {

@@ -11,9 +11,9 @@
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
-#include "gateway/action_runner.hpp"
-#include "gateway/bus.hpp"
-#include "gateway/wire_trace.hpp"
+#include "gateway/bus/bus.hpp"
+#include "gateway/bus/wire_trace.hpp"
+#include "gateway/register_map/action_runner.hpp"
 #include "mapping/model_loader.hpp"
 
 namespace fieldgate {

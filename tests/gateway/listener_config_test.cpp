@@ -3,7 +3,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "gateway/config_loader.hpp"
+#include "gateway/config/config_loader.hpp"
 
 // Several Modbus listeners, each with its own unit-ID space.
 namespace fieldgate {

@@ -7,8 +7,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "gateway/config_loader.hpp"
-#include "gateway/modbus_rtu_port.hpp"
+#include "gateway/config/config_loader.hpp"
+#include "gateway/modbus/modbus_rtu_port.hpp"
 
 namespace fieldgate {
 namespace {

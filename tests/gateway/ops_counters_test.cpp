@@ -5,9 +5,9 @@
 
 #include <unistd.h>
 
-#include "gateway/config_loader.hpp"
-#include "gateway/process_metrics.hpp"
-#include "gateway/reply_accounting.hpp"
+#include "gateway/bus/reply_accounting.hpp"
+#include "gateway/config/config_loader.hpp"
+#include "gateway/metrics/process_metrics.hpp"
 
 namespace fieldgate {
 namespace {

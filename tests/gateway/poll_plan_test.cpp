@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "gateway/poll_plan.hpp"
+#include "gateway/bus/poll_plan.hpp"
 
 namespace fieldgate {
 namespace {

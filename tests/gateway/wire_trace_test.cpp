@@ -1,4 +1,4 @@
-#include "gateway/wire_trace.hpp"
+#include "gateway/bus/wire_trace.hpp"
 
 #include <gtest/gtest.h>
 

@@ -6,7 +6,7 @@
 #include <fstream>
 #include <iterator>
 
-#include "gateway/config_loader.hpp"
+#include "gateway/config/config_loader.hpp"
 #include "mapping/model_loader.hpp"
 #include "mapping/yaml_reader.hpp"
 

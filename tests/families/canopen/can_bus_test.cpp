@@ -13,8 +13,8 @@
 #include <fstream>
 #include <regex>
 
-#include "gateway/can_bus.hpp"
-#include "gateway/config_loader.hpp"
+#include "gateway/bus/can_bus.hpp"
+#include "gateway/config/config_loader.hpp"
 #include "sim_channel.hpp"
 
 namespace fieldgate {

@@ -9,8 +9,8 @@
 #include <boost/asio/detached.hpp>
 #include <boost/asio/io_context.hpp>
 
-#include "gateway/can_bus.hpp"
-#include "gateway/config_loader.hpp"
+#include "gateway/bus/can_bus.hpp"
+#include "gateway/config/config_loader.hpp"
 #include "vcan_fixture.hpp"
 
 namespace fieldgate {

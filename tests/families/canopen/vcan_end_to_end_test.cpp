@@ -8,7 +8,7 @@
 #include <regex>
 #include <thread>
 
-#include "gateway/config_loader.hpp"
+#include "gateway/config/config_loader.hpp"
 #include "vcan_fixture.hpp"
 
 namespace fieldgate {

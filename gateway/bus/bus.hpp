@@ -1,0 +1,93 @@
+#pragma once
+
+#include <boost/asio/any_io_executor.hpp>
+#include <boost/asio/awaitable.hpp>
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <iterator>
+#include <memory>
+#include <vector>
+
+#include "drivers/protocol_family.hpp"
+#include "gateway/config/gateway_config.hpp"
+#include "gateway/image/process_image.hpp"
+
+namespace fieldgate {
+
+struct CommandOptions {
+  bool accept_no_reply = false;  // silence counts as success (e.g. a reset)
+  // Sent at once, even while another transaction occupies the line (e.g. a stop byte during a
+  // move that holds the line until it ends); the family decides what that means on the wire.
+  bool urgent = false;
+  // Called when the command leaves the bus's queue for the wire. An early-confirmed step counts
+  // its patience from then: queued behind a slow poll, the command is not running yet.
+  std::function<void()> on_sent;
+};
+
+// Upper bounds (seconds) of the transaction latency histogram buckets; the last is +Inf.
+inline constexpr double kLatencyBuckets[] = {0.001, 0.002, 0.005, 0.01, 0.02,
+                                             0.05,  0.1,   0.2,   0.5,  1.0};
+
+struct BusCounters {
+  uint64_t bytes_sent = 0;
+  uint64_t bytes_received = 0;
+  std::array<uint64_t, std::size(kLatencyBuckets) + 1> latency_counts{};  // not cumulative
+  double latency_sum = 0;                                                 // seconds
+  uint64_t transactions = 0;
+  uint64_t timeouts = 0;
+  uint64_t unreachable = 0;  // a forwarding device said the node is not reachable
+  uint64_t errors = 0;
+  uint64_t retries = 0;
+  uint64_t reconnects = 0;
+  uint64_t commands = 0;
+  // Serial buses: guard periods waited after a failed exchange, and the late or stray bytes
+  // drained during them.
+  uint64_t resyncs = 0;
+  uint64_t resync_bytes = 0;
+  bool link_up = false;
+  bool open_attempted = false;  // the first open finished, successfully or not
+  // CAN buses (bytes_sent/bytes_received count the frames' data bytes there).
+  uint64_t frames_sent = 0;
+  uint64_t frames_received = 0;
+  uint64_t error_frames = 0;  // error frames from the CAN controller or driver, all classes
+  uint64_t bus_off = 0;       // error frames that reported bus-off
+  uint64_t rx_dropped = 0;    // frames the kernel dropped because the receive queue was full
+  uint64_t tx_dropped = 0;    // frames never sent: the transmit queue stayed full
+};
+
+// One field link with its own scheduler. Serial links carry one transaction at a time
+// (SerialBus); a CAN bus overlaps transfers of different nodes.
+class Bus {
+ public:
+  using NodeUpdated = std::function<void(int node_index)>;
+
+  virtual ~Bus() = default;
+  // Runs until stop(); spawn it on the io_context.
+  virtual asio::awaitable<void> run() = 0;
+  virtual void stop() = 0;
+  // Queues a command ahead of polls and returns its reply once the device answered (or failed).
+  // A command for an offline node fails at once as unreachable.
+  virtual asio::awaitable<Reply> submit(int node_index, Request request,
+                                        CommandOptions options = {}) = 0;
+  virtual const BusConfig& config() const = 0;
+  virtual const BusCounters& counters() const = 0;
+  virtual class WireTrace& trace() = 0;
+  virtual const NodeConfig& node_config(int node_index) const = 0;
+  // The bus's nodes' images, in config order; the process image points at them, so they
+  // survive a reload that keeps the bus.
+  virtual std::vector<std::shared_ptr<NodeImage>> node_images() const = 0;
+  // After a reload that kept this bus: its first node's new gateway-wide number.
+  virtual void rebind(int first_node_index, NodeUpdated on_update) = 0;
+};
+
+std::shared_ptr<Bus> make_bus(asio::any_io_executor executor,
+                              std::shared_ptr<const void> config_owner, const BusConfig& config,
+                              int first_node_index, Bus::NodeUpdated on_update);
+// The CAN bus runtime (gateway/bus/can_bus.cpp), for buses with `can:`.
+std::shared_ptr<Bus> make_can_bus(asio::any_io_executor executor,
+                                  std::shared_ptr<const void> config_owner, const BusConfig& config,
+                                  int first_node_index, Bus::NodeUpdated on_update);
+
+}  // namespace fieldgate

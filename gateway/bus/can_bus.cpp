@@ -1,0 +1,1189 @@
+#include "gateway/bus/can_bus.hpp"
+
+#include <boost/asio/as_tuple.hpp>
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/detached.hpp>
+#include <boost/asio/experimental/channel.hpp>
+#include <boost/asio/use_awaitable.hpp>
+
+#include <algorithm>
+
+#include "gateway/bus/reply_accounting.hpp"
+#include "gateway/lifecycle/log.hpp"
+
+namespace fieldgate {
+
+using namespace canopen;
+
+namespace {
+constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
+using BusClock = std::chrono::steady_clock;
+// Pause between the uploads of a `wait` step.
+constexpr auto kWaitInterval = std::chrono::milliseconds(10);
+// Error frames can flood (a bus without termination): one log line per this interval at most.
+constexpr auto kErrorLogInterval = std::chrono::seconds(10);
+// Probe of an offline node without heartbeat consumer: the device type, which every CiA 301
+// device has.
+const ObjectAddress kProbeObject{0x1000, 0, DataType::unsigned32};
+const ObjectAddress kHeartbeatObject{0x1017, 0, DataType::unsigned16};
+const ObjectAddress kErrorRegisterObject{0x1001, 0, DataType::unsigned8};
+// The consumer time is this many producer times, as in Lely's dcfgen (heartbeat_multiplier):
+// two heartbeats may be lost before the node counts as gone.
+constexpr int kHeartbeatMultiplier = 3;
+
+std::string error_register_text(uint8_t reg) {
+  static constexpr const char* kBits[] = {
+      "generic",       "current",        "voltage",  "temperature",
+      "communication", "device profile", "reserved", "manufacturer-specific"};
+  std::string text;
+  for (int bit = 0; bit < 8; ++bit)
+    if (reg & (1u << bit)) text += (text.empty() ? "" : ", ") + std::string(kBits[bit]);
+  return text.empty() ? "no error" : text;
+}
+
+Reply make_reply(Reply::Status status, std::string text, int64_t code = 0) {
+  Reply r;
+  r.status = status;
+  r.text = std::move(text);
+  r.device_code = code;
+  return r;
+}
+}  // namespace
+
+struct CanBus::PendingCommand {
+  explicit PendingCommand(asio::any_io_executor ex) : done(ex, 1) {}
+  Request request;
+  CommandOptions options;
+  asio::experimental::channel<void(boost::system::error_code, Reply)> done;
+};
+
+struct CanBus::NodeRuntime {
+  NodeRuntime(asio::any_io_executor ex, uint8_t id, std::chrono::microseconds sdo_timeout)
+      : id(id), sdo(id, sdo_timeout), wake(ex) {}
+
+  int index = 0;  // position on this bus
+  uint8_t id = 0;
+  const NodeConfig* config = nullptr;
+  std::shared_ptr<NodeImage> image;
+  std::vector<std::optional<PointSource>> sources;  // by model point
+  std::map<uint32_t, std::vector<int>> tpdo_points;
+  std::map<uint32_t, SteadyTime> tpdo_seen;
+  std::vector<int> local_points;
+
+  SdoClient sdo;
+  std::optional<SdoStep> sdo_step;  // delivered by the reader, taken by the worker
+  SteadyTime step_time{};           // when sdo_step was delivered
+  SteadyTime finished_at{};         // when the last transfer ended
+  asio::steady_timer wake;
+  std::deque<std::shared_ptr<PendingCommand>> commands;
+  bool urgent_waiting = false;
+  SteadyTime next_probe{};
+
+  // Heartbeat consumer. The deadline is armed once the producer time is configured; until a
+  // heartbeat follows, a passing deadline means the node produces none (SDO liveness), after
+  // that it means the heartbeat was lost (offline).
+  SteadyTime heartbeat_deadline = SteadyTime::max();
+  bool heartbeat_seen = false;        // since the producer time was configured
+  int64_t producer_ms = 0;            // the producer time last written
+  bool offline_by_heartbeat = false;  // its heartbeat stopped; probed by SDO meanwhile
+  bool configure_pending = false;     // 0x1017 to write (before NMT start)
+  bool start_pending = false;         // NMT start to send
+  // Node guarding, for the NMT state of a node watched by SDO: sent every producer time until
+  // one consumer time passed without an answer (the node does not guard either).
+  SteadyTime next_guard = SteadyTime::max();
+  std::optional<SteadyTime> guarding_since;
+  bool guard_answered = false;
+  // NMT start sent by the bus; a later pre-operational heartbeat means the node stayed there.
+  std::optional<SteadyTime> start_sent;
+  bool pre_operational_check = false;  // read its error register and report
+  // The error register read when the node was found staying pre-operational: when it clears,
+  // the bus sends NMT start once more.
+  std::optional<uint8_t> stuck_error_register;
+
+  NodeStatus status;
+};
+
+CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
+               const BusConfig& config, int first_node_index, NodeUpdated on_update,
+               std::unique_ptr<CanChannel> channel)
+    : executor_(executor),
+      config_owner_(std::move(config_owner)),
+      config_(config),
+      first_node_index_(first_node_index),
+      on_update_(std::move(on_update)),
+      channel_(std::move(channel)),
+      wake_(executor),
+      supervisor_wake_(executor),
+      trace_(config.name, config.trace) {
+  if (!channel_)
+    channel_ = std::make_unique<SocketCanTransport>(executor, config.transport.can_interface);
+  int index = 0;
+  for (const auto& nc : config.nodes) {
+    auto rt = std::make_unique<NodeRuntime>(executor, static_cast<uint8_t>(nc.address.number),
+                                            config.timing.link.reply_timeout);
+    auto& n = *rt;
+    n.index = index;
+    n.config = &nc;
+    n.image = std::make_shared<NodeImage>();
+    const Model& model = *nc.model;
+    n.image->points.assign(model.points.size(), {});
+    for (const auto& s : model.setpoints) {
+      const auto it = nc.setpoints.find(s.name);
+      n.image->setpoints.push_back(it != nc.setpoints.end() ? it->second : s.default_value);
+    }
+    n.sources.resize(model.points.size());
+    for (const uint32_t base : {cob::sdo_tx, cob::heartbeat, cob::emcy}) by_cob_[base + n.id] = &n;
+
+    // One poll item per object and period: points that share an object share its upload.
+    const auto add_target = [&](ItemInfo info, int point, SteadyTime::duration period) {
+      const auto us = std::chrono::duration_cast<std::chrono::microseconds>(period);
+      for (std::size_t i = 0; i < items_.size(); ++i) {
+        auto& item = plan_.item(i);
+        const auto& other = items_[i];
+        if (item.node == index && item.period == us && other.kind == info.kind &&
+            other.object == info.object && other.tpdo_cob == info.tpdo_cob) {
+          item.targets.push_back({point, 0});
+          return;
+        }
+      }
+      PollItem item;
+      item.node = index;
+      item.period = us;
+      item.request =
+          Request{info.kind == ItemInfo::Kind::local
+                      ? std::string("local")
+                      : "read " + fmt::format("0x{:04X}:{} {}", info.object.index, info.object.sub,
+                                              canopen::to_string(info.object.type)),
+                  Request::Expect::values};
+      item.targets.push_back({point, 0});
+      plan_.add(std::move(item));
+      items_.push_back(info);
+    };
+    for (std::size_t p = 0; p < model.points.size(); ++p) {
+      const auto& point = model.points[p];
+      if (!point.read) continue;
+      std::string error;
+      auto src = compile_point_read(point, error);
+      if (!src) {
+        // validate_model rejects this at load; a model that skipped it loses the point only.
+        log::error("bus {}: node {}: point {}: {}", config.name, nc.name, point.name, error);
+        continue;
+      }
+      n.sources[p] = src;
+      const int pi = static_cast<int>(p);
+      if (src->kind == PointSource::Kind::local) n.local_points.push_back(pi);
+      if (src->kind == PointSource::Kind::tpdo) {
+        const uint32_t cob = src->tpdo.cob_for(n.id);
+        n.tpdo_points[cob].push_back(pi);
+        by_cob_[cob] = &n;
+      }
+      if (point.poll_class.empty()) continue;
+      const auto period = nc.period_of(point.poll_class);
+      if (period.count() <= 0) continue;
+      ItemInfo info;
+      switch (src->kind) {
+        case PointSource::Kind::local:
+          info.kind = ItemInfo::Kind::local;
+          break;
+        case PointSource::Kind::tpdo:
+          if (!src->object) continue;  // nothing to fall back on
+          info.kind = ItemInfo::Kind::tpdo_fallback;
+          info.object = *src->object;
+          info.tpdo_cob = src->tpdo.cob_for(n.id);
+          break;
+        case PointSource::Kind::sdo:
+          info.kind = ItemInfo::Kind::sdo;
+          info.object = *src->object;
+          break;
+      }
+      add_target(info, pi, period);
+    }
+    nodes_.push_back(std::move(rt));
+    ++index;
+  }
+}
+
+CanBus::~CanBus() = default;
+
+std::shared_ptr<Bus> make_can_bus(asio::any_io_executor executor,
+                                  std::shared_ptr<const void> config_owner, const BusConfig& config,
+                                  int first_node_index, Bus::NodeUpdated on_update) {
+  return std::make_shared<CanBus>(executor, std::move(config_owner), config, first_node_index,
+                                  std::move(on_update));
+}
+
+const NodeConfig& CanBus::node_config(int node_index) const {
+  return *node(node_index).config;
+}
+
+CanBus::NodeRuntime& CanBus::node(int node_index) {
+  return *nodes_.at(static_cast<std::size_t>(node_index - first_node_index_));
+}
+
+const CanBus::NodeRuntime& CanBus::node(int node_index) const {
+  return *nodes_.at(static_cast<std::size_t>(node_index - first_node_index_));
+}
+
+CanBus::NodeStatus CanBus::node_status(int node_index) const {
+  return node(node_index).status;
+}
+
+std::vector<std::shared_ptr<NodeImage>> CanBus::node_images() const {
+  std::vector<std::shared_ptr<NodeImage>> images;
+  for (const auto& n : nodes_) images.push_back(n->image);
+  return images;
+}
+
+void CanBus::rebind(int first_node_index, NodeUpdated on_update) {
+  first_node_index_ = first_node_index;
+  on_update_ = std::move(on_update);
+}
+
+std::vector<uint32_t> CanBus::receive_ids() const {
+  std::vector<uint32_t> ids;
+  for (const auto& [cob, n] : by_cob_) ids.push_back(cob);
+  return ids;
+}
+
+void CanBus::wake_all() {
+  for (auto& n : nodes_) n->wake.cancel();
+  wake_.cancel();
+  supervisor_wake_.cancel();
+}
+
+void CanBus::stop() {
+  stopping_ = true;
+  channel_->close();
+  wake_all();
+}
+
+void CanBus::notify(NodeRuntime& n) {
+  if (on_update_) on_update_(first_node_index_ + n.index);
+}
+
+asio::awaitable<bool> CanBus::sleep_until(asio::steady_timer& timer, SteadyTime when) {
+  timer.expires_at(when);
+  auto [ec] = co_await timer.async_wait(use_tuple);
+  co_return !ec;
+}
+
+// --- link ------------------------------------------------------------------------------------
+
+asio::awaitable<void> CanBus::run() {
+  auto self = shared_from_this();
+  plan_.start(BusClock::now());
+  for (auto& n : nodes_) {
+    ++workers_running_;
+    asio::co_spawn(
+        executor_, [self, &n = *n]() -> asio::awaitable<void> { co_await self->node_worker(n); },
+        asio::detached);
+  }
+  if (heartbeat_consumer()) {
+    ++workers_running_;
+    asio::co_spawn(
+        executor_, [self]() -> asio::awaitable<void> { co_await self->heartbeat_supervisor(); },
+        asio::detached);
+  }
+  auto delay = config_.timing.reconnect_min;
+  while (!stopping_) {
+    const auto ec = channel_->open(receive_ids());
+    counters_.open_attempted = true;
+    if (ec) {
+      counters_.link_up = false;
+      if (!link_error_logged_) {
+        log::error(
+            "bus {}: cannot open {}: {} (retrying with back-off up to {} ms; its nodes are "
+            "offline meanwhile)",
+            config_.name, channel_->describe(), ec.message(),
+            std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.reconnect_max)
+                .count());
+        link_error_logged_ = true;
+      }
+      for (auto& n : nodes_) {
+        n->offline_by_heartbeat = heartbeat_consumer();
+        set_state(*n, NodeState::offline, "bus link is down");
+      }
+      fail_commands("bus link is down");
+      co_await sleep_until(wake_, BusClock::now() + delay);
+      delay = std::min(delay * 2, config_.timing.reconnect_max);
+      continue;
+    }
+    delay = config_.timing.reconnect_min;
+    link_error_logged_ = false;
+    link_up_ = true;
+    counters_.link_up = true;
+    ++counters_.reconnects;
+    log::notice("bus {}: opened {} ({} nodes{}{})", config_.name, channel_->describe(),
+                nodes_.size(), heartbeat_consumer() ? ", heartbeat consumer" : "",
+                config_.timing.start_nodes ? ", NMT start" : "");
+    const auto now = BusClock::now();
+    for (auto& n : nodes_) {
+      bring_up(*n, true);
+      // TPDOs get one poll period to show up before their points are read by SDO.
+      for (const auto& [cob, points] : n->tpdo_points) n->tpdo_seen[cob] = now;
+      n->next_probe = now;
+    }
+    wake_all();
+    co_await read_loop();
+    link_up_ = false;
+    counters_.link_up = false;
+    channel_->close();
+    if (stopping_) break;
+    for (auto& n : nodes_) {
+      n->offline_by_heartbeat = heartbeat_consumer();
+      set_state(*n, NodeState::offline, "bus link is down");
+    }
+    fail_commands("bus link is down");
+    wake_all();
+    co_await sleep_until(wake_, BusClock::now() + delay);
+  }
+  stopping_ = true;
+  wake_all();
+  fail_commands("gateway stopping");
+  while (workers_running_ > 0) {
+    wake_.expires_at(SteadyTime::max());
+    co_await wake_.async_wait(use_tuple);
+  }
+}
+
+void CanBus::link_failed(std::error_code ec) {
+  if (!link_up_) return;
+  log::error("bus {}: {} failed: {}; reopening", config_.name, channel_->describe(), ec.message());
+  link_up_ = false;
+  counters_.link_up = false;
+  channel_->close();  // ends read_loop
+  wake_all();
+}
+
+void CanBus::fail_commands(std::string_view why) {
+  for (auto& n : nodes_) {
+    while (!n->commands.empty()) {
+      n->commands.front()->done.try_send(boost::system::error_code{},
+                                         make_reply(Reply::Status::unreachable, std::string(why)));
+      n->commands.pop_front();
+    }
+    n->urgent_waiting = false;
+  }
+}
+
+asio::awaitable<void> CanBus::read_loop() {
+  std::vector<CanFrame> frames;
+  while (!stopping_ && link_up_) {
+    frames.clear();
+    const auto ec = co_await channel_->receive(frames);
+    const auto now = BusClock::now();
+    for (const auto& f : frames) dispatch(f, now);
+    counters_.rx_dropped = channel_->stats().rx_dropped;
+    counters_.tx_dropped = channel_->stats().tx_dropped;
+    if (ec) {
+      if (!stopping_) link_failed(ec);
+      break;
+    }
+  }
+}
+
+namespace {
+std::string_view to_string(SdoResult::Status status) {
+  switch (status) {
+    case SdoResult::Status::ok:
+      return "ok";
+    case SdoResult::Status::server_abort:
+      return "device_error";
+    case SdoResult::Status::client_abort:
+      return "garbled";
+    case SdoResult::Status::timeout:
+      return "timeout";
+  }
+  return "garbled";
+}
+}  // namespace
+
+void CanBus::trace_frame(const CanFrame& frame, TraceDirection direction, SteadyTime at,
+                         std::string_view outcome) {
+  if (!trace_.enabled()) return;
+  // NMT names its node in the data; every other COB-ID in its low seven bits.
+  const unsigned id = frame.id == 0 ? (frame.len > 1 ? frame.data[1] : 0) : (frame.id & 0x7f);
+  std::string node = frame.error ? "-" : (frame.id == 0 && id == 0) ? "*" : std::to_string(id);
+  for (const auto& n : nodes_)
+    if (!frame.error && n->id == id) node = n->config->name;
+  trace_.emit(at, node, direction, outcome, to_string(frame));
+}
+
+asio::awaitable<bool> CanBus::send_frame(const CanFrame& frame, std::string_view outcome) {
+  if (!link_up_) co_return false;
+  const auto ec = co_await channel_->send(frame, config_.timing.link.reply_timeout);
+  if (!ec) {
+    trace_frame(frame, TraceDirection::tx, BusClock::now(), outcome);
+    ++counters_.frames_sent;
+    counters_.bytes_sent += frame.len;
+    co_return true;
+  }
+  if (ec == std::errc::timed_out) {
+    // The transmit queue stayed full (a bus-off controller, no other node acknowledging): the
+    // frame is dropped and counted, and the transfer times out like one without an answer.
+    co_return false;
+  }
+  link_failed(ec);
+  co_return false;
+}
+
+// --- received frames -------------------------------------------------------------------------
+
+void CanBus::dispatch(const CanFrame& frame, SteadyTime now) {
+  if (frame.error) {
+    trace_frame(frame, TraceDirection::rx, now, "error_frame");
+    on_error_frame(frame, now);
+    return;
+  }
+  ++counters_.frames_received;
+  counters_.bytes_received += frame.len;
+  const auto it = by_cob_.find(frame.id);
+  if (it == by_cob_.end() || frame.rtr) {
+    trace_frame(frame, TraceDirection::rx, now, {});
+    return;
+  }
+  NodeRuntime& n = *it->second;
+  if (frame.id == cob::sdo_tx + n.id) {
+    if (n.sdo.idle()) {
+      trace_frame(frame, TraceDirection::rx, now, "late");
+      n.sdo.on_frame(frame, now);  // counted as ignored: a late answer
+      return;
+    }
+    auto step = n.sdo.on_frame(frame, now);
+    trace_frame(frame, TraceDirection::rx, now, step.done ? to_string(step.done->status) : "");
+    if (step.send || step.done) {
+      n.sdo_step = std::move(step);
+      n.step_time = now;
+      n.wake.cancel();
+    }
+  } else if (frame.id == cob::heartbeat + n.id) {
+    trace_frame(frame, TraceDirection::rx, now, {});
+    if (auto hb = parse_heartbeat(frame)) on_heartbeat(n, hb->state, now);
+  } else if (frame.id == cob::emcy + n.id) {
+    trace_frame(frame, TraceDirection::rx, now, {});
+    if (auto e = parse_emergency(frame)) on_emergency(n, *e);
+  } else {
+    trace_frame(frame, TraceDirection::rx, now, {});
+  }
+  if (n.tpdo_points.count(frame.id)) on_tpdo(n, frame, now);
+}
+
+void CanBus::on_error_frame(const CanFrame& frame, SteadyTime now) {
+  const auto info = decode_error_frame(frame);
+  ++counters_.error_frames;
+  if (info.bus_off) {
+    ++counters_.bus_off;
+    // The controller stops until it restarts (restart-ms, or `ip link set ... type can restart`):
+    // nodes time out or lose their heartbeat meanwhile and come back by themselves.
+    log::error("bus {}: CAN controller bus-off ({})", config_.name, to_string(frame));
+    error_frames_logged_ = now;
+    return;
+  }
+  if (now - error_frames_logged_ < kErrorLogInterval) {
+    ++error_frames_unlogged_;
+    return;
+  }
+  if (error_frames_unlogged_ > 0)
+    log::warning("bus {}: CAN error frame: {} ({}; {} more since the last report)", config_.name,
+                 info.text, to_string(frame), error_frames_unlogged_);
+  else
+    log::warning("bus {}: CAN error frame: {} ({})", config_.name, info.text, to_string(frame));
+  error_frames_logged_ = now;
+  error_frames_unlogged_ = 0;
+}
+
+void CanBus::on_heartbeat(NodeRuntime& n, uint8_t state, SteadyTime now) {
+  const auto previous = n.status.nmt_state;
+  n.status.nmt_state = state;
+  if (n.guarding_since) n.guard_answered = true;
+  auto& img = *n.image;
+  if (state == nmt_state::boot_up) {
+    if (img.state == NodeState::online)
+      log::warning("bus {}: node {} ({}) sent boot-up: it restarted", config_.name, n.config->name,
+                   n.id);
+    n.next_probe = now;
+    bring_up(n, true);  // its 0x1017 is back at its default
+    if (heartbeat_consumer()) set_state(n, NodeState::online, {});
+  } else {
+    // The consumer is armed once the producer time is configured (and not given up on).
+    if (heartbeat_consumer() && n.heartbeat_deadline != SteadyTime::max()) {
+      if (!n.heartbeat_seen) {
+        n.heartbeat_seen = true;
+        n.status.liveness = Liveness::heartbeat;
+      }
+      n.heartbeat_deadline = now + config_.timing.heartbeat_timeout;
+    }
+    if (img.state == NodeState::offline) {
+      if (heartbeat_consumer() && n.offline_by_heartbeat) {
+        set_state(n, NodeState::online, {});
+        if (state == nmt_state::operational) n.start_pending = false;
+      } else {
+        n.next_probe = std::min(n.next_probe, now);  // it is there: probe now
+      }
+    } else if (img.state == NodeState::starting && heartbeat_consumer()) {
+      set_state(n, NodeState::online, {});
+    }
+    if (state == nmt_state::operational) {
+      if (n.status.stays_pre_operational)
+        log::notice("bus {}: node {} ({}) is operational now", config_.name, n.config->name, n.id);
+      n.status.stays_pre_operational = false;
+      n.stuck_error_register.reset();
+      n.start_sent.reset();
+    } else if (state == nmt_state::pre_operational && n.start_sent && !n.start_pending &&
+               !n.status.stays_pre_operational && !n.pre_operational_check) {
+      // A heartbeat sent after the node had time to carry out the start.
+      const auto grace = std::max<SteadyTime::duration>(
+          config_.timing.link.reply_timeout, std::chrono::milliseconds(heartbeat_producer_ms()));
+      if (now - *n.start_sent >= grace) n.pre_operational_check = true;
+    }
+  }
+  if (previous != state) {
+    log::info("bus {}: node {} NMT state {}", config_.name, n.config->name, nmt_state_text(state));
+    refresh_local_points(n, now);
+  }
+  if (n.start_pending || n.pre_operational_check || img.state == NodeState::offline)
+    n.wake.cancel();
+}
+
+void CanBus::on_emergency(NodeRuntime& n, const Emergency& e) {
+  n.status.emcy_code = e.code;
+  n.status.emcy_register = e.error_register;
+  ++n.status.emergencies;
+  auto& c = n.image->counters;
+  if (e.code != 0) {
+    c.last_device_error = e.code;
+    c.last_error_text = fmt::format("EMCY 0x{:04X} ({}), error register 0x{:02X}", e.code,
+                                    emergency_text(e.code), e.error_register);
+    log::warning("bus {}: node {}: {}", config_.name, n.config->name, c.last_error_text);
+  } else {
+    log::notice("bus {}: node {}: EMCY error reset", config_.name, n.config->name);
+    error_register_seen(n, e.error_register);
+  }
+  refresh_local_points(n, BusClock::now());
+}
+
+void CanBus::on_tpdo(NodeRuntime& n, const CanFrame& frame, SteadyTime now) {
+  n.tpdo_seen[frame.id] = now;
+  ++n.status.pdos;
+  auto& img = *n.image;
+  for (const int p : n.tpdo_points[frame.id]) {
+    std::string error;
+    const auto v = decode_tpdo_value(*n.sources[static_cast<std::size_t>(p)], frame, error);
+    if (!v) {
+      ++img.counters.errors;
+      img.counters.last_error_text = error;
+      continue;
+    }
+    img.points[static_cast<std::size_t>(p)] = {*v, now, true};
+  }
+  notify(n);
+}
+
+void CanBus::refresh_local_points(NodeRuntime& n, SteadyTime now) {
+  if (n.local_points.empty()) return;
+  for (const int p : n.local_points) {
+    int64_t v = 0;
+    switch (n.sources[static_cast<std::size_t>(p)]->local) {
+      case LocalValue::emcy_code:
+        v = n.status.emcy_code;
+        break;
+      case LocalValue::emcy_register:
+        v = n.status.emcy_register;
+        break;
+      case LocalValue::nmt_state:
+        if (!n.status.nmt_state) continue;  // no heartbeat seen yet: no value
+        v = *n.status.nmt_state;
+        break;
+      case LocalValue::sdo_abort:
+        v = n.status.last_abort;
+        break;
+    }
+    n.image->points[static_cast<std::size_t>(p)] = {v, now, true};
+  }
+  notify(n);
+}
+
+asio::awaitable<void> CanBus::heartbeat_supervisor() {
+  while (!stopping_) {
+    const auto now = BusClock::now();
+    SteadyTime next = SteadyTime::max();
+    for (auto& n : nodes_) {
+      if (!link_up_ || n->image->state == NodeState::offline) continue;
+      if (now >= n->heartbeat_deadline && !n->heartbeat_seen) {
+        // The producer time was accepted, yet nothing came: this node has no working heartbeat
+        // producer. Its SDO answers tell whether it is there, never a deadline.
+        watch_by_sdo(*n, now);
+        log::warning(
+            "bus {}: node {} ({}) sent no heartbeat within {} ms of its producer time 0x1017 "
+            "being set to {} ms; liveness by SDO from now on (offline after {} SDO timeouts)",
+            config_.name, n->config->name, n->id,
+            std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.heartbeat_timeout)
+                .count(),
+            n->producer_ms, config_.timing.offline_after);
+        continue;
+      }
+      if (now >= n->heartbeat_deadline) {
+        n->offline_by_heartbeat = true;
+        set_state(*n, NodeState::offline,
+                  fmt::format("no heartbeat within {} ms",
+                              std::chrono::duration_cast<std::chrono::milliseconds>(
+                                  config_.timing.heartbeat_timeout)
+                                  .count()));
+        continue;
+      }
+      next = std::min(next, n->heartbeat_deadline);
+    }
+    co_await sleep_until(supervisor_wake_, next);
+  }
+  --workers_running_;
+  wake_.cancel();
+}
+
+// --- node state ------------------------------------------------------------------------------
+
+void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
+  auto& img = *n.image;
+  if (img.state == state) return;
+  const auto old = img.state;
+  img.state = state;
+  const auto now = BusClock::now();
+  if (state == NodeState::online) {
+    log::notice("bus {}: node {} ({}) online{}", config_.name, n.config->name, n.id,
+                old == NodeState::offline ? " again" : "");
+    n.offline_by_heartbeat = false;
+    // Back from offline, it may have restarted unseen: configure it again, then NMT start.
+    if (old == NodeState::offline) bring_up(n, true);
+    resume_polls(n, now);
+    for (const auto& [cob, points] : n.tpdo_points) n.tpdo_seen[cob] = now;
+    refresh_local_points(n, now);
+  } else if (state == NodeState::offline) {
+    log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name, n.id, why);
+    img.counters.last_error_text = std::string(why);
+    n.next_probe = now + config_.timing.probe_interval;
+    n.heartbeat_deadline = SteadyTime::max();
+    n.pre_operational_check = false;
+  }
+  n.wake.cancel();
+}
+
+void CanBus::bring_up(NodeRuntime& n, bool start) {
+  n.configure_pending = heartbeat_consumer();
+  n.status.liveness = Liveness::sdo;  // until a heartbeat follows the configuration
+  n.heartbeat_deadline = SteadyTime::max();
+  n.heartbeat_seen = false;
+  n.start_pending = start && config_.timing.start_nodes;
+  n.start_sent.reset();
+  n.pre_operational_check = false;
+  n.stuck_error_register.reset();
+  n.status.stays_pre_operational = false;
+  n.next_guard = SteadyTime::max();
+  n.guarding_since.reset();
+  n.guard_answered = false;
+  n.wake.cancel();
+}
+
+void CanBus::watch_by_sdo(NodeRuntime& n, SteadyTime now) {
+  n.status.liveness = Liveness::sdo;
+  n.heartbeat_deadline = SteadyTime::max();
+  if (n.guarding_since) return;
+  n.guarding_since = now;
+  n.guard_answered = false;
+  n.next_guard = now;
+  n.wake.cancel();
+}
+
+void CanBus::forget_nmt_state(NodeRuntime& n) {
+  n.status.nmt_state.reset();
+  for (const int p : n.local_points)
+    if (n.sources[static_cast<std::size_t>(p)]->local == LocalValue::nmt_state)
+      n.image->points[static_cast<std::size_t>(p)].valid = false;
+  notify(n);
+}
+
+asio::awaitable<void> CanBus::guard(NodeRuntime& n, SteadyTime now) {
+  if (!n.guard_answered && now - *n.guarding_since >= config_.timing.heartbeat_timeout) {
+    n.next_guard = SteadyTime::max();
+    log::warning("bus {}: node {} ({}) answers no node guarding either: its NMT state is unknown",
+                 config_.name, n.config->name, n.id);
+    forget_nmt_state(n);
+    co_return;
+  }
+  n.next_guard = now + std::chrono::milliseconds(heartbeat_producer_ms());
+  CanFrame rtr;
+  rtr.id = cob::heartbeat + n.id;
+  rtr.len = 1;
+  rtr.rtr = true;
+  co_await send_frame(rtr);
+}
+
+uint16_t CanBus::heartbeat_producer_ms() const {
+  const auto ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.heartbeat_timeout)
+          .count() /
+      kHeartbeatMultiplier;
+  return static_cast<uint16_t>(std::clamp<int64_t>(ms, 1, 0xFFFF));
+}
+
+void CanBus::resume_polls(NodeRuntime& n, SteadyTime now) {
+  // Not restaggered from now: a node that keeps coming back would run only the first item of
+  // each class. Each overdue item moves to the latest due time of its own phase not after now,
+  // so every one runs at once, in its order, without counting the offline time as overruns.
+  for (std::size_t i = 0; i < plan_.items().size(); ++i) {
+    auto& item = plan_.item(i);
+    if (item.node != n.index || item.next_due >= now || item.period.count() <= 0) continue;
+    item.next_due += item.period * ((now - item.next_due) / item.period);
+  }
+}
+
+void CanBus::error_register_seen(NodeRuntime& n, uint8_t reg) {
+  if (reg != 0 || !n.stuck_error_register || *n.stuck_error_register == 0) return;
+  log::notice("bus {}: node {} ({}) error register cleared: NMT start again", config_.name,
+              n.config->name, n.id);
+  n.stuck_error_register.reset();  // once: if it stays pre-operational, that is reported
+  n.status.stays_pre_operational = false;
+  n.start_pending = config_.timing.start_nodes;
+  n.wake.cancel();
+}
+
+void CanBus::store_object(NodeRuntime& n, uint16_t index, uint8_t sub,
+                          std::span<const uint8_t> bytes, SteadyTime now) {
+  const auto& model = *n.config->model;
+  bool stored = false;
+  for (std::size_t p = 0; p < n.sources.size(); ++p) {
+    const auto& src = n.sources[p];
+    if (!src || src->kind == PointSource::Kind::local || !src->object ||
+        src->object->index != index || src->object->sub != sub)
+      continue;
+    std::string error;
+    const auto v = decode_point_value(*src, model.points[p].type, bytes, error);
+    if (!v) continue;  // another reading of the object (length, type): left to its own poll
+    n.image->points[p] = {*v, now, true};
+    stored = true;
+  }
+  if (index == kErrorRegisterObject.index && sub == 0 && !bytes.empty())
+    error_register_seen(n, bytes[0]);
+  if (stored) notify(n);
+}
+
+void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {
+  auto& c = n.image->counters;
+  switch (count_reply(c, counters_, reply, at)) {
+    case ReplyOutcome::answered:
+      set_state(n, NodeState::online, {});
+      break;
+    case ReplyOutcome::garbled:
+      break;
+    case ReplyOutcome::failed:
+      if (reply.status == Reply::Status::timeout &&
+          c.consecutive_timeouts >= static_cast<uint32_t>(config_.timing.offline_after)) {
+        n.offline_by_heartbeat = false;  // its heartbeat may go on while SDO is dead
+        set_state(n, NodeState::offline, "no SDO response");
+      }
+      break;
+  }
+}
+
+void CanBus::record_latency(double seconds) {
+  std::size_t bucket = 0;
+  while (bucket < std::size(kLatencyBuckets) && seconds > kLatencyBuckets[bucket]) ++bucket;
+  ++counters_.latency_counts[bucket];
+  counters_.latency_sum += seconds;
+}
+
+// --- transfers -------------------------------------------------------------------------------
+
+asio::awaitable<std::optional<SdoResult>> CanBus::sdo_exchange(NodeRuntime& n, SdoStep step) {
+  for (;;) {
+    if (step.send) co_await send_frame(*step.send, step.done ? to_string(step.done->status) : "");
+    if (step.done) co_return std::move(*step.done);
+    n.sdo_step.reset();
+    while (!n.sdo_step) {
+      if (stopping_ || !link_up_) {
+        n.sdo.abort(sdo_abort::general);  // forget it; there is no link to tell the node
+        co_return std::nullopt;
+      }
+      const auto deadline = n.sdo.deadline();
+      if (!deadline) co_return std::nullopt;
+      const bool expired = co_await sleep_until(n.wake, *deadline);
+      if (n.sdo_step || !expired) continue;
+      const auto now = BusClock::now();
+      auto timed = n.sdo.on_time(now);
+      if (timed.send || timed.done) {
+        n.sdo_step = std::move(timed);
+        n.step_time = now;
+      }
+    }
+    step = std::move(*n.sdo_step);
+    n.sdo_step.reset();
+    n.finished_at = n.step_time;
+  }
+}
+
+Reply CanBus::reply_of(NodeRuntime& n, const SdoResult& result) {
+  switch (result.status) {
+    case SdoResult::Status::ok:
+      return make_reply(Reply::Status::ok, {});
+    case SdoResult::Status::server_abort:
+      n.status.last_abort = result.abort_code;
+      refresh_local_points(n, BusClock::now());
+      return make_reply(Reply::Status::device_error, result.text, result.abort_code);
+    case SdoResult::Status::client_abort:
+      return make_reply(Reply::Status::garbled, result.text, result.abort_code);
+    case SdoResult::Status::timeout:
+      return make_reply(Reply::Status::timeout, result.text);
+  }
+  return make_reply(Reply::Status::garbled, result.text);
+}
+
+asio::awaitable<Reply> CanBus::upload(NodeRuntime& n, const ObjectAddress& object, int retries,
+                                      SteadyTime now) {
+  Reply reply;
+  auto started = now;
+  for (int attempt = 0; attempt <= retries; ++attempt) {
+    if (attempt > 0) {
+      ++counters_.retries;
+      ++n.image->counters.retries;
+      started = n.finished_at;
+    }
+    n.finished_at = started;
+    // A named step, not a temporary: GCC 12 destroys prvalue arguments of a coroutine twice.
+    const SdoStep first = n.sdo.upload(object.index, object.sub, started);
+    auto result = co_await sdo_exchange(n, first);
+    if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
+    record_latency(std::chrono::duration<double>(n.finished_at - started).count());
+    ++counters_.transactions;
+    ++n.image->counters.transactions;
+    reply = reply_of(n, *result);
+    if (reply.status == Reply::Status::ok) {
+      if (is_integer(object.type)) {
+        PointSource src;
+        src.type = object.type;
+        std::string error;
+        // Every point type holds the widest integer the model may use, so decode as int64.
+        const auto v = decode_point_value(src, ValueType::int32, result->data, error);
+        if (!v)
+          reply = make_reply(Reply::Status::garbled,
+                             fmt::format("0x{:04X}:{}: {}", object.index, object.sub, error));
+        else
+          reply.values = {*v};
+      } else {
+        reply.text.assign(result->data.begin(), result->data.end());
+      }
+      // Kept for decode_point_value of string points, which slice the bytes themselves.
+      if (!is_integer(object.type)) reply.values.assign(result->data.begin(), result->data.end());
+      if (reply.status == Reply::Status::ok)
+        store_object(n, object.index, object.sub, result->data, n.finished_at);
+    }
+    if (reply.status != Reply::Status::timeout && reply.status != Reply::Status::garbled) break;
+    if (attempt < retries) record(n, reply, n.finished_at);
+  }
+  record(n, reply, n.finished_at);
+  co_return reply;
+}
+
+asio::awaitable<Reply> CanBus::download(NodeRuntime& n, const Operation& op, SteadyTime now) {
+  std::vector<uint8_t> data;
+  if (op.text)
+    data.assign(op.text->begin(), op.text->end());
+  else
+    data = encode_integer(op.object.type, op.value);
+  n.finished_at = now;
+  const std::vector<uint8_t> written = data;
+  const SdoStep first = n.sdo.download(op.object.index, op.object.sub, std::move(data), now);
+  auto result = co_await sdo_exchange(n, first);
+  if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
+  record_latency(std::chrono::duration<double>(n.finished_at - now).count());
+  ++counters_.transactions;
+  ++n.image->counters.transactions;
+  Reply reply = reply_of(n, *result);
+  record(n, reply, n.finished_at);
+  // Confirmed: the points of this object hold the written value until their next poll.
+  if (reply.status == Reply::Status::ok) {
+    store_object(n, op.object.index, op.object.sub, written, n.finished_at);
+    if (heartbeat_consumer() && op.object.index == kHeartbeatObject.index &&
+        op.object.sub == kHeartbeatObject.sub) {
+      // A new producer time (ours or a PLC's): a heartbeat must follow within the consumer
+      // time, or the node is one without (a PLC wrote 0): SDO liveness, never a false loss.
+      n.heartbeat_seen = false;
+      n.producer_ms = op.value;
+      n.status.liveness = Liveness::sdo;
+      n.heartbeat_deadline = n.finished_at + config_.timing.heartbeat_timeout;
+      supervisor_wake_.cancel();
+    }
+  }
+  co_return reply;
+}
+
+asio::awaitable<Reply> CanBus::wait_for(NodeRuntime& n, const Operation& op) {
+  const auto deadline = BusClock::now() + op.within;
+  const auto masked = [&](int64_t v) { return static_cast<uint64_t>(v) & op.mask; };
+  for (;;) {
+    Reply r = co_await upload(n, op.object, 0, BusClock::now());
+    if (r.status != Reply::Status::ok) co_return r;
+    const int64_t v = r.values.empty() ? 0 : r.values[0];
+    if (masked(v) == masked(op.value)) co_return r;
+    if (n.urgent_waiting)
+      co_return make_reply(Reply::Status::device_error,
+                           fmt::format("wait for 0x{:04X}:{} interrupted by an urgent command",
+                                       op.object.index, op.object.sub),
+                           v);
+    if (BusClock::now() >= deadline)
+      co_return make_reply(
+          Reply::Status::device_error,
+          fmt::format("0x{:04X}:{} is 0x{:X}; waited {} ms for & 0x{:X} == 0x{:X}", op.object.index,
+                      op.object.sub, static_cast<uint64_t>(v),
+                      std::chrono::duration_cast<std::chrono::milliseconds>(op.within).count(),
+                      op.mask, masked(op.value)),
+          v);
+    co_await sleep_until(n.wake, std::min(BusClock::now() + kWaitInterval, deadline));
+    if (stopping_ || !link_up_) co_return make_reply(Reply::Status::link_down, "bus link is down");
+  }
+}
+
+asio::awaitable<Reply> CanBus::execute(NodeRuntime& n, const Request& request, bool accept_no_reply,
+                                       SteadyTime now) {
+  std::string error;
+  const auto op = parse_operation(request.command, n.config->model.get(), error);
+  if (!op)
+    co_return make_reply(Reply::Status::device_error,
+                         fmt::format("'{}' not sent: {}", request.command, error),
+                         sdo_abort::value_range);
+  switch (op->kind) {
+    case Operation::Kind::read: {
+      Reply r = co_await upload(n, op->object, 0, now);
+      co_return r;
+    }
+    case Operation::Kind::write: {
+      Reply r = co_await download(n, *op, now);
+      if (accept_no_reply && r.status == Reply::Status::timeout) r.status = Reply::Status::ok;
+      co_return r;
+    }
+    case Operation::Kind::wait: {
+      Reply r = co_await wait_for(n, *op);
+      co_return r;
+    }
+    case Operation::Kind::nmt: {
+      const uint8_t target = request.bus_wide ? 0 : n.id;
+      const bool sent = co_await send_frame(nmt_frame(op->nmt, target));
+      if (!sent)
+        co_return make_reply(Reply::Status::link_down, "cannot send NMT: bus link is down");
+      if (op->nmt == NmtCommand::start) {
+        n.start_pending = false;
+        n.start_sent = BusClock::now();
+      }
+      co_return make_reply(Reply::Status::ok, {});
+    }
+  }
+  co_return make_reply(Reply::Status::garbled, "unknown operation");
+}
+
+asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOptions options) {
+  auto& n = node(node_index);
+  if (options.urgent) {
+    std::string error;
+    const auto op = parse_operation(request.command, n.config->model.get(), error);
+    // NMT has no answer and no per-node transfer: it goes out at once.
+    if (op && op->kind == Operation::Kind::nmt) {
+      ++counters_.commands;
+      if (options.on_sent) options.on_sent();
+      const bool sent = co_await send_frame(nmt_frame(op->nmt, request.bus_wide ? 0 : n.id));
+      co_return sent ? make_reply(Reply::Status::ok, {})
+                     : make_reply(Reply::Status::link_down, "bus link is down");
+    }
+  }
+  // A bus-wide command (NMT to all nodes) concerns every node: only the link must be up.
+  if ((n.image->state == NodeState::offline && !request.bus_wide) || !link_up_)
+    co_return make_reply(Reply::Status::unreachable,
+                         link_up_ ? "node is offline" : "bus link is down");
+  auto cmd = std::make_shared<PendingCommand>(executor_);
+  cmd->request = std::move(request);
+  cmd->options = options;
+  if (options.urgent) {
+    // Ahead of everything queued, and a running `wait` step gives way to it.
+    n.commands.push_front(cmd);
+    n.urgent_waiting = true;
+  } else {
+    n.commands.push_back(cmd);
+  }
+  n.wake.cancel();
+  auto [ec, reply] = co_await cmd->done.async_receive(use_tuple);
+  if (ec) co_return make_reply(Reply::Status::link_down, "gateway stopping");
+  co_return reply;
+}
+
+// --- node worker -----------------------------------------------------------------------------
+
+asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now) {
+  const auto info = items_[item_index];
+  const auto period = plan_.item(item_index).period;
+  n.finished_at = now;
+  if (info.kind == ItemInfo::Kind::local) {
+    refresh_local_points(n, now);
+    plan_.completed(item_index, now);
+    co_return;
+  }
+  if (info.kind == ItemInfo::Kind::tpdo_fallback) {
+    const auto seen = n.tpdo_seen.find(info.tpdo_cob);
+    if (seen != n.tpdo_seen.end() && now - seen->second < period) {
+      plan_.completed(item_index, now);  // the PDO keeps it fresh: no SDO traffic
+      co_return;
+    }
+  }
+  // Due again a period after it was started, so a poll that is due sooner than its transfer
+  // takes runs straight after it.
+  plan_.completed(item_index, now);
+  // upload() stores the value in every point of the object, the targets among them.
+  co_await upload(n, info.object, config_.timing.retries, now);
+}
+
+asio::awaitable<void> CanBus::probe(NodeRuntime& n, SteadyTime now) {
+  n.next_probe = now + config_.timing.probe_interval;
+  co_await upload(n, kProbeObject, 0, now);
+}
+
+asio::awaitable<void> CanBus::configure_heartbeat(NodeRuntime& n, SteadyTime now) {
+  Operation op;
+  op.kind = Operation::Kind::write;
+  op.object = kHeartbeatObject;
+  op.value = heartbeat_producer_ms();
+  const Reply r = co_await download(n, op, now);
+  const auto consumer_ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.heartbeat_timeout)
+          .count();
+  switch (r.status) {
+    case Reply::Status::ok:  // download() armed the consumer
+      n.configure_pending = false;
+      log::info("bus {}: node {} ({}) heartbeat producer time 0x1017 set to {} ms (consumer {} ms)",
+                config_.name, n.config->name, n.id, op.value, consumer_ms);
+      break;
+    case Reply::Status::device_error:
+    case Reply::Status::garbled:
+      n.configure_pending = false;
+      watch_by_sdo(n, n.finished_at);
+      log::warning(
+          "bus {}: node {} ({}) did not take heartbeat producer time 0x1017 = {} ms: {}; liveness "
+          "by SDO (offline after {} SDO timeouts)",
+          config_.name, n.config->name, n.id, op.value, r.text, config_.timing.offline_after);
+      break;
+    default:
+      // No answer: tried again while the node is online; after its timeouts it is offline,
+      // and configured when it answers a probe.
+      break;
+  }
+}
+
+asio::awaitable<void> CanBus::report_pre_operational(NodeRuntime& n, SteadyTime now) {
+  n.pre_operational_check = false;
+  // upload() puts it into the error register point, so the map shows it with the NMT state.
+  const Reply r = co_await upload(n, kErrorRegisterObject, config_.timing.retries, now);
+  if (n.status.nmt_state != nmt_state::pre_operational) co_return;  // it moved meanwhile
+  n.status.stays_pre_operational = true;
+  std::string text;
+  if (r.status == Reply::Status::ok && !r.values.empty()) {
+    const auto reg = static_cast<uint8_t>(r.values[0]);
+    n.stuck_error_register = reg;
+    text = fmt::format("stays pre-operational after NMT start; error register 0x{:02X} ({})", reg,
+                       error_register_text(reg));
+  } else {
+    text = fmt::format("stays pre-operational after NMT start; error register unread: {}",
+                       r.text.empty() ? std::string(to_string(r.status)) : r.text);
+  }
+  n.image->counters.last_error_text = text;
+  log::warning(
+      "bus {}: node {} ({}) {}; not started again until its error register clears or "
+      "it boots",
+      config_.name, n.config->name, n.id, text);
+  notify(n);
+}
+
+asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
+  // The time, when a transfer's end or a timer's expiry just told it: the clock is read only
+  // when nothing did (a system call on User-Mode Linux, and this loop runs per transfer).
+  std::optional<SteadyTime> known_now;
+  while (!stopping_) {
+    if (!link_up_) {
+      co_await sleep_until(n.wake, SteadyTime::max());
+      continue;
+    }
+    const bool reachable = n.image->state != NodeState::offline;
+    // A stopped node answers no SDO: where it is to be started, the start goes first.
+    const bool stopped = n.status.nmt_state == nmt_state::stopped;
+    if (n.configure_pending && reachable && !(stopped && n.start_pending)) {
+      co_await configure_heartbeat(n, BusClock::now());
+      continue;
+    }
+    if (n.start_pending && (!n.configure_pending || stopped)) {
+      n.start_pending = false;
+      log::info("bus {}: NMT start node {} ({})", config_.name, n.config->name, n.id);
+      n.start_sent = BusClock::now();
+      co_await send_frame(nmt_frame(NmtCommand::start, n.id));
+      continue;
+    }
+    if (n.pre_operational_check && reachable) {
+      co_await report_pre_operational(n, BusClock::now());
+      continue;
+    }
+    if (n.next_guard != SteadyTime::max() && reachable) {
+      const auto guard_now = BusClock::now();
+      if (n.next_guard <= guard_now) {
+        co_await guard(n, guard_now);
+        continue;
+      }
+    }
+    if (!n.commands.empty()) {
+      auto cmd = n.commands.front();
+      n.commands.pop_front();
+      ++counters_.commands;
+      if (cmd->options.urgent)
+        n.urgent_waiting = std::any_of(n.commands.begin(), n.commands.end(),
+                                       [](const auto& c) { return c->options.urgent; });
+      Reply reply;
+      if (n.image->state == NodeState::offline && !cmd->request.bus_wide)
+        reply = make_reply(Reply::Status::unreachable, "node is offline");
+      else {
+        // Commands are not retried: a lost answer may hide a command the node carried out.
+        if (cmd->options.on_sent) cmd->options.on_sent();
+        reply = co_await execute(n, cmd->request, cmd->options.accept_no_reply, BusClock::now());
+      }
+      cmd->done.try_send(boost::system::error_code{}, std::move(reply));
+      continue;
+    }
+    const auto now = known_now ? *known_now : BusClock::now();
+    known_now.reset();
+    const bool offline = n.image->state == NodeState::offline;
+    SteadyTime when = SteadyTime::max();
+    std::optional<std::size_t> due;
+    if (!offline) {
+      if (auto d = plan_.next([&](int local) { return local == n.index; })) {
+        due = d->item;
+        when = d->when;
+      }
+      if (n.next_guard < when) {
+        const bool expired = co_await sleep_until(n.wake, n.next_guard);
+        if (expired) known_now = n.next_guard;
+        continue;
+      }
+    } else {
+      // Also after a heartbeat loss: a node whose producer time was reset unseen answers SDO.
+      when = n.next_probe;
+    }
+    if (when <= now) {
+      if (offline)
+        co_await probe(n, now);
+      else
+        co_await run_poll(n, *due, now);
+      known_now = n.finished_at;
+      continue;
+    }
+    const bool expired = co_await sleep_until(n.wake, when);
+    if (expired) known_now = when;
+  }
+  while (!n.commands.empty()) {
+    n.commands.front()->done.try_send(asio::error::operation_aborted, Reply{});
+    n.commands.pop_front();
+  }
+  --workers_running_;
+  wake_.cancel();
+}
+
+}  // namespace fieldgate

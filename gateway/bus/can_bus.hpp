@@ -1,0 +1,166 @@
+#pragma once
+
+#include <boost/asio/any_io_executor.hpp>
+#include <boost/asio/awaitable.hpp>
+#include <boost/asio/steady_timer.hpp>
+
+#include <deque>
+#include <map>
+#include <memory>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "drivers/canopen/canopen_request.hpp"
+#include "drivers/canopen/sdo_client.hpp"
+#include "drivers/transport/socketcan_transport.hpp"
+#include "gateway/bus/bus.hpp"
+#include "gateway/bus/poll_plan.hpp"
+#include "gateway/bus/wire_trace.hpp"
+#include "gateway/config/gateway_config.hpp"
+#include "gateway/image/process_image.hpp"
+
+namespace fieldgate {
+
+// One CAN interface with CANopen nodes. Unlike a serial line, transfers of different nodes
+// overlap: each node has its own worker coroutine with its own command queue (ahead of its
+// polls) and SDO client, so one SDO transfer is in flight per node while all nodes share the
+// wire. One reader coroutine takes every frame off the socket and hands it on: SDO responses
+// to the node's client, heartbeats to the consumer (online/offline, NMT state, boot-up), EMCY
+// to the node's diagnostics and TPDOs straight into the process image. The bus reopens the
+// interface with back-off when it goes down or away.
+class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
+ public:
+  // Must be owned by a shared_ptr (run() keeps it alive for its workers). Without a channel
+  // the bus opens SocketCAN on config.transport.can_interface; tests pass an in-memory one.
+  CanBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
+         const BusConfig& config, int first_node_index, NodeUpdated on_update,
+         std::unique_ptr<CanChannel> channel = nullptr);
+  ~CanBus() override;
+
+  asio::awaitable<void> run() override;
+  void stop() override;
+  asio::awaitable<Reply> submit(int node_index, Request request,
+                                CommandOptions options = {}) override;
+
+  const BusConfig& config() const override { return config_; }
+  const BusCounters& counters() const override { return counters_; }
+  WireTrace& trace() override { return trace_; }
+  const NodeConfig& node_config(int node_index) const override;
+  std::vector<std::shared_ptr<NodeImage>> node_images() const override;
+  void rebind(int first_node_index, NodeUpdated on_update) override;
+
+  // What the bus consumed from a node, for diagnostics and tests.
+  // How the bus knows a node is alive: by its heartbeat (the consumer, after the bus set the
+  // node's producer time), or by its SDO answers where it produces no heartbeat.
+  enum class Liveness { heartbeat, sdo };
+  struct NodeStatus {
+    std::optional<uint8_t> nmt_state;  // from the last heartbeat
+    Liveness liveness = Liveness::sdo;
+    bool stays_pre_operational = false;  // NMT start sent, the node did not leave pre-op
+    uint16_t emcy_code = 0;
+    uint8_t emcy_register = 0;
+    uint64_t emergencies = 0;
+    uint32_t last_abort = 0;  // last SDO abort code the node sent
+    uint64_t pdos = 0;        // TPDOs taken into the process image
+  };
+  NodeStatus node_status(int node_index) const;
+
+ private:
+  struct PendingCommand;
+  struct NodeRuntime;
+  struct ItemInfo {
+    enum class Kind { sdo, tpdo_fallback, local };
+    Kind kind = Kind::sdo;
+    canopen::ObjectAddress object;
+    uint32_t tpdo_cob = 0;
+  };
+
+  asio::awaitable<void> read_loop();
+  asio::awaitable<void> node_worker(NodeRuntime& n);
+  asio::awaitable<void> heartbeat_supervisor();
+  // True when the time came, false when the timer was cancelled (woken).
+  asio::awaitable<bool> sleep_until(asio::steady_timer& timer, SteadyTime when);
+
+  asio::awaitable<Reply> execute(NodeRuntime& n, const Request& request, bool accept_no_reply,
+                                 SteadyTime now);
+  // Transfers start at `now` (the caller's clock reading) and record the time their last frame
+  // arrived in the node's finished_at: one clock reading per transfer, which matters where
+  // reading the clock is a system call (User-Mode Linux).
+  asio::awaitable<Reply> upload(NodeRuntime& n, const canopen::ObjectAddress& object, int retries,
+                                SteadyTime now);
+  asio::awaitable<Reply> download(NodeRuntime& n, const canopen::Operation& op, SteadyTime now);
+  asio::awaitable<Reply> wait_for(NodeRuntime& n, const canopen::Operation& op);
+  // One SDO transfer from its first step to its result; nullopt when the link went down.
+  asio::awaitable<std::optional<canopen::SdoResult>> sdo_exchange(NodeRuntime& n,
+                                                                  canopen::SdoStep step);
+  // `outcome`: how the SDO transfer this frame ends came out, for the wire trace.
+  asio::awaitable<bool> send_frame(const canopen::CanFrame& frame, std::string_view outcome = {});
+  void trace_frame(const canopen::CanFrame& frame, TraceDirection direction, SteadyTime at,
+                   std::string_view outcome);
+  asio::awaitable<void> run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now);
+  asio::awaitable<void> probe(NodeRuntime& n, SteadyTime now);
+  // Bring-up (CiA 302): the heartbeat producer time the consumer expects, written to 0x1017.
+  asio::awaitable<void> configure_heartbeat(NodeRuntime& n, SteadyTime now);
+  // A node that stays pre-operational after NMT start: its error register, read and logged.
+  asio::awaitable<void> report_pre_operational(NodeRuntime& n, SteadyTime now);
+
+  void dispatch(const canopen::CanFrame& frame, SteadyTime now);
+  void on_error_frame(const canopen::CanFrame& frame, SteadyTime now);
+  void on_heartbeat(NodeRuntime& n, uint8_t state, SteadyTime now);
+  void on_emergency(NodeRuntime& n, const canopen::Emergency& emcy);
+  void on_tpdo(NodeRuntime& n, const canopen::CanFrame& frame, SteadyTime now);
+  void refresh_local_points(NodeRuntime& n, SteadyTime now);
+  // Every point read from `object` takes the value its bytes hold (a confirmed write, a read).
+  void store_object(NodeRuntime& n, uint16_t index, uint8_t sub, std::span<const uint8_t> bytes,
+                    SteadyTime now);
+  // Link opened, boot-up, back from offline: configure the heartbeat, then NMT start.
+  void bring_up(NodeRuntime& n, bool start);
+  // Overdue polls of a node back online run at once, each on its own phase.
+  void resume_polls(NodeRuntime& n, SteadyTime now);
+  uint16_t heartbeat_producer_ms() const;
+  // The node's error register as last read or sent: NMT start again when it cleared on a node
+  // that stayed pre-operational with an error.
+  void error_register_seen(NodeRuntime& n, uint8_t reg);
+  // The node produces no heartbeat: SDO answers tell that it is there, node guarding (if it
+  // answers) its NMT state.
+  void watch_by_sdo(NodeRuntime& n, SteadyTime now);
+  asio::awaitable<void> guard(NodeRuntime& n, SteadyTime now);
+  void forget_nmt_state(NodeRuntime& n);
+
+  Reply reply_of(NodeRuntime& n, const canopen::SdoResult& result);
+  void record(NodeRuntime& n, const Reply& reply, SteadyTime at);
+  void record_latency(double seconds);
+  void set_state(NodeRuntime& n, NodeState state, std::string_view why);
+  void link_failed(std::error_code ec);
+  void fail_commands(std::string_view why);
+  void wake_all();
+  void notify(NodeRuntime& n);
+  bool heartbeat_consumer() const { return config_.timing.heartbeat_timeout.count() > 0; }
+  std::vector<uint32_t> receive_ids() const;
+  NodeRuntime& node(int node_index);
+  const NodeRuntime& node(int node_index) const;
+
+  asio::any_io_executor executor_;
+  std::shared_ptr<const void> config_owner_;
+  const BusConfig& config_;
+  int first_node_index_;
+  NodeUpdated on_update_;
+  std::unique_ptr<CanChannel> channel_;
+  PollPlan plan_;
+  std::vector<ItemInfo> items_;  // parallel to plan_.items()
+  std::vector<std::unique_ptr<NodeRuntime>> nodes_;
+  std::map<uint32_t, NodeRuntime*> by_cob_;  // every COB-ID a node sends on
+  asio::steady_timer wake_;                  // run(): back-off, waiting for workers
+  asio::steady_timer supervisor_wake_;
+  BusCounters counters_;
+  bool stopping_ = false;
+  bool link_up_ = false;
+  bool link_error_logged_ = false;
+  int workers_running_ = 0;
+  SteadyTime error_frames_logged_{};
+  uint64_t error_frames_unlogged_ = 0;
+  WireTrace trace_;
+};
+
+}  // namespace fieldgate

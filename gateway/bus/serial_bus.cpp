@@ -1,0 +1,503 @@
+#include "gateway/bus/serial_bus.hpp"
+
+#include <boost/asio/as_tuple.hpp>
+#include <boost/asio/use_awaitable.hpp>
+
+#include <algorithm>
+
+#include "drivers/printable_bytes.hpp"
+#include "drivers/transport/serial_transport.hpp"
+#include "drivers/transport/tcp_transport.hpp"
+#include "gateway/bus/reply_accounting.hpp"
+#include "gateway/lifecycle/log.hpp"
+
+namespace fieldgate {
+
+namespace {
+constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
+using Clock = std::chrono::steady_clock;
+
+std::unique_ptr<ByteTransport> make_transport(asio::any_io_executor ex, const TransportConfig& t) {
+  if (t.kind == TransportConfig::Kind::tcp)
+    return std::make_unique<TcpTransport>(ex, t.host, t.port, serial_char_time_us(t.serial));
+  return std::make_unique<SerialTransport>(ex, t.serial);
+}
+}  // namespace
+
+struct SerialBus::PendingCommand {
+  PendingCommand(asio::any_io_executor ex) : done(ex, 1) {}
+  int node = 0;
+  Request request;
+  CommandOptions options;
+  asio::experimental::channel<void(boost::system::error_code, Reply)> done;
+};
+
+SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
+                     const BusConfig& config, int first_node_index, NodeUpdated on_update)
+    : executor_(executor),
+      config_owner_(std::move(config_owner)),
+      config_(config),
+      first_node_index_(first_node_index),
+      on_update_(std::move(on_update)),
+      transport_(make_transport(executor, config.transport)),
+      link_(*transport_),
+      wake_(executor),
+      trace_(config.name, config.trace) {
+  link_.set_tap([this](bool tx, std::string_view bytes) {
+    if (!trace_.enabled()) return;
+    if (trace_collecting_) {
+      traced_.push_back({Clock::now(), tx, std::string(bytes)});
+      return;
+    }
+    // Outside a transaction: link-open procedures, urgent commands, discarded input.
+    trace_.emit(Clock::now(), {}, tx ? TraceDirection::tx : TraceDirection::rx, {},
+                printable_bytes(bytes));
+  });
+  config_.family->route_log([bus = config.name](int level, std::string_view text) {
+    log::write(static_cast<log::Level>(std::clamp(level, 3, 7)),
+               fmt::format("bus {}: {}", bus, text));
+  });
+  int index = 0;  // local: position on this bus; the gateway's number is first_node_index_ + index
+  for (const auto& n : config.nodes) {
+    NodeRuntime rt;
+    rt.index = index;
+    rt.config = &n;
+    rt.timing = node_link_timing(config, n);
+    rt.image = std::make_shared<NodeImage>();
+    nodes_.push_back(rt);
+    auto& img = *rt.image;
+    img.points.assign(n.model->points.size(), {});
+    img.setpoints.clear();
+    for (const auto& s : n.model->setpoints) {
+      const auto it = n.setpoints.find(s.name);
+      img.setpoints.push_back(it != n.setpoints.end() ? it->second : s.default_value);
+    }
+    // One poll item per distinct request: points that share a reply share a transaction.
+    std::vector<PollItem> items;
+    for (std::size_t p = 0; p < n.model->points.size(); ++p) {
+      const auto& point = n.model->points[p];
+      if (!point.read || point.poll_class.empty()) continue;
+      const std::string command = point.read->request.source();
+      const auto period = n.period_of(point.poll_class);
+      auto existing = std::find_if(items.begin(), items.end(), [&](const PollItem& it) {
+        return it.request.command == command && it.period == period;
+      });
+      if (existing == items.end()) {
+        PollItem item;
+        item.node = index;
+        item.request = Request{command, Request::Expect::values, point.read->format};
+        item.period = period;
+        items.push_back(std::move(item));
+        existing = std::prev(items.end());
+      }
+      existing->targets.push_back({static_cast<int>(p), point.read->field});
+    }
+    nodes_.back().poll_items = static_cast<int>(items.size());
+    for (auto& it : items) plan_.add(std::move(it));
+    img.polled.assign(n.model->points.size(), false);
+    for (const auto& it : items)
+      for (const auto& t : it.targets) img.polled[static_cast<std::size_t>(t.point)] = true;
+    ++index;
+  }
+}
+
+SerialBus::~SerialBus() = default;
+
+bool SerialBus::owns_node(int node_index) const {
+  return node_index >= first_node_index_ &&
+         node_index < first_node_index_ + static_cast<int>(nodes_.size());
+}
+
+const NodeConfig& SerialBus::node_config(int node_index) const {
+  return *nodes_.at(static_cast<std::size_t>(node_index - first_node_index_)).config;
+}
+
+SerialBus::NodeRuntime& SerialBus::node(int node_index) {
+  return nodes_.at(static_cast<std::size_t>(node_index - first_node_index_));
+}
+
+std::vector<std::shared_ptr<NodeImage>> SerialBus::node_images() const {
+  std::vector<std::shared_ptr<NodeImage>> images;
+  for (const auto& n : nodes_) images.push_back(n.image);
+  return images;
+}
+
+void SerialBus::rebind(int first_node_index, NodeUpdated on_update) {
+  first_node_index_ = first_node_index;
+  on_update_ = std::move(on_update);
+}
+
+void SerialBus::stop() {
+  stopping_ = true;
+  wake_.cancel();
+  transport_->close();
+}
+
+std::shared_ptr<Bus> make_bus(asio::any_io_executor executor,
+                              std::shared_ptr<const void> config_owner, const BusConfig& config,
+                              int first_node_index, Bus::NodeUpdated on_update) {
+  if (config.transport.kind == TransportConfig::Kind::can)
+    return make_can_bus(executor, std::move(config_owner), config, first_node_index,
+                        std::move(on_update));
+  return std::make_shared<SerialBus>(executor, std::move(config_owner), config, first_node_index,
+                                     std::move(on_update));
+}
+
+asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, CommandOptions options) {
+  auto& n = node(node_index);
+  if (options.urgent) {
+    // Not queued: the line may be held by a transaction that only ends when this gets through.
+    ++counters_.commands;
+    if (options.on_sent) options.on_sent();
+    co_return co_await config_.family->send_urgent(link_, n.config->address, request);
+  }
+  // A bus-wide command (a global stop) concerns every node: only the link must be up.
+  const bool node_gone = (*n.image).state == NodeState::offline && !request.bus_wide;
+  if (node_gone || !transport_->is_open()) {
+    Reply r;
+    r.status = Reply::Status::unreachable;
+    r.text = transport_->is_open() ? "node is offline" : "bus link is down";
+    co_return r;
+  }
+  auto cmd = std::make_shared<PendingCommand>(executor_);
+  cmd->node = n.index;  // local, so a reload that renumbers the gateway's nodes cannot misroute it
+  cmd->request = std::move(request);
+  cmd->options = options;
+  commands_.push_back(cmd);
+  wake_.cancel();
+  auto [ec, reply] = co_await cmd->done.async_receive(use_tuple);
+  if (ec) {
+    Reply r;
+    r.status = Reply::Status::link_down;
+    r.text = "gateway stopping";
+    co_return r;
+  }
+  co_return reply;
+}
+
+std::shared_ptr<SerialBus::PendingCommand> SerialBus::take_command() {
+  // A bus-wide command (a global stop) first; otherwise round-robin over nodes, in order of
+  // arrival within a node, so one unit flooded with writes does not delay the others' commands.
+  auto pick = commands_.begin();
+  const auto bus_wide = std::find_if(commands_.begin(), commands_.end(),
+                                     [](const auto& c) { return c->request.bus_wide; });
+  if (bus_wide != commands_.end()) {
+    pick = bus_wide;
+  } else {
+    const int count = static_cast<int>(nodes_.size());
+    int best = count + 1;
+    for (auto it = commands_.begin(); it != commands_.end(); ++it) {
+      const int distance = ((*it)->node - last_command_node_ - 1 + count) % count;
+      if (distance < best) {
+        best = distance;
+        pick = it;
+      }
+    }
+  }
+  auto cmd = *pick;
+  commands_.erase(pick);
+  last_command_node_ = cmd->node;
+  return cmd;
+}
+
+void SerialBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
+  auto& img = (*n.image);
+  if (img.state == state) return;
+  const auto old = img.state;
+  img.state = state;
+  if (state == NodeState::online) {
+    log::notice("bus {}: node {} ({}) online{}", config_.name, n.config->name,
+                n.config->address.text, old == NodeState::offline ? " again" : "");
+    plan_.restart_node(n.index, Clock::now());
+  } else if (state == NodeState::offline) {
+    log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name,
+                 n.config->address.text, why);
+    n.next_probe = Clock::now() + config_.timing.probe_interval;
+  } else if (state == NodeState::faulted) {
+    log::warning("bus {}: node {} ({}) faulted: it answers but refuses every poll ({})",
+                 config_.name, n.config->name, n.config->address.text, why);
+  }
+}
+
+bool SerialBus::all_nodes_offline_now() const {
+  for (const auto& n : nodes_)
+    if (n.image->state != NodeState::offline) return false;
+  return true;
+}
+
+void SerialBus::all_nodes_offline(std::string_view why) {
+  for (auto& n : nodes_) set_state(n, NodeState::offline, why);
+}
+
+void SerialBus::record(NodeRuntime& n, const Reply& reply, bool poll) {
+  auto& c = (*n.image).counters;
+  switch (count_reply(c, counters_, reply, Clock::now())) {
+    case ReplyOutcome::answered:
+      if (reply.status == Reply::Status::ok) {
+        if (poll) n.refused_polls = 0;
+        if (poll || (*n.image).state != NodeState::faulted) set_state(n, NodeState::online, {});
+      } else if (poll) {
+        // The node answers but refuses this poll. Refusing every poll of a round (a wrong axis
+        // letter, a model that does not fit) means none of its values is ever fresh: faulted.
+        ++n.refused_polls;
+        if (n.refused_polls >= n.poll_items || (*n.image).state == NodeState::offline)
+          set_state(n, NodeState::faulted, reply.text);
+      }
+      break;
+    case ReplyOutcome::garbled:
+      break;
+    case ReplyOutcome::failed:
+      if (c.consecutive_timeouts >= static_cast<uint32_t>(config_.timing.offline_after) ||
+          (*n.image).state == NodeState::offline)
+        // Named apart: a forwarding device's "node unreachable" (Copley e 32) is not silence.
+        set_state(n, NodeState::offline,
+                  reply.status == Reply::Status::unreachable
+                      ? fmt::format("unreachable ({})", reply.text)
+                      : fmt::format("{}, no reply", to_string(reply.status)));
+      break;
+  }
+}
+
+asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& request, int retries,
+                                           bool accept_no_reply, bool poll) {
+  Reply reply;
+  for (int attempt = 0; attempt <= retries; ++attempt) {
+    if (attempt > 0) {
+      ++counters_.retries;
+      ++(*n.image).counters.retries;
+    }
+    const auto started = Clock::now();
+    trace_collecting_ = trace_.enabled();
+    reply = co_await config_.family->transact(link_, n.config->address, request, n.timing);
+    trace_collecting_ = false;
+    // The trace's outcome names (README "Wire trace"), as CAN buses give them.
+    trace_transaction(n,
+                      reply.status == Reply::Status::garbled ? "garbled" : to_string(reply.status));
+    record_latency(std::chrono::duration<double>(Clock::now() - started).count());
+    for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
+    ++counters_.transactions;
+    ++(*n.image).counters.transactions;
+    if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled ||
+        link_.buffered() > 0)
+      co_await resync(n, reply);
+    if (accept_no_reply && reply.status == Reply::Status::timeout) {
+      reply.status = Reply::Status::ok;
+      break;
+    }
+    if (reply.status == Reply::Status::link_down) break;
+    if (reply.status != Reply::Status::timeout && reply.status != Reply::Status::garbled) break;
+    if (attempt < retries) record(n, reply, poll);
+  }
+  record(n, reply, poll);
+  if (reply.status == Reply::Status::link_down) {
+    log::error("bus {}: link failed: {}", config_.name, reply.text);
+    transport_->close();
+  }
+  co_await link_.pause(config_.timing.inter_frame_gap);
+  co_return reply;
+}
+
+void SerialBus::trace_transaction(const NodeRuntime& n, std::string_view outcome) {
+  for (const auto& t : traced_)
+    trace_.emit(t.at, n.config->name, t.tx ? TraceDirection::tx : TraceDirection::rx, outcome,
+                printable_bytes(t.bytes));
+  traced_.clear();
+}
+
+asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
+  if (!transport_->is_open()) co_return;
+  trace_collecting_ = trace_.enabled();
+  const auto found = co_await config_.family->resync_after_failure(link_, n.timing);
+  trace_collecting_ = false;
+  trace_transaction(n, "resync");
+  ++counters_.resyncs;
+  counters_.resync_bytes += found.drained.size();
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(found.waited).count();
+  const char* after = failed.status == Reply::Status::ok ? "stray bytes after a reply"
+                                                         : to_string(failed.status).data();
+  if (!found.drained.empty())
+    log::warning("bus {}: resync after {} from node {} ({}): drained {} byte(s) '{}' in {} ms",
+                 config_.name, after, n.config->name, n.config->address.text, found.drained.size(),
+                 printable_bytes(found.drained, 80), ms);
+  else
+    log::debug("bus {}: resync after {} from node {} ({}): line quiet after {} ms", config_.name,
+               after, n.config->name, n.config->address.text, ms);
+  if (!found.quiet) {
+    // A line that never goes quiet cannot carry an untagged exchange: reopen it.
+    log::error("bus {}: line still busy {} ms after the {} from node {}; reopening the link",
+               config_.name, ms, after, n.config->name);
+    transport_->close();
+  }
+}
+
+void SerialBus::record_latency(double seconds) {
+  std::size_t bucket = 0;
+  while (bucket < std::size(kLatencyBuckets) && seconds > kLatencyBuckets[bucket]) ++bucket;
+  ++counters_.latency_counts[bucket];
+  counters_.latency_sum += seconds;
+  counters_.bytes_sent = link_.stats().bytes_sent;
+  counters_.bytes_received = link_.stats().bytes_received;
+}
+
+asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
+  auto& item = plan_.item(item_index);
+  auto& n = nodes_[static_cast<std::size_t>(item.node)];
+  const bool probing = (*n.image).state == NodeState::offline;
+  const Request request = item.request;
+  const auto targets = item.targets;
+  Reply reply = co_await transact(n, request, probing ? 0 : config_.timing.retries, false, true);
+  const auto now = Clock::now();
+  if (probing) {
+    n.next_probe = now + config_.timing.probe_interval;
+  } else {
+    plan_.completed(item_index, now);
+  }
+  if (reply.status != Reply::Status::ok) co_return;
+  auto& img = (*n.image);
+  for (const auto& t : targets) {
+    if (t.field >= static_cast<int>(reply.values.size())) {
+      ++img.counters.errors;
+      img.counters.last_error_text = "reply has fewer values than the model expects";
+      continue;
+    }
+    img.points[static_cast<std::size_t>(t.point)] = {
+        reply.values[static_cast<std::size_t>(t.field)], now, true};
+  }
+  if (on_update_) on_update_(first_node_index_ + n.index);
+}
+
+asio::awaitable<void> SerialBus::open_link() {
+  auto delay = config_.timing.reconnect_min;
+  while (!stopping_) {
+    const auto ec = co_await transport_->open();
+    counters_.open_attempted = true;
+    if (!ec) {
+      counters_.link_up = true;
+      opened_at_ = Clock::now();
+      ++counters_.reconnects;
+      log::notice("bus {}: opened {}", config_.name, transport_->describe());
+      link_error_logged_ = false;
+      co_await config_.family->on_link_open(link_, config_.timing.link);
+      for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
+      for (auto& n : nodes_)
+        if ((*n.image).state == NodeState::offline) n.next_probe = Clock::now();
+      co_return;
+    }
+    counters_.link_up = false;
+    if (!link_error_logged_) {
+      log::error(
+          "bus {}: cannot open {}: {} (retrying with back-off up to {} s)", config_.name,
+          transport_->describe(), ec.message(),
+          std::chrono::duration_cast<std::chrono::seconds>(config_.timing.reconnect_max).count());
+      link_error_logged_ = true;
+    }
+    all_nodes_offline("bus link is down");
+    while (!commands_.empty()) {
+      Reply r;
+      r.status = Reply::Status::unreachable;
+      r.text = "bus link is down";
+      commands_.front()->done.try_send(boost::system::error_code{}, r);
+      commands_.pop_front();
+    }
+    wake_.expires_after(delay);
+    co_await wake_.async_wait(use_tuple);
+    delay = std::min(delay * 2, config_.timing.reconnect_max);
+  }
+}
+
+asio::awaitable<void> SerialBus::run() {
+  plan_.start(Clock::now());
+  while (!stopping_) {
+    if (!transport_->is_open()) {
+      counters_.link_up = false;
+      co_await open_link();
+      continue;
+    }
+    const auto now = Clock::now();
+    // The next poll: a due item of a node that is not offline (rate-monotonic, see PollPlan),
+    // or the probe of an offline node, whichever is due first.
+    auto due = plan_.pick(now, [&](int local) {
+      return nodes_[static_cast<std::size_t>(local)].image->state != NodeState::offline;
+    });
+    std::optional<std::size_t> probe;
+    SteadyTime probe_when = SteadyTime::max();
+    for (auto& n : nodes_) {
+      if ((*n.image).state != NodeState::offline) continue;
+      if (n.next_probe < probe_when) {
+        if (auto item = plan_.probe_item(n.index)) {
+          probe = item;
+          probe_when = n.next_probe;
+        }
+      }
+    }
+    std::optional<std::size_t> chosen;
+    SteadyTime when = SteadyTime::max();
+    if (due) {
+      chosen = due->item;
+      when = due->when;
+    }
+    if (probe && probe_when < when) {
+      chosen = probe;
+      when = probe_when;
+    }
+    // Commands go first, but back-to-back commands leave every other transaction to a due
+    // poll, and a poll running late (by a tenth of its period) gets up to kPollsPerCommand
+    // transactions per command: clients flooding one unit cannot slow the polling of the
+    // others, and commands still get through when polls overload the line.
+    const bool poll_due = chosen && when <= now;
+    bool command_first = !commands_.empty();
+    if (command_first && poll_due) {
+      const bool late = now - when > plan_.item(*chosen).period / 10;
+      command_first =
+          late ? polls_in_row_ >= kPollsPerCommand : commands_in_row_ < kCommandsPerPoll;
+    }
+    if (command_first) {
+      auto cmd = take_command();
+      ++commands_in_row_;
+      polls_in_row_ = 0;
+      ++counters_.commands;
+      auto& n = nodes_[static_cast<std::size_t>(cmd->node)];
+      Reply reply;
+      if ((*n.image).state == NodeState::offline && !cmd->request.bus_wide) {
+        reply.status = Reply::Status::unreachable;
+        reply.text = "node is offline";
+      } else {
+        // Commands are not retried: a lost reply may hide a command the device already ran.
+        if (cmd->options.on_sent) cmd->options.on_sent();
+        reply = co_await transact(n, cmd->request, 0, cmd->options.accept_no_reply, false);
+        if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled) {
+          ++(*n.image).counters.unknown_writes;
+          log::warning("bus {}: node {} ({}): '{}' got {}: outcome unknown, not retried",
+                       config_.name, n.config->name, n.config->address.text, cmd->request.command,
+                       reply.text.empty() ? std::string(to_string(reply.status)) : reply.text);
+          reply.text = "no reply, outcome unknown (" +
+                       (reply.text.empty() ? std::string(to_string(reply.status)) : reply.text) +
+                       ")";
+        }
+      }
+      cmd->done.try_send(boost::system::error_code{}, std::move(reply));
+      continue;
+    }
+    commands_in_row_ = 0;
+    if (chosen && when <= now) {
+      ++polls_in_row_;
+      // Nothing on the link answers (a power-cycled controller back at its power-up rate, a
+      // re-plugged adapter): reopen it, so the family's link-open procedure runs again.
+      if (chosen == probe && all_nodes_offline_now() &&
+          now - opened_at_ >= config_.timing.probe_interval) {
+        transport_->close();
+        continue;
+      }
+      co_await run_poll(*chosen);
+      continue;
+    }
+    wake_.expires_at(when);
+    co_await wake_.async_wait(use_tuple);
+  }
+  while (!commands_.empty()) {
+    commands_.front()->done.try_send(asio::error::operation_aborted, Reply{});
+    commands_.pop_front();
+  }
+}
+
+}  // namespace fieldgate

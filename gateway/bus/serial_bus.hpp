@@ -1,0 +1,112 @@
+#pragma once
+
+#include <boost/asio/any_io_executor.hpp>
+#include <boost/asio/awaitable.hpp>
+#include <boost/asio/experimental/channel.hpp>
+#include <boost/asio/steady_timer.hpp>
+
+#include <deque>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "drivers/link.hpp"
+#include "drivers/protocol_family.hpp"
+#include "drivers/transport/byte_transport.hpp"
+#include "gateway/bus/bus.hpp"
+#include "gateway/bus/poll_plan.hpp"
+#include "gateway/bus/wire_trace.hpp"
+#include "gateway/config/gateway_config.hpp"
+#include "gateway/image/process_image.hpp"
+
+namespace fieldgate {
+
+// Owns one field link: the only coroutine that touches its transport. Serialises commands from
+// Modbus writes (first) with polls (spread over time), one transaction in flight.
+class SerialBus final : public Bus {
+ public:
+  // config_owner keeps the configuration that config belongs to alive as long as the bus runs,
+  // which a reload may make longer than that configuration is in force.
+  SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
+            const BusConfig& config, int first_node_index, NodeUpdated on_update);
+  ~SerialBus() override;
+
+  // Runs until stop(); spawn it on the io_context.
+  asio::awaitable<void> run() override;
+  void stop() override;
+
+  // Queues a command ahead of polls and returns its reply once the device answered (or failed).
+  // A command for an offline node fails at once as unreachable.
+  asio::awaitable<Reply> submit(int node_index, Request request,
+                                CommandOptions options = {}) override;
+
+  const BusConfig& config() const override { return config_; }
+  const BusCounters& counters() const override { return counters_; }
+  const LinkStats& link_stats() const { return link_.stats(); }
+  WireTrace& trace() override { return trace_; }
+  bool owns_node(int node_index) const;
+  const NodeConfig& node_config(int node_index) const override;
+  std::vector<std::shared_ptr<NodeImage>> node_images() const override;
+  void rebind(int first_node_index, NodeUpdated on_update) override;
+
+ private:
+  struct PendingCommand;
+  struct NodeRuntime {
+    int index = 0;  // position on this bus
+    const NodeConfig* config = nullptr;
+    std::shared_ptr<NodeImage> image;
+    SteadyTime next_probe{};
+    LinkTiming timing;      // the bus's, with the node's reply timeout
+    int poll_items = 0;     // distinct poll requests of the node
+    int refused_polls = 0;  // polls in a row the node answered with a device error
+  };
+  // Back-to-back commands before a due poll gets the line.
+  static constexpr int kCommandsPerPoll = 1;
+  // Polls running late before a waiting command gets the line.
+  static constexpr int kPollsPerCommand = 3;
+
+  asio::awaitable<void> open_link();
+  asio::awaitable<Reply> transact(NodeRuntime& node, const Request& request, int retries,
+                                  bool accept_no_reply, bool poll);
+  std::shared_ptr<PendingCommand> take_command();
+  // After a timeout, a garbled reply or stray bytes: the family drains the line until quiet.
+  asio::awaitable<void> resync(NodeRuntime& node, const Reply& failed);
+  asio::awaitable<void> run_poll(std::size_t item_index);
+  void record(NodeRuntime& node, const Reply& reply, bool poll);
+  void record_latency(double seconds);
+  void set_state(NodeRuntime& node, NodeState state, std::string_view why);
+  void all_nodes_offline(std::string_view why);
+  bool all_nodes_offline_now() const;
+  NodeRuntime& node(int node_index);
+
+  asio::any_io_executor executor_;
+  std::shared_ptr<const void> config_owner_;
+  const BusConfig& config_;
+  int first_node_index_;
+  NodeUpdated on_update_;
+  std::unique_ptr<ByteTransport> transport_;
+  Link link_;
+  PollPlan plan_;
+  std::vector<NodeRuntime> nodes_;
+  std::deque<std::shared_ptr<PendingCommand>> commands_;
+  asio::steady_timer wake_;
+  BusCounters counters_;
+  bool stopping_ = false;
+  int commands_in_row_ = 0;
+  int polls_in_row_ = 0;
+  int last_command_node_ = -1;
+  bool link_error_logged_ = false;
+  // Wire trace: during a transaction the link's bytes wait here for its outcome.
+  struct TracedBytes {
+    SteadyTime at;
+    bool tx;
+    std::string bytes;
+  };
+  WireTrace trace_;
+  bool trace_collecting_ = false;
+  std::vector<TracedBytes> traced_;
+  void trace_transaction(const NodeRuntime& node, std::string_view outcome);
+  SteadyTime opened_at_{};
+};
+
+}  // namespace fieldgate

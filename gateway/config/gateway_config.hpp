@@ -1,0 +1,146 @@
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "drivers/link.hpp"
+#include "drivers/protocol_family.hpp"
+#include "drivers/transport/serial_transport.hpp"
+#include "gateway/config/modbus_rtu_config.hpp"
+#include "gateway/modbus/access_control.hpp"
+#include "gateway/sparkplug/sparkplug_config.hpp"
+#include "mapping/diagnostics.hpp"
+#include "mapping/model.hpp"
+#include "mapping/register_map.hpp"
+#include "mapping/value_type.hpp"
+
+namespace fieldgate {
+
+using std::chrono::microseconds;
+
+enum class OfflineReads { exception, last_value };
+
+struct ModbusConfig {
+  std::string address = "0.0.0.0";
+  uint16_t port = 502;
+  std::size_t max_clients = 32;
+  bool evict_when_full = true;              // when_full: evict_idle (true) or refuse
+  std::size_t max_clients_per_address = 0;  // 0: no limit
+  microseconds idle_timeout{std::chrono::seconds(300)};
+  WordOrder word_order = WordOrder::high_first;
+  OfflineReads offline_reads = OfflineReads::exception;
+  bool writes_enabled = true;
+  microseconds request_timeout{std::chrono::seconds(5)};  // to receive a started request
+  ClientAllowList allow;
+  std::vector<uint8_t> read_only_units;
+  bool read_only_coils = false;
+  bool read_only_holding = false;
+
+  bool unit_read_only(uint8_t unit) const;
+};
+
+// A further Modbus TCP endpoint with its own unit-ID space 1..247 (`listeners:`); the
+// `modbus:` section is the default listener, named "default".
+struct ListenerConfig {
+  std::string name;
+  ModbusConfig modbus;
+  SourceMark mark;
+};
+
+inline constexpr const char* kDefaultListener = "default";
+
+struct BusTiming {
+  LinkTiming link;
+  bool reply_timeout_set = false;  // given in the config (not the default)
+  microseconds inter_frame_gap{0};
+  microseconds turnaround{std::chrono::milliseconds(1)};  // expected device latency, for the budget
+  int retries = 1;
+  int offline_after = 3;
+  microseconds probe_interval{std::chrono::seconds(2)};
+  microseconds reconnect_min{std::chrono::milliseconds(500)};
+  microseconds reconnect_max{std::chrono::seconds(10)};
+  // CAN buses only. Heartbeat consumer time: a node whose heartbeat (0x700 + ID) stays away
+  // this long goes offline; 0 means no heartbeat consumer.
+  microseconds heartbeat_timeout{0};
+  bool start_nodes = false;  // NMT start for every node at start-up and after its boot-up
+};
+
+struct TransportConfig {
+  enum class Kind { serial, tcp, can };
+  Kind kind = Kind::serial;
+  SerialSettings serial;  // for tcp only baud and framing matter (wire time)
+  std::string host;
+  uint16_t port = 0;
+  std::string can_interface;  // SocketCAN interface name (can0, vcan0)
+};
+
+// Installation limits of a writable point, narrower than the model's (travel, speed).
+struct WriteLimits {
+  std::optional<int64_t> min;
+  std::optional<int64_t> max;
+};
+
+struct NodeConfig {
+  std::string name;
+  NodeAddress address;
+  ModelPtr model;
+  uint8_t unit_id = 0;
+  std::map<std::string, microseconds> poll_periods;  // overrides of the model's classes
+  std::map<std::string, int64_t> setpoints;          // initial values, overriding defaults
+  std::map<std::string, WriteLimits> limits;         // by point or setpoint name
+  std::optional<microseconds> reply_timeout;         // overrides the bus's for this node
+  std::size_t listener = 0;  // index of GatewayConfig::listener_modbus: 0 is `modbus:`
+  std::map<std::string, uint8_t> axis_units;  // profile axis name -> its unit ID
+  SourceMark mark;
+
+  microseconds period_of(const std::string& poll_class) const;
+};
+
+struct BusConfig {
+  std::string name;
+  std::string protocol;
+  FamilyPtr family;
+  TransportConfig transport;
+  BusTiming timing;
+  std::vector<NodeConfig> nodes;
+  bool trace = false;  // wire trace on from the start (gateway/bus/wire_trace.hpp)
+  SourceMark mark;
+  // The bus's YAML and the text of the models it uses: equal signatures across a reload mean
+  // the bus can keep running untouched.
+  std::string signature;
+};
+
+// A node's timing: the bus's, with the node's reply_timeout, or where none is configured (node
+// or bus) at least what its family says the node needs (ProtocolFamily::node_timing_need).
+LinkTiming node_link_timing(const BusConfig& bus, const NodeConfig& node);
+
+struct MetricsConfig {
+  bool enabled = false;
+  std::string address = "127.0.0.1";
+  uint16_t port = 9502;
+};
+
+struct GatewayConfig {
+  std::string file;
+  ModbusConfig modbus;                    // the default listener
+  std::vector<ListenerConfig> listeners;  // further listeners: listener index 1, 2, ...
+  MetricsConfig metrics;
+  std::optional<ModbusRtuConfig> modbus_rtu;
+  sparkplug::SparkplugConfig sparkplug;
+  std::vector<std::string> model_dirs;
+  std::vector<BusConfig> buses;
+  std::vector<std::string> warnings;  // e.g. poll budgets that cannot be met
+
+  std::size_t listener_count() const { return 1 + listeners.size(); }
+  const ModbusConfig& listener_modbus(std::size_t listener) const;
+  std::string listener_name(std::size_t listener) const;
+  std::optional<std::size_t> find_listener(const std::string& name) const;
+  // The nodes served on one listener, with the gateway's global node numbers.
+  std::vector<NodeBinding> node_bindings(std::size_t listener = 0) const;
+};
+
+}  // namespace fieldgate

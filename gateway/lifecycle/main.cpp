@@ -1,0 +1,123 @@
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <iostream>
+
+#include "drivers/protocol_family.hpp"
+#include "gateway/config/config_loader.hpp"
+#include "gateway/lifecycle/daemon.hpp"
+#include "gateway/lifecycle/log.hpp"
+#include "gateway/modbus/modbus_rtu_port.hpp"
+#include "gateway/register_map/profile_units_document.hpp"
+#include "mapping/register_map_document.hpp"
+
+using namespace fieldgate;
+
+namespace {
+
+int run_check(const std::string& path) {
+  auto config = load_config_or_report(path);
+  if (!config) return 1;
+  const auto& gateway = config->gateway;
+  std::size_t nodes = 0;
+  for (const auto& b : gateway.buses) nodes += b.nodes.size();
+  std::size_t units = 0;
+  for (std::size_t l = 0; l < gateway.listener_count(); ++l)
+    units += config->map_of(l).units().size();
+  std::cout << fmt::format("{}: ok ({} bus(es), {} node(s), {} unit ID(s))\n", path,
+                           gateway.buses.size(), nodes, units);
+  if (gateway.listener_count() > 1)
+    for (std::size_t l = 0; l < gateway.listener_count(); ++l) {
+      const auto& m = gateway.listener_modbus(l);
+      std::cout << fmt::format("  listener {} on {}:{}: {} unit ID(s)\n", gateway.listener_name(l),
+                               m.address, m.port, config->map_of(l).units().size());
+    }
+  return 0;
+}
+
+std::vector<ListenerMap> listener_maps(const LoadedConfig& config) {
+  std::vector<ListenerMap> maps;
+  for (std::size_t l = 0; l < config.gateway.listener_count(); ++l) {
+    const auto& m = config.gateway.listener_modbus(l);
+    maps.push_back({config.gateway.listener_name(l), fmt::format("{}:{}", m.address, m.port),
+                    &config.map_of(l)});
+  }
+  return maps;
+}
+
+int run_models(const std::string& family) {
+  if (family.empty()) {
+    std::cout << "Families (fieldgate models --options FAMILY describes a family's model "
+                 "options):\n";
+    for (const auto& name : family_names())
+      std::cout << fmt::format("  {} ({} model option(s))\n", name,
+                               make_family(name)->model_options().size());
+    return 0;
+  }
+  const auto names = family_names();
+  if (std::find(names.begin(), names.end(), family) == names.end()) {
+    std::string known;
+    for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
+    std::cerr << fmt::format("fieldgate models: unknown family '{}' (known: {})\n", family, known);
+    return 2;
+  }
+  std::cout << describe_model_options(family, make_family(family)->model_options());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"fieldgate: field links to a Modbus register map"};
+  std::string config_path = FIELDGATE_DEFAULT_CONFIG;
+  bool verbose = false;
+  app.set_version_flag("--version", "fieldgate " FIELDGATE_VERSION_TEXT);
+  app.add_option("-c,--config", config_path, "gateway configuration (YAML)")->capture_default_str();
+  app.add_flag("-v,--verbose", verbose, "log debug detail");
+  auto* check = app.add_subcommand("check", "validate a configuration without opening any port");
+  std::string check_path = FIELDGATE_DEFAULT_CONFIG;
+  check->add_option("config", check_path, "gateway configuration (YAML)")->capture_default_str();
+  auto* map = app.add_subcommand("map", "write the register map document for the PLC programmer");
+  std::string map_path = FIELDGATE_DEFAULT_CONFIG;
+  std::string map_format = "md";
+  map->add_option("config", map_path, "gateway configuration (YAML)")->capture_default_str();
+  map->add_option("--format", map_format, "md or csv")->check(CLI::IsMember({"md", "csv"}));
+  bool map_profile = false;
+  map->add_flag("--profile", map_profile,
+                "write the axis profile page (with a config: and its profile units)");
+  auto* models = app.add_subcommand("models", "list the protocol families and their model options");
+  std::string models_family;
+  models->add_option("--options", models_family, "describe this family's model options");
+  CLI11_PARSE(app, argc, argv);
+  if (*models) return run_models(models_family);
+  if (*map && map_profile) {
+    std::cout << write_axis_profile_document();
+    if (map_path.empty()) return 0;
+    auto config = load_config_or_report(map_path);
+    if (!config) return 1;
+    std::cout << write_profile_units_document(config->gateway);
+    return 0;
+  }
+  if (*map && map_path.empty()) {
+    std::cerr << "fieldgate map: a configuration is required (or --profile)\n";
+    return 2;
+  }
+  if (*map) {
+    auto config = load_config_or_report(map_path);
+    if (!config) return 1;
+    std::cout << write_register_map_document(
+        listener_maps(*config),
+        map_format == "csv" ? DocumentFormat::csv : DocumentFormat::markdown);
+    if (map_format == "md") std::cout << describe_modbus_rtu(*config);
+    return 0;
+  }
+  if (verbose) log::set_verbosity(log::Level::debug);
+  if (*check) return run_check(check_path);
+  auto config = load_config_or_report(config_path);
+  if (!config) {
+    std::cerr << "nothing was started\n";
+    return 1;
+  }
+  Daemon daemon(config_path, std::move(config));
+  return daemon.run();
+}

@@ -1,0 +1,428 @@
+#include "gateway/register_map/axis_profile_server.hpp"
+
+#include <boost/asio/as_tuple.hpp>
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/detached.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/this_coro.hpp>
+#include <boost/asio/use_awaitable.hpp>
+
+#include <algorithm>
+
+#include "gateway/bus/bus.hpp"
+#include "gateway/lifecycle/log.hpp"
+#include "gateway/register_map/register_map_handler.hpp"
+
+namespace fieldgate {
+
+using modbus::ExceptionCode;
+namespace ap = axis_profile;
+
+namespace {
+
+constexpr auto kFollowInterval = std::chrono::milliseconds(20);
+// How long a command's completion waits for the profile's moving bit to agree with it (a jog that
+// cannot move, e.g. standing on a limit, ends done after it).
+constexpr auto kJogStartPatience = std::chrono::seconds(2);
+constexpr std::size_t kTarget = 0, kVelocity = 1, kAcceleration = 2, kDeceleration = 3;
+
+int point_index(const Model& model, const std::string& name) {
+  if (name.empty()) return -1;
+  const PointDef* p = model.find_point(name);
+  return p ? static_cast<int>(p - model.points.data()) : -1;
+}
+
+std::optional<int64_t> point_value(const Model& model, const NodeImage& node,
+                                   const std::string& name) {
+  const int i = point_index(model, name);
+  if (i < 0) return std::nullopt;
+  const auto& v = node.points[static_cast<std::size_t>(i)];
+  if (!v.valid) return std::nullopt;
+  return v.value;
+}
+
+bool status_bit(const Model& model, const NodeImage& node, const ProfileAxisDef& axis,
+                StatusBit bit) {
+  const auto it = axis.status.find(bit);
+  if (it == axis.status.end()) return false;
+  const StatusSource& s = it->second;
+  if (s.constant) return *s.constant;
+  const auto value = point_value(model, node, s.point);
+  if (!value) return false;
+  const int64_t observed = s.bit ? ((*value >> *s.bit) & 1) : *value;
+  return (observed == s.value) != s.negate;
+}
+
+// The profile values a command passes to the model, and from which register.
+std::vector<std::pair<ProfileSetpoint, std::size_t>> inputs_of(ProfileCommand c) {
+  switch (c) {
+    case ProfileCommand::move_absolute:
+      return {{ProfileSetpoint::target, kTarget},
+              {ProfileSetpoint::velocity, kVelocity},
+              {ProfileSetpoint::acceleration, kAcceleration},
+              {ProfileSetpoint::deceleration, kDeceleration}};
+    case ProfileCommand::move_relative:
+      return {{ProfileSetpoint::distance, kTarget},
+              {ProfileSetpoint::velocity, kVelocity},
+              {ProfileSetpoint::acceleration, kAcceleration},
+              {ProfileSetpoint::deceleration, kDeceleration}};
+    case ProfileCommand::jog_positive:
+    case ProfileCommand::jog_negative:
+      return {{ProfileSetpoint::jog_velocity, kVelocity},
+              {ProfileSetpoint::acceleration, kAcceleration},
+              {ProfileSetpoint::deceleration, kDeceleration}};
+    case ProfileCommand::home:
+      return {{ProfileSetpoint::home_velocity, kVelocity}};
+    case ProfileCommand::stop:
+    case ProfileCommand::halt:
+      return {{ProfileSetpoint::deceleration, kDeceleration}};
+    default:
+      return {};
+  }
+}
+
+void finish_with_error(ProfileAxisRuntime& rt, uint16_t code) {
+  rt.status = CommandStatus::error;
+  rt.command_error = code;
+  rt.error_latched = true;
+  rt.error_id = code;
+}
+
+}  // namespace
+
+AxisProfileServer::AxisProfileServer(ProcessImage& image, ActionRunner& actions, BusOf bus_of,
+                                     const ModbusConfig& modbus)
+    : image_(image), actions_(actions), bus_of_(std::move(bus_of)), modbus_(modbus) {}
+
+AxisProfileServer::~AxisProfileServer() {
+  *alive_ = false;
+}
+
+ProfileAxisRuntime& AxisProfileServer::runtime(const ProfileUnit& unit) {
+  auto& node = image_.node(unit.node_index);
+  if (node.profile_axes.size() < unit.model->profile_axes.size())
+    node.profile_axes.resize(unit.model->profile_axes.size());
+  auto& rt = node.profile_axes[static_cast<std::size_t>(unit.axis)];
+  if (!rt.action) rt.action = std::make_shared<ActionState>();
+  if (!rt.initialised) {
+    // The model's own defaults (or the node's configured setpoints), so a PLC that never writes
+    // a velocity still moves at a sane one.
+    const auto& axis = unit.model->profile_axes[static_cast<std::size_t>(unit.axis)];
+    const auto from = [&](ProfileSetpoint p, std::size_t slot) {
+      const auto it = axis.setpoints.find(p);
+      if (it == axis.setpoints.end()) return;
+      const SetpointDef* s = unit.model->find_setpoint(it->second);
+      if (!s) {
+        // A controller register: its value as last polled, if it was.
+        if (const auto v = point_value(*unit.model, node, it->second)) rt.setpoints[slot] = *v;
+        return;
+      }
+      const auto index = static_cast<std::size_t>(s - unit.model->setpoints.data());
+      if (index < node.setpoints.size()) rt.setpoints[slot] = node.setpoints[index];
+    };
+    from(ProfileSetpoint::velocity, kVelocity);
+    from(ProfileSetpoint::acceleration, kAcceleration);
+    from(ProfileSetpoint::deceleration, kDeceleration);
+    rt.initialised = node.state == NodeState::online;  // again once the registers are polled
+  }
+  return rt;
+}
+
+AxisObservation AxisProfileServer::observe(const ProfileUnit& unit,
+                                           const ProfileAxisRuntime& rt) const {
+  const auto& node = image_.node(unit.node_index);
+  const Model& model = *unit.model;
+  const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
+  AxisObservation o;
+  o.enabled = status_bit(model, node, axis, StatusBit::enabled);
+  // While a step holds the line (a motion answered at its end) nothing is polled: it moves, if
+  // the step is this axis's or the native layout's (not another profile axis's).
+  const bool held_by_an_axis =
+      std::any_of(node.profile_axes.begin(), node.profile_axes.end(),
+                  [](const ProfileAxisRuntime& a) { return a.action && a.action->holding_line; });
+  o.moving = status_bit(model, node, axis, StatusBit::moving) ||
+             (rt.action && rt.action->holding_line) ||
+             (node.action.holding_line && !held_by_an_axis);
+  o.error = status_bit(model, node, axis, StatusBit::error);
+  o.error_latched = rt.error_latched;
+  o.command = rt.command;
+  o.status = rt.status;
+  return o;
+}
+
+modbus::ReadRegistersResult AxisProfileServer::read(const ProfileUnit& unit,
+                                                    modbus::RegisterTable table, uint16_t address,
+                                                    uint16_t count, WordOrder order) {
+  const bool holding = table == modbus::RegisterTable::holding_registers;
+  const uint32_t size = holding ? ap::holding_count : ap::input_count;
+  if (static_cast<uint32_t>(address) + count > size) return ExceptionCode::illegal_data_address;
+  auto& rt = runtime(unit);
+  const auto& node = image_.node(unit.node_index);
+  const Model& model = *unit.model;
+  const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
+  std::vector<uint16_t> page(size, 0);
+  const auto put32 = [&](uint16_t at, int64_t v) {
+    const auto words = to_registers(ValueType::int32, v, order);
+    page[at] = words[0];
+    page[at + 1u] = words[1];
+  };
+  if (holding) {
+    for (std::size_t i = 0; i < 4; ++i) put32(static_cast<uint16_t>(2 * i), rt.setpoints[i]);
+    page[ap::command_code] = static_cast<uint16_t>(rt.command);
+    page[ap::sequence_number] = rt.sequence;
+  } else {
+    const auto position = point_value(model, node, axis.position);
+    if (!position) return ExceptionCode::gateway_target_failed;
+    const bool online = node.state == NodeState::online;
+    if (!online && modbus_.offline_reads == OfflineReads::exception)
+      return ExceptionCode::gateway_target_failed;
+    put32(ap::actual_position, *position);
+    const auto velocity = point_value(model, node, axis.velocity);
+    put32(ap::actual_velocity, velocity.value_or(0));
+    const AxisObservation o = observe(unit, rt);
+    const PlcopenState state = derive_state(o);
+    uint16_t word = 0;
+    const auto set = [&](StatusBit b, bool on) {
+      if (on) word |= static_cast<uint16_t>(1u << static_cast<unsigned>(b));
+    };
+    set(StatusBit::enabled, o.enabled);
+    set(StatusBit::homed, status_bit(model, node, axis, StatusBit::homed));
+    set(StatusBit::moving, o.moving);
+    set(StatusBit::in_position, o.enabled && !o.moving && rt.status != CommandStatus::busy &&
+                                    rt.status != CommandStatus::error);
+    set(StatusBit::error, o.error);
+    set(StatusBit::limit_positive, status_bit(model, node, axis, StatusBit::limit_positive));
+    set(StatusBit::limit_negative, status_bit(model, node, axis, StatusBit::limit_negative));
+    set(StatusBit::warning, status_bit(model, node, axis, StatusBit::warning));
+    set(StatusBit::velocity_reported, velocity.has_value());
+    set(StatusBit::online, online);
+    page[ap::status_word] = word;
+    page[ap::plcopen_state] = static_cast<uint16_t>(state);
+    uint16_t error_id = rt.error_latched ? rt.error_id : 0;
+    if (o.error && error_id == 0) {
+      const auto code = point_value(model, node, axis.error_code);
+      error_id = code && *code != 0 ? static_cast<uint16_t>(*code) : kProfileErrorDeviceFault;
+    }
+    page[ap::error_id] = error_id;
+    page[ap::sequence_echo] = rt.sequence;
+    page[ap::command_status] = static_cast<uint16_t>(rt.status);
+    page[ap::command_echo] = static_cast<uint16_t>(rt.command);
+    page[ap::command_error] = rt.command_error;
+    page[ap::supported_commands] = axis.supported_mask();
+  }
+  return std::vector<uint16_t>(page.begin() + address, page.begin() + address + count);
+}
+
+asio::awaitable<modbus::WriteResult> AxisProfileServer::write(ProfileUnit unit, uint16_t address,
+                                                              std::span<const uint16_t> values,
+                                                              WordOrder order) {
+  const uint32_t end = static_cast<uint32_t>(address) + values.size();
+  if (end > ap::holding_count) co_return ExceptionCode::illegal_data_address;
+  // Half of a 32-bit setpoint, or of the command/sequence pair.
+  if (address % 2 != 0 || end % 2 != 0) co_return ExceptionCode::illegal_data_value;
+  auto& rt = runtime(unit);
+  for (uint32_t a = address; a < end && a < ap::command_code; a += 2) {
+    const int64_t v = from_registers(ValueType::int32, values.subspan(a - address, 2), order);
+    rt.setpoints[a / 2] = v;
+  }
+  if (end <= ap::command_code) co_return modbus::WriteResult::success();
+  const uint16_t code = values[ap::command_code - address];
+  const uint16_t sequence = values[ap::sequence_number - address];
+  if (code == 0 || code >= kProfileCommandCount || sequence == 0)
+    co_return ExceptionCode::illegal_data_value;
+  if (sequence == rt.sequence) co_return modbus::WriteResult::success();  // a repeat: ignored
+  const ProfileUnit u = unit;
+  co_return co_await command(u, static_cast<ProfileCommand>(code), sequence);
+}
+
+asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit,
+                                                                ProfileCommand cmd,
+                                                                uint16_t sequence) {
+  const Model& model = *unit.model;
+  const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
+  if (!axis.supports(cmd)) co_return ExceptionCode::illegal_function;
+  if (!modbus_.writes_enabled) co_return ExceptionCode::illegal_function;
+  auto& node = image_.node(unit.node_index);
+  auto& rt = runtime(unit);
+  // The values this command passes, checked against the model's and the node's limits.
+  std::vector<std::pair<std::size_t, int64_t>> passes;  // model setpoint index, value
+  std::vector<std::pair<const PointDef*, int64_t>> point_writes;
+  for (const auto& [which, slot] : inputs_of(cmd)) {
+    const auto it = axis.setpoints.find(which);
+    if (it == axis.setpoints.end()) continue;
+    const SetpointDef* s = model.find_setpoint(it->second);
+    const PointDef* p = s ? nullptr : model.find_point(it->second);
+    int64_t v = rt.setpoints[slot];
+    if (which == ProfileSetpoint::jog_velocity || which == ProfileSetpoint::home_velocity)
+      v = v < 0 ? -v : v;
+    std::optional<int64_t> min = s ? s->min : p->min, max = s ? s->max : p->max;
+    if (const auto l = unit.node->limits.find(it->second); l != unit.node->limits.end()) {
+      if (l->second.min && (!min || *l->second.min > *min)) min = l->second.min;
+      if (l->second.max && (!max || *l->second.max < *max)) max = l->second.max;
+    }
+    if (!in_range(s ? s->type : p->type, v) || (min && v < *min) || (max && v > *max))
+      co_return ExceptionCode::illegal_data_value;
+    if (s)
+      passes.emplace_back(static_cast<std::size_t>(s - model.setpoints.data()), v);
+    else
+      point_writes.emplace_back(p, v);
+  }
+  for (const auto& [name, value] : axis.fixed)
+    passes.emplace_back(
+        static_cast<std::size_t>(model.find_setpoint(name) - model.setpoints.data()), value);
+  for (const auto& [name, point] : axis.hold) {
+    const auto value = point_value(model, node, point);
+    if (!value) co_return ExceptionCode::gateway_target_failed;
+    passes.emplace_back(
+        static_cast<std::size_t>(model.find_setpoint(name) - model.setpoints.data()), *value);
+  }
+  const auto& action_names = axis.commands.at(cmd);
+  const ActionDef* first = action_names.empty() ? nullptr : model.find_action(action_names.front());
+  if (first && node.action.holding_line &&
+      !std::all_of(first->steps.begin(), first->steps.end(),
+                   [](const ActionStep& s) { return s.urgent; }))
+    co_return ExceptionCode::server_busy;
+
+  const PlcopenState state = derive_state(observe(unit, rt));
+  const uint64_t generation = ++rt.generation;
+  rt.sequence = sequence;
+  rt.command = cmd;
+  rt.command_error = 0;
+  if (const auto refused = refusal(state, cmd)) {
+    rt.status = CommandStatus::error;
+    rt.command_error = *refused;
+    log::info("unit {} axis {}: {} refused in state {}", unit.node->name, axis.name, to_string(cmd),
+              to_string(state));
+    co_return modbus::WriteResult::success();
+  }
+  if (action_names.empty()) {
+    // A reset of a controller that has nothing to reset: it clears the profile's own latch.
+    rt.status = CommandStatus::done;
+    rt.error_latched = false;
+    rt.error_id = 0;
+    co_return modbus::WriteResult::success();
+  }
+  abort_shared_stops(unit, cmd);
+  for (const auto& [index, value] : passes) node.setpoints[index] = value;
+  rt.status = CommandStatus::busy;
+  for (const auto& [point, value] : point_writes) {
+    const int64_t v = value;
+    const Request request{point->write->request.render([v](std::string_view) { return v; }),
+                          Request::Expect::ack, NumberFormat::decimal};
+    const Reply written = co_await bus_of_(unit.node_index).submit(unit.node_index, request);
+    if (rt.generation != generation) co_return modbus::WriteResult::success();  // superseded
+    if (written.status != Reply::Status::ok) {
+      finish_with_error(rt, written.status == Reply::Status::device_error
+                                ? static_cast<uint16_t>(written.device_code)
+                                : kActionErrorNoReply);
+      if (auto ex = exception_for(written)) co_return *ex;
+      co_return ExceptionCode::server_device_failure;
+    }
+    image_.node(unit.node_index).points[static_cast<std::size_t>(point - model.points.data())] = {
+        value, std::chrono::steady_clock::now(), true};
+  }
+  const uint64_t action_generation = rt.action->generation + 1;
+  const auto slot = rt.action;
+  const Reply reply = co_await actions_.start(unit.node_index, unit.model, *first, slot);
+  if (rt.generation != generation) co_return modbus::WriteResult::success();  // superseded
+  if (reply.status != Reply::Status::ok) {
+    finish_with_error(rt, slot->error);
+    if (auto ex = exception_for(reply)) co_return *ex;
+    co_return ExceptionCode::server_device_failure;
+  }
+  const auto executor = co_await asio::this_coro::executor;
+  auto alive = alive_;
+  asio::co_spawn(executor, follow(unit, generation, action_generation, 0, alive), asio::detached);
+  co_return modbus::WriteResult::success();
+}
+
+// A stop or halt that the model gives the same action on other axes of the node (Centent Q,
+// Whedco HT stop both axes of the unit) stops those axes too: their running commands end
+// aborted. Any other command of one axis leaves the other axes' commands alone.
+void AxisProfileServer::abort_shared_stops(const ProfileUnit& unit, ProfileCommand cmd) {
+  if (cmd != ProfileCommand::stop && cmd != ProfileCommand::halt) return;
+  const auto& axes = unit.model->profile_axes;
+  const auto& names = axes[static_cast<std::size_t>(unit.axis)].commands.at(cmd);
+  auto& node = image_.node(unit.node_index);
+  for (std::size_t other = 0; other < axes.size() && other < node.profile_axes.size(); ++other) {
+    if (static_cast<int>(other) == unit.axis) continue;
+    auto& rt = node.profile_axes[other];
+    // A running stop or halt of that axis still ends as it should: the axis stands still.
+    if (rt.status != CommandStatus::busy || rt.command == ProfileCommand::stop ||
+        rt.command == ProfileCommand::halt)
+      continue;
+    const auto shares = [&](ProfileCommand c) {
+      const auto it = axes[other].commands.find(c);
+      return it != axes[other].commands.end() && it->second == names;
+    };
+    if (!shares(ProfileCommand::stop) && !shares(ProfileCommand::halt)) continue;
+    ++rt.generation;  // its follow-up ends here
+    rt.status = CommandStatus::aborted;
+  }
+}
+
+// Waits for each action of the command to complete and starts the next; ends the command in
+// done, error (the axis goes to ErrorStop) or aborted (another command of the axis took over).
+asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t generation,
+                                                uint64_t action_generation, std::size_t step,
+                                                std::shared_ptr<bool> alive) {
+  const auto executor = co_await asio::this_coro::executor;
+  asio::steady_timer timer(executor);
+  std::optional<std::chrono::steady_clock::time_point> jog_deadline;
+  for (;;) {
+    timer.expires_after(kFollowInterval);
+    co_await timer.async_wait(asio::as_tuple(asio::use_awaitable));
+    if (!*alive) co_return;
+    auto& rt = runtime(unit);
+    if (rt.generation != generation) co_return;
+    const auto slot = rt.action;
+    if (slot->generation != action_generation) {
+      rt.status = CommandStatus::aborted;
+      co_return;
+    }
+    if (slot->status == ActionStatus::busy) continue;
+    if (slot->status == ActionStatus::error) {
+      finish_with_error(rt, slot->error);
+      co_return;
+    }
+    const auto& axis = unit.model->profile_axes[static_cast<std::size_t>(unit.axis)];
+    const auto& names = axis.commands.at(rt.command);
+    if (++step < names.size()) {
+      const ActionDef* next = unit.model->find_action(names[step]);
+      action_generation = slot->generation + 1;
+      const Reply reply = co_await actions_.start(unit.node_index, unit.model, *next, slot);
+      if (!*alive) co_return;
+      auto& again = runtime(unit);
+      if (again.generation != generation) co_return;
+      if (reply.status != Reply::Status::ok) {
+        finish_with_error(again, slot->error);
+        co_return;
+      }
+      continue;
+    }
+    // A jog is done once the drive runs: wait (briefly) until the polls show the motion, so the
+    // state goes from busy ContinuousMotion straight on to moving ContinuousMotion.
+    // Likewise a move, home, stop or halt is done only once the profile's own moving bit (which
+    // may come from another point than the action's done condition) shows standstill.
+    const bool jog =
+        rt.command == ProfileCommand::jog_positive || rt.command == ProfileCommand::jog_negative;
+    const bool motion = rt.command != ProfileCommand::power_on &&
+                        rt.command != ProfileCommand::power_off &&
+                        rt.command != ProfileCommand::reset;
+    if (motion && observe(unit, rt).moving != jog) {
+      if (!jog_deadline) jog_deadline = std::chrono::steady_clock::now() + kJogStartPatience;
+      if (std::chrono::steady_clock::now() < *jog_deadline) {
+        --step;
+        continue;
+      }
+    }
+    rt.status = CommandStatus::done;
+    if (rt.command == ProfileCommand::reset) {
+      rt.error_latched = false;
+      rt.error_id = 0;
+    }
+    co_return;
+  }
+}
+
+}  // namespace fieldgate

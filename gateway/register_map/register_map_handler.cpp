@@ -1,0 +1,280 @@
+#include "gateway/register_map/register_map_handler.hpp"
+
+#include <algorithm>
+
+#include "gateway/bus/bus.hpp"
+#include "gateway/lifecycle/log.hpp"
+#include "gateway/register_map/device_identification.hpp"
+
+namespace fieldgate {
+
+using modbus::ExceptionCode;
+
+namespace {
+using Clock = std::chrono::steady_clock;
+
+Table to_table(modbus::RegisterTable t) {
+  return t == modbus::RegisterTable::holding_registers ? Table::holding_registers
+                                                       : Table::input_registers;
+}
+Table to_table(modbus::BitTable t) {
+  return t == modbus::BitTable::coils ? Table::coils : Table::discrete_inputs;
+}
+// While an action's step holds the line (a motion that answers at its end), nothing is polled,
+// but the axes are known to move: the bit its done condition watches reads "not done".
+int64_t held_line_view(const UnitMap& unit, const NodeImage& node, const RegisterEntry& e,
+                       int64_t value) {
+  if (!node.action.holding_line) return value;
+  const ActionDef* action = unit.model->find_action(node.action.holding_code);
+  if (!action || !action->done || !action->done->bit) return value;
+  if (unit.model->points[static_cast<std::size_t>(e.index)].name != action->done->point)
+    return value;
+  const int64_t mask = int64_t{1} << *action->done->bit;
+  return action->done->equals ? (value & ~mask) : (value | mask);
+}
+
+// Whether a write needs the bus of a node whose line an action holds: every point write and
+// every action but one made only of urgent steps (a stop byte gets past a held line).
+bool needs_held_line(const NodeImage& node, const UnitMap& unit, const RegisterEntry& e,
+                     int64_t value) {
+  if (!node.action.holding_line) return false;
+  if (e.kind == RegisterEntry::Kind::point) return true;
+  if (e.kind != RegisterEntry::Kind::action_command) return false;
+  const ActionDef* action = unit.model->find_action(static_cast<uint16_t>(value));
+  if (!action) return false;
+  return !std::all_of(action->steps.begin(), action->steps.end(),
+                      [](const ActionStep& s) { return s.urgent; });
+}
+}  // namespace
+
+std::optional<ExceptionCode> exception_for(const Reply& reply) {
+  switch (reply.status) {
+    case Reply::Status::ok:
+      return std::nullopt;
+    case Reply::Status::device_error:
+      return ExceptionCode::server_device_failure;
+    case Reply::Status::unreachable:
+    case Reply::Status::timeout:
+    case Reply::Status::garbled:
+    case Reply::Status::link_down:
+      return ExceptionCode::gateway_target_failed;
+  }
+  return ExceptionCode::server_device_failure;
+}
+
+RegisterMapHandler::RegisterMapHandler(std::shared_ptr<const LoadedConfig> config,
+                                       std::size_t listener, ProcessImage& image,
+                                       ActionRunner& actions, BusOf bus_of)
+    : config_(std::move(config)),
+      map_(config_->map_of(listener)),
+      modbus_(config_->gateway.listener_modbus(listener)),
+      image_(image),
+      actions_(actions),
+      bus_of_(std::move(bus_of)),
+      profile_(image, actions, bus_of_, modbus_) {
+  for (const auto& bus : config_->gateway.buses)
+    for (const auto& node : bus.nodes) {
+      const int index = static_cast<int>(nodes_.size());
+      nodes_.push_back(&node);
+      if (node.listener != listener) continue;  // profile units are per listener too
+      for (const auto& [axis, unit] : node.axis_units)
+        if (const auto* def = node.model->find_profile_axis(axis))
+          profile_units_[unit] = {index, &node, node.model,
+                                  static_cast<int>(def - node.model->profile_axes.data())};
+    }
+}
+
+const ProfileUnit* RegisterMapHandler::profile_unit(uint8_t unit) const {
+  const auto it = profile_units_.find(unit);
+  return it == profile_units_.end() ? nullptr : &it->second;
+}
+
+std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit,
+                                                             const RegisterEntry& e,
+                                                             int64_t& value) const {
+  const auto& node = image_.node(unit.node_index);
+  switch (e.kind) {
+    case RegisterEntry::Kind::point:
+    case RegisterEntry::Kind::point_bit: {
+      const auto& pv = node.points[static_cast<std::size_t>(e.index)];
+      const bool offline = node.state != NodeState::online;
+      if (!pv.valid) return ExceptionCode::gateway_target_failed;
+      if (offline && modbus_.offline_reads == OfflineReads::exception)
+        return ExceptionCode::gateway_target_failed;
+      value = held_line_view(unit, node, e, pv.value);
+      value = e.kind == RegisterEntry::Kind::point ? value : ((value >> e.bit) & 1);
+      return std::nullopt;
+    }
+    case RegisterEntry::Kind::setpoint:
+      value = node.setpoints[static_cast<std::size_t>(e.index)];
+      return std::nullopt;
+    case RegisterEntry::Kind::action_command:
+      value = node.action.code;
+      return std::nullopt;
+    case RegisterEntry::Kind::action_status:
+      value = static_cast<uint16_t>(node.action.status);
+      return std::nullopt;
+    case RegisterEntry::Kind::action_error:
+      value = node.action.error;
+      return std::nullopt;
+    case RegisterEntry::Kind::action_sequence:
+      value = node.action.sequence;
+      return std::nullopt;
+    case RegisterEntry::Kind::diagnostic:
+      value =
+          image_.diagnostic(unit.node_index, static_cast<DiagnosticField>(e.index), Clock::now());
+      return std::nullopt;
+  }
+  return ExceptionCode::server_device_failure;
+}
+
+modbus::ReadBitsResult RegisterMapHandler::read_bits(uint8_t unit_id, modbus::BitTable table,
+                                                     uint16_t address, uint16_t count) {
+  if (profile_unit(unit_id)) return ExceptionCode::illegal_data_address;
+  const UnitMap* unit = unit_of(unit_id);
+  if (!unit) return ExceptionCode::gateway_path_unavailable;
+  std::vector<bool> bits;
+  bits.reserve(count);
+  for (uint32_t a = address; a < static_cast<uint32_t>(address) + count; ++a) {
+    const RegisterEntry* e = unit->find(to_table(table), static_cast<uint16_t>(a));
+    if (!e) return ExceptionCode::illegal_data_address;
+    int64_t value = 0;
+    if (auto ex = entry_value(*unit, *e, value)) return *ex;
+    bits.push_back(value != 0);
+  }
+  return bits;
+}
+
+modbus::DeviceIdentificationResult RegisterMapHandler::device_identification(uint8_t unit_id) {
+  if (const auto* axis = profile_unit(unit_id)) unit_id = axis->node->unit_id;
+  const UnitMap* unit = unit_of(unit_id);
+  if (!unit) return ExceptionCode::gateway_path_unavailable;
+  return identify(*unit, image_.node(unit->node_index));
+}
+
+modbus::ReadRegistersResult RegisterMapHandler::read_registers(uint8_t unit_id,
+                                                               modbus::RegisterTable table,
+                                                               uint16_t address, uint16_t count) {
+  if (const auto* axis = profile_unit(unit_id))
+    return profile_.read(*axis, table, address, count, map_.word_order());
+  const UnitMap* unit = unit_of(unit_id);
+  if (!unit) return ExceptionCode::gateway_path_unavailable;
+  const WordOrder order = map_.word_order();
+  std::vector<uint16_t> words;
+  words.reserve(count);
+  uint32_t a = address;
+  const uint32_t end = static_cast<uint32_t>(address) + count;
+  while (a < end) {
+    const RegisterEntry* e = unit->find(to_table(table), static_cast<uint16_t>(a));
+    if (!e) return ExceptionCode::illegal_data_address;
+    int64_t value = 0;
+    if (auto ex = entry_value(*unit, *e, value)) return *ex;
+    const auto encoded = to_registers(e->type, value, order);
+    // A read may start or end inside a 32-bit value; it gets the words it covers.
+    for (uint32_t w = a - e->address; w < e->count && a < end; ++w, ++a)
+      words.push_back(encoded[w]);
+  }
+  return words;
+}
+
+asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
+    uint8_t unit_id, uint16_t address, std::span<const uint16_t> values) {
+  const WordOrder order = map_.word_order();
+  const auto& modbus_config = modbus_;
+  if (const auto* axis = profile_unit(unit_id)) {
+    if (modbus_config.read_only_holding || modbus_config.unit_read_only(unit_id))
+      co_return ExceptionCode::illegal_function;
+    const ProfileUnit target = *axis;
+    co_return co_await profile_.write(target, address, values, order);
+  }
+  const UnitMap* unit = unit_of(unit_id);
+  if (!unit) co_return ExceptionCode::gateway_path_unavailable;
+  if (modbus_config.read_only_holding || modbus_config.unit_read_only(unit_id))
+    co_return ExceptionCode::illegal_function;
+  const NodeConfig& node_config = *nodes_.at(static_cast<std::size_t>(unit->node_index));
+
+  // Check the whole request before anything reaches a controller.
+  struct Planned {
+    const RegisterEntry* entry;
+    int64_t value;
+  };
+  std::vector<Planned> plan;
+  const uint32_t end = static_cast<uint32_t>(address) + values.size();
+  for (uint32_t a = address; a < end;) {
+    const RegisterEntry* e = unit->find(Table::holding_registers, static_cast<uint16_t>(a));
+    if (!e || !e->writable) co_return ExceptionCode::illegal_data_address;
+    if (e->address != a || e->address + e->count > end)
+      co_return ExceptionCode::illegal_data_value;  // half of a 32-bit value
+    const int64_t value = from_registers(e->type, values.subspan(a - address, e->count), order);
+    if (!in_range(e->type, value)) co_return ExceptionCode::illegal_data_value;
+    std::optional<int64_t> min, max;
+    if (e->kind == RegisterEntry::Kind::point) {
+      const auto& p = unit->model->points[static_cast<std::size_t>(e->index)];
+      min = p.min;
+      max = p.max;
+    } else if (e->kind == RegisterEntry::Kind::setpoint) {
+      const auto& s = unit->model->setpoints[static_cast<std::size_t>(e->index)];
+      min = s.min;
+      max = s.max;
+    } else if (e->kind == RegisterEntry::Kind::action_command) {
+      if (!unit->model->find_action(static_cast<uint16_t>(value)))
+        co_return ExceptionCode::illegal_data_value;
+    }
+    if (const auto l = node_config.limits.find(e->name); l != node_config.limits.end()) {
+      if (l->second.min && (!min || *l->second.min > *min)) min = l->second.min;
+      if (l->second.max && (!max || *l->second.max < *max)) max = l->second.max;
+    }
+    if ((min && value < *min) || (max && value > *max)) co_return ExceptionCode::illegal_data_value;
+    if (!modbus_config.writes_enabled && e->kind != RegisterEntry::Kind::setpoint)
+      co_return ExceptionCode::illegal_function;
+    plan.push_back({e, value});
+    a += e->count;
+  }
+
+  auto& node = image_.node(unit->node_index);
+  // Answered at once rather than after the motion: a PLC would time out and repeat the write.
+  for (const auto& [e, value] : plan)
+    if (needs_held_line(node, *unit, *e, value)) co_return ExceptionCode::server_busy;
+  for (const auto& [e, value] : plan) {
+    switch (e->kind) {
+      case RegisterEntry::Kind::setpoint:
+        node.setpoints[static_cast<std::size_t>(e->index)] = value;
+        break;
+      case RegisterEntry::Kind::point: {
+        const auto& p = unit->model->points[static_cast<std::size_t>(e->index)];
+        const int64_t v = value;
+        Request request{p.write->request.render([v](std::string_view) { return v; }),
+                        Request::Expect::ack, NumberFormat::decimal};
+        const Reply reply = co_await bus_of_(unit->node_index).submit(unit->node_index, request);
+        if (auto ex = exception_for(reply)) {
+          log::warning("unit {}: write of {} = {} failed: {}", unit_id, p.name, value,
+                       reply.text.empty() ? std::string(to_string(reply.status)) : reply.text);
+          co_return *ex;
+        }
+        // The confirmed value until the next poll; for a write-only point, its only readback.
+        node.points[static_cast<std::size_t>(e->index)] = {value, Clock::now(), true};
+        break;
+      }
+      case RegisterEntry::Kind::action_command: {
+        const ActionDef* action = unit->model->find_action(static_cast<uint16_t>(value));
+        const Reply reply = co_await actions_.start(unit->node_index, unit->model, *action);
+        if (auto ex = exception_for(reply)) co_return *ex;
+        break;
+      }
+      default:
+        co_return ExceptionCode::illegal_data_address;
+    }
+  }
+  co_return modbus::WriteResult::success();
+}
+
+asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_coils(uint8_t unit_id, uint16_t,
+                                                                     std::vector<bool>) {
+  if (profile_unit(unit_id)) co_return ExceptionCode::illegal_data_address;
+  if (!unit_of(unit_id)) co_return ExceptionCode::gateway_path_unavailable;
+  const auto& m = modbus_;
+  if (m.read_only_coils || m.unit_read_only(unit_id)) co_return ExceptionCode::illegal_function;
+  co_return ExceptionCode::illegal_data_address;
+}
+
+}  // namespace fieldgate
