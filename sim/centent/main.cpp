@@ -11,19 +11,12 @@ namespace sim = fieldgate::sim;
 namespace centent = fieldgate::sim::centent;
 
 int main(int argc, char** argv) {
-  sim::LineSimulator simulator({
-      .program = "fieldgate-sim-centent",
-      .name = "cn0170",
-      .description = "Centent CN0170 daisy-chain simulator: serves a chain of units on a "
-                     "pseudo-terminal; control commands on stdin (type help).",
-      .link_example = "/tmp/cn0170",
-      .baud_help = "line rate for --emulate-wire (the units auto-baud to the host)",
-      .baud_check = CLI::Range(150u, 115200u),
-      .emulated_turnaround = std::chrono::microseconds(1000),
-      .frame_format = {},
-      .terminators = "\r\n",
-      .dropped_after_request = {},
-  });
+  sim::LineSimulator simulator("centent",
+                               "Centent CN0170 daisy-chain simulator: serves a chain of units on "
+                               "a pseudo-terminal; control commands on stdin (type help).");
+  simulator.describe_baud("line rate for --emulate-wire (the units auto-baud to the host)",
+                          CLI::Range(150u, 115200u));
+  simulator.line().name = "cn0170";
   CLI::App& app = simulator.app();
   std::string units = "0";
   long hop_delay_us = 0;
@@ -98,17 +91,6 @@ int main(int argc, char** argv) {
     options.terminator = terminator == "cr" ? "\r" : terminator == "lf" ? "\n" : "\r\n";
     options.hop_delay = std::chrono::microseconds(hop_delay_us);
     auto chain = std::make_shared<centent::DaisyChain>(options, s.start());
-
-    sim::LineFamily family;
-    family.device = chain;
-    family.hooks.frame = &centent::DaisyChain::frame;
-    family.hooks.respond = [chain](std::string_view request, sim::SimTime at) {
-      return chain->handle(request, at);
-    };
-    family.control = [chain](std::string_view verb, std::span<const std::string> arguments) {
-      return chain->control(verb, arguments, sim::SimClock::now());
-    };
-    family.control_help = centent::DaisyChain::control_help();
-    return family;
+    return sim::line_family(chain, sim::request_hooks(*chain));
   });
 }

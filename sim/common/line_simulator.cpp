@@ -22,18 +22,17 @@ std::unique_ptr<std::FILE, int (*)(std::FILE*)> open_for_append(const std::strin
 
 }  // namespace
 
-LineSimulator::LineSimulator(LineSimulatorProfile profile)
-    : profile_(std::move(profile)), app_(profile_.description) {
+LineSimulator::LineSimulator(std::string family, std::string description)
+    : program_("fieldgate-sim-" + family), app_(std::move(description)) {
+  line_.name = family;
   app_.add_option("--link", link_,
-                  "symlink to create for the PTY slave, e.g. " + profile_.link_example);
-  app_.add_option("--baud", baud_, profile_.baud_help)->check(profile_.baud_check);
+                  "symlink to create for the PTY slave, e.g. /tmp/" + family + "0");
+  baud_option_ = app_.add_option("--baud", baud_, "line rate for --emulate-wire");
   app_.add_flag("--emulate-wire", emulate_wire_,
                 "take as long as the bytes would take on a real line at --baud");
-  app_.add_option("--turnaround-us", turnaround_us_,
-                  "device processing time before a reply (default 0, or " +
-                      std::to_string(profile_.emulated_turnaround.count()) +
-                      " with --emulate-wire)")
-      ->check(CLI::NonNegativeNumber);
+  turnaround_option_ =
+      app_.add_option("--turnaround-us", turnaround_us_)->check(CLI::NonNegativeNumber);
+  set_emulated_turnaround(emulated_turnaround_);
   app_.add_option("--wire-log", wire_log_path_,
                   "append a line per request: first byte and arrival (CLOCK_MONOTONIC ns), "
                   "request, echo and reply bytes, device delay (for benchmarks)");
@@ -41,6 +40,17 @@ LineSimulator::LineSimulator(LineSimulatorProfile profile)
                   "append every executed request and the device's reply to this file");
   app_.add_option("--seed", seed_, "seed for garbage replies");
   app_.add_flag("--verbose", verbose_, "log every request and reply to stderr");
+}
+
+void LineSimulator::describe_baud(std::string help, CLI::Validator rates) {
+  baud_option_->description(std::move(help));
+  baud_option_->check(std::move(rates));
+}
+
+void LineSimulator::set_emulated_turnaround(std::chrono::microseconds turnaround) {
+  emulated_turnaround_ = turnaround;
+  turnaround_option_->description("device processing time before a reply (default 0, or " +
+                                  std::to_string(turnaround.count()) + " with --emulate-wire)");
 }
 
 int LineSimulator::run(int argc, char** argv,
@@ -53,7 +63,7 @@ int LineSimulator::run(int argc, char** argv,
   try {
     serve(make_family);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "%s: %s\n", profile_.program.c_str(), e.what());
+    std::fprintf(stderr, "%s: %s\n", program_.c_str(), e.what());
     return 1;
   }
   return 0;
@@ -63,9 +73,8 @@ void LineSimulator::serve(const std::function<LineFamily(LineSimulator&)>& make_
   start_ = SimClock::now();
   LineFamily family = make_family(*this);
   device_ = std::move(family.device);
-  journal_ = open_for_append(journal_path_, "journal");
-  wire_log_ = open_for_append(wire_log_path_, "wire log");
-  exchange_.emplace(std::move(family.hooks), line_options(), faults_);
+  complete_line_options();
+  exchange_.emplace(std::move(family.hooks), line_, faults_);
   ControlChannel control(STDIN_FILENO, STDOUT_FILENO, faults_, std::move(family.control),
                          std::move(family.control_help));
   PtyPort port(link_);
@@ -76,21 +85,18 @@ void LineSimulator::serve(const std::function<LineFamily(LineSimulator&)>& make_
   run_line_device(port, control, *exchange_);
 }
 
-LineDeviceOptions LineSimulator::line_options() {
-  LineDeviceOptions options;
-  options.wire.enabled = emulate_wire_;
-  options.wire.timing = WireTiming(baud_, profile_.frame_format);
-  options.wire.turnaround = turnaround_us_ >= 0 ? std::chrono::microseconds(turnaround_us_)
-                            : emulate_wire_     ? profile_.emulated_turnaround
-                                                : std::chrono::microseconds(0);
-  options.terminators = profile_.terminators;
-  options.dropped_after_request = profile_.dropped_after_request;
-  options.seed = seed_;
-  options.verbose = verbose_;
-  options.journal = journal_.get();
-  options.wire_log = wire_log_.get();
-  options.name = profile_.name;
-  return options;
+void LineSimulator::complete_line_options() {
+  journal_ = open_for_append(journal_path_, "journal");
+  wire_log_ = open_for_append(wire_log_path_, "wire log");
+  line_.wire.enabled = emulate_wire_;
+  line_.wire.timing = WireTiming(baud_, line_.wire.timing.format());
+  line_.wire.turnaround = turnaround_us_ >= 0 ? std::chrono::microseconds(turnaround_us_)
+                          : emulate_wire_     ? emulated_turnaround_
+                                              : std::chrono::microseconds(0);
+  line_.seed = seed_;
+  line_.verbose = verbose_;
+  line_.journal = journal_.get();
+  line_.wire_log = wire_log_.get();
 }
 
 }  // namespace fieldgate::sim

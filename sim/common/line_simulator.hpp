@@ -7,28 +7,15 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
+#include <string_view>
 
 #include "sim/common/control_channel.hpp"
 #include "sim/common/line_device_loop.hpp"
 #include "sim/common/wire_pacing.hpp"
 
 namespace fieldgate::sim {
-
-// What sets one family's simulator apart in the parts every serial-line simulator shares.
-struct LineSimulatorProfile {
-  std::string program;       // e.g. "fieldgate-sim-copley": the prefix of fatal errors
-  std::string name;          // e.g. "copley": the prefix of verbose log lines
-  std::string description;   // the head of --help
-  std::string link_example;  // e.g. "/tmp/copley0"
-  std::string baud_help;
-  CLI::Validator baud_check;
-  // --turnaround-us when it is not given and --emulate-wire is.
-  std::chrono::microseconds emulated_turnaround{1000};
-  FrameFormat frame_format;
-  std::string terminators = "\r\n";   // LineDeviceOptions::terminators
-  std::string dropped_after_request;  // LineDeviceOptions::dropped_after_request
-};
 
 // The device a family puts on the line, and its control verbs with their help text.
 struct LineFamily {
@@ -38,17 +25,51 @@ struct LineFamily {
   std::string control_help;
 };
 
-// One serial-line simulator process: the command line every family shares (--link, --baud,
-// --emulate-wire, --turnaround-us, --wire-log, --journal, --seed, --verbose), the PTY, the
-// control channel on stdin/stdout and the line loop. A family adds its own options to app() and
-// builds its device in the callback it passes to run().
+// The usual family: `device` on the line through `hooks`, its verbs taken by
+// device->control(verb, arguments, now) and documented by Device::control_help().
+template <class Device>
+LineFamily line_family(std::shared_ptr<Device> device, LineDeviceHooks hooks) {
+  LineFamily family;
+  family.hooks = std::move(hooks);
+  family.control = [d = device.get()](std::string_view verb,
+                                      std::span<const std::string> arguments) {
+    return d->control(verb, arguments, SimClock::now());
+  };
+  family.control_help = Device::control_help();
+  family.device = std::move(device);
+  return family;
+}
+
+// Hooks of a device that frames requests with Device::frame and answers each with handle().
+template <class Device>
+LineDeviceHooks request_hooks(Device& device) {
+  LineDeviceHooks hooks;
+  hooks.frame = &Device::frame;
+  hooks.respond = [&device](std::string_view request, SimTime at) {
+    return device.handle(request, at);
+  };
+  return hooks;
+}
+
+// One serial-line simulator process, fieldgate-sim-<family>: the command line every family
+// shares (--link, --baud, --emulate-wire, --turnaround-us, --wire-log, --journal, --seed,
+// --verbose), the PTY, the control channel on stdin/stdout and the line loop. A family adds its
+// own options to app(), its line settings to line(), and builds its device in the callback it
+// passes to run().
 class LineSimulator {
  public:
-  explicit LineSimulator(LineSimulatorProfile profile);
+  LineSimulator(std::string family, std::string description);
   LineSimulator(const LineSimulator&) = delete;
   LineSimulator& operator=(const LineSimulator&) = delete;
 
   CLI::App& app() { return app_; }
+  // --baud: what it means to the family and the rates it takes (default 9600).
+  void describe_baud(std::string help, CLI::Validator rates);
+  // --turnaround-us when it is not given and --emulate-wire is (default 1 ms).
+  void set_emulated_turnaround(std::chrono::microseconds turnaround);
+  // The family's line settings (terminators, dropped_after_request, name, frame format); the
+  // command line fills in the rest.
+  LineDeviceOptions& line() { return line_; }
 
   // Parses the command line, builds the family's device with `make_family`, prints
   // "ready <link> <slave>" once the PTY is up and serves until `quit` or SIGINT, SIGTERM or
@@ -69,10 +90,14 @@ class LineSimulator {
   using File = std::unique_ptr<std::FILE, int (*)(std::FILE*)>;
 
   void serve(const std::function<LineFamily(LineSimulator&)>& make_family);
-  LineDeviceOptions line_options();
+  void complete_line_options();
 
-  LineSimulatorProfile profile_;
+  std::string program_;
   CLI::App app_;
+  LineDeviceOptions line_;
+  CLI::Option* baud_option_ = nullptr;
+  CLI::Option* turnaround_option_ = nullptr;
+  std::chrono::microseconds emulated_turnaround_{1000};
   std::string link_;
   std::uint32_t baud_ = 9600;
   bool emulate_wire_ = false;

@@ -11,19 +11,12 @@ namespace sim = fieldgate::sim;
 namespace copley = fieldgate::sim::copley;
 
 int main(int argc, char** argv) {
-  sim::LineSimulator simulator({
-      .program = "fieldgate-sim-copley",
-      .name = "copley",
-      .description = "Copley ASCII amplifier simulator: serves amplifiers on a pseudo-terminal; "
-                     "control commands on stdin (type help).",
-      .link_example = "/tmp/copley0",
-      .baud_help = "the gateway amplifier's current serial rate (power-up is 9600)",
-      .baud_check = CLI::Range(9600u, 115200u),
-      .emulated_turnaround = std::chrono::microseconds(1000),
-      .frame_format = {},
-      .terminators = "\r",
-      .dropped_after_request = {},
-  });
+  sim::LineSimulator simulator("copley",
+                               "Copley ASCII amplifier simulator: serves amplifiers on a "
+                               "pseudo-terminal; control commands on stdin (type help).");
+  simulator.describe_baud("the gateway amplifier's current serial rate (power-up is 9600)",
+                          CLI::Range(9600u, 115200u));
+  simulator.line().terminators = "\r";
   CLI::App& app = simulator.app();
   std::string nodes = "0";
   std::string axes = "1";
@@ -78,10 +71,7 @@ int main(int argc, char** argv) {
 
     sim::LineFamily family;
     family.device = network;
-    family.hooks.frame = &copley::AmplifierNetwork::frame;
-    family.hooks.respond = [network](std::string_view request, sim::SimTime at) {
-      return network->handle(request, at);
-    };
+    family.hooks = sim::request_hooks(*network);
     family.control = [network, &s](std::string_view verb, std::span<const std::string> arguments) {
       std::optional<std::uint32_t> link_baud;
       auto reply = network->control(verb, arguments, sim::SimClock::now(), link_baud);

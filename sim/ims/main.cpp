@@ -11,19 +11,11 @@ namespace sim = fieldgate::sim;
 namespace ims = fieldgate::sim::ims;
 
 int main(int argc, char** argv) {
-  sim::LineSimulator simulator({
-      .program = "fieldgate-sim-ims",
-      .name = "ims",
-      .description = "IMS indexer party-line simulator: serves named axes on a pseudo-terminal; "
-                     "control commands on stdin (type help).",
-      .link_example = "/tmp/ims0",
-      .baud_help = "line rate for --emulate-wire (the manual documents 9600 only)",
-      .baud_check = CLI::Range(300u, 115200u),
-      .emulated_turnaround = std::chrono::microseconds(1000),
-      .frame_format = {},
-      .terminators = "\r\n",
-      .dropped_after_request = {},
-  });
+  sim::LineSimulator simulator("ims",
+                               "IMS indexer party-line simulator: serves named axes on a "
+                               "pseudo-terminal; control commands on stdin (type help).");
+  simulator.describe_baud("line rate for --emulate-wire (the manual documents 9600 only)",
+                          CLI::Range(300u, 115200u));
   CLI::App& app = simulator.app();
   std::string axes = "A";
   bool echo_name = false;
@@ -83,14 +75,6 @@ int main(int argc, char** argv) {
     options.seed = s.seed();
     auto chain = std::make_shared<ims::PartyLine>(
         options, s.faults(), [] { return sim::SimClock::now(); }, s.start());
-
-    sim::LineFamily family;
-    family.device = chain;
-    family.hooks = chain->hooks();
-    family.control = [chain](std::string_view verb, std::span<const std::string> arguments) {
-      return chain->control(verb, arguments, sim::SimClock::now());
-    };
-    family.control_help = ims::PartyLine::control_help();
-    return family;
+    return sim::line_family(chain, chain->hooks());
   });
 }

@@ -13,21 +13,12 @@ namespace sim = fieldgate::sim;
 namespace techno = fieldgate::sim::techno;
 
 int main(int argc, char** argv) {
-  sim::LineDeviceOptions framing;
-  techno::set_line_framing(framing);
-  sim::LineSimulator simulator({
-      .program = "fieldgate-sim-techno",
-      .name = "techno",
-      .description = "Techno/isel C-series controller simulator: serves one controller on a "
-                     "pseudo-terminal; control commands on stdin (type help).",
-      .link_example = "/tmp/techno0",
-      .baud_help = "link rate for --emulate-wire (2400, 4800, 9600, 19200)",
-      .baud_check = CLI::IsMember({2400u, 4800u, 9600u, 19200u}),
-      .emulated_turnaround = std::chrono::microseconds(1000),
-      .frame_format = {},
-      .terminators = framing.terminators,
-      .dropped_after_request = framing.dropped_after_request,
-  });
+  sim::LineSimulator simulator("techno",
+                               "Techno/isel C-series controller simulator: serves one controller "
+                               "on a pseudo-terminal; control commands on stdin (type help).");
+  simulator.describe_baud("link rate for --emulate-wire (2400, 4800, 9600, 19200)",
+                          CLI::IsMember({2400u, 4800u, 9600u, 19200u}));
+  techno::set_line_framing(simulator.line());
   CLI::App& app = simulator.app();
   std::string variant = "c142";
   int device = 0;
@@ -88,13 +79,6 @@ int main(int argc, char** argv) {
     controller->set_emit(
         [&s](sim::SimTime at, std::string bytes) { s.exchange().emit(at, bytes); });
 
-    sim::LineFamily family;
-    family.device = controller;
-    family.hooks = techno::line_hooks(*controller);
-    family.control = [controller](std::string_view verb, std::span<const std::string> arguments) {
-      return controller->control(verb, arguments, sim::SimClock::now());
-    };
-    family.control_help = techno::Controller::control_help();
-    return family;
+    return sim::line_family(controller, techno::line_hooks(*controller));
   });
 }

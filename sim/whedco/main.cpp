@@ -11,19 +11,13 @@ namespace sim = fieldgate::sim;
 namespace whedco = fieldgate::sim::whedco;
 
 int main(int argc, char** argv) {
-  sim::LineSimulator simulator({
-      .program = "fieldgate-sim-whedco",
-      .name = "whedco",
-      .description = "Whedco CMC simulator: serves CMC-0 units on a pseudo-terminal; control "
-                     "commands on stdin (type help).",
-      .link_example = "/tmp/whedco0",
-      .baud_help = "line rate for wire emulation (1200, 4800, 9600, 38400)",
-      .baud_check = CLI::IsMember({1200u, 4800u, 9600u, 38400u, 115200u}),
-      .emulated_turnaround = std::chrono::microseconds(2000),
-      .frame_format = {},
-      .terminators = "*\r\n",
-      .dropped_after_request = {},
-  });
+  sim::LineSimulator simulator("whedco",
+                               "Whedco CMC simulator: serves CMC-0 units on a pseudo-terminal; "
+                               "control commands on stdin (type help).");
+  simulator.describe_baud("line rate for wire emulation (1200, 4800, 9600, 38400)",
+                          CLI::IsMember({1200u, 4800u, 9600u, 38400u, 115200u}));
+  simulator.set_emulated_turnaround(std::chrono::microseconds(2000));
+  simulator.line().terminators = "*\r\n";
   CLI::App& app = simulator.app();
   std::string units = "4";
   std::string axes = "WXYZ";
@@ -79,18 +73,8 @@ int main(int argc, char** argv) {
                                         : whedco::ReplyStyle::compact;
     options.position_read_delay = std::chrono::microseconds(position_read_us);
     auto line = std::make_shared<whedco::CmcLine>(options, s.start());
-
-    sim::LineFamily family;
-    family.device = line;
-    family.hooks.frame = &whedco::CmcLine::frame;
-    family.hooks.respond = [line](std::string_view request, sim::SimTime at) {
-      return line->handle(request, at);
-    };
-    family.hooks.echo = [line](std::string_view received) { return line->echo(received); };
-    family.control = [line](std::string_view verb, std::span<const std::string> arguments) {
-      return line->control(verb, arguments, sim::SimClock::now());
-    };
-    family.control_help = whedco::CmcLine::control_help();
-    return family;
+    sim::LineDeviceHooks hooks = sim::request_hooks(*line);
+    hooks.echo = [&unit = *line](std::string_view received) { return unit.echo(received); };
+    return sim::line_family(line, std::move(hooks));
   });
 }
