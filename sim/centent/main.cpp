@@ -12,10 +12,7 @@ namespace centent = fieldgate::sim::centent;
 
 int main(int argc, char** argv) {
   sim::LineSimulator simulator("centent",
-                               "Centent CN0170 daisy-chain simulator: serves a chain of units on "
-                               "a pseudo-terminal; control commands on stdin (type help).");
-  simulator.describe_baud("line rate for --emulate-wire (the units auto-baud to the host)",
-                          CLI::Range(150u, 115200u));
+                               "Centent CN0170 daisy-chain simulator: serves a chain of units");
   simulator.line().name = "cn0170";
   CLI::App& app = simulator.app();
   std::string units = "0";
@@ -72,6 +69,8 @@ int main(int argc, char** argv) {
   app.add_option("--queue", queue, "Immediate Queue length (the manual says about 20)")
       ->check(CLI::Range(std::size_t{3}, std::size_t{1000}));
 
+  simulator.describe_baud("line rate for --emulate-wire (the units auto-baud to the host)",
+                          CLI::Range(150u, 115200u));
   return simulator.run(argc, argv, [&](sim::LineSimulator& s) {
     centent::ChainOptions options;
     options.units = centent::parse_unit_list(units);

@@ -22,8 +22,9 @@ std::unique_ptr<std::FILE, int (*)(std::FILE*)> open_for_append(const std::strin
 
 }  // namespace
 
-LineSimulator::LineSimulator(std::string family, std::string description)
-    : program_("fieldgate-sim-" + family), app_(std::move(description)) {
+LineSimulator::LineSimulator(std::string family, const std::string& description)
+    : program_("fieldgate-sim-" + family),
+      app_(description + " on a pseudo-terminal; control commands on stdin (type help).") {
   line_.name = family;
   app_.add_option("--link", link_,
                   "symlink to create for the PTY slave, e.g. /tmp/" + family + "0");

@@ -58,7 +58,8 @@ LineDeviceHooks request_hooks(Device& device) {
 // passes to run().
 class LineSimulator {
  public:
-  LineSimulator(std::string family, std::string description);
+  // `description`: "<device> simulator: serves <what>", the head of --help.
+  LineSimulator(std::string family, const std::string& description);
   LineSimulator(const LineSimulator&) = delete;
   LineSimulator& operator=(const LineSimulator&) = delete;
 

@@ -11,11 +11,7 @@ namespace sim = fieldgate::sim;
 namespace copley = fieldgate::sim::copley;
 
 int main(int argc, char** argv) {
-  sim::LineSimulator simulator("copley",
-                               "Copley ASCII amplifier simulator: serves amplifiers on a "
-                               "pseudo-terminal; control commands on stdin (type help).");
-  simulator.describe_baud("the gateway amplifier's current serial rate (power-up is 9600)",
-                          CLI::Range(9600u, 115200u));
+  sim::LineSimulator simulator("copley", "Copley ASCII amplifier simulator: serves amplifiers");
   simulator.line().terminators = "\r";
   CLI::App& app = simulator.app();
   std::string nodes = "0";
@@ -50,6 +46,8 @@ int main(int argc, char** argv) {
                  "the gateway amplifier's CAN timeout: e 32 for an absent node comes this late")
       ->check(CLI::NonNegativeNumber);
 
+  simulator.describe_baud("the gateway amplifier's current serial rate (power-up is 9600)",
+                          CLI::Range(9600u, 115200u));
   return simulator.run(argc, argv, [&](sim::LineSimulator& s) {
     copley::NetworkOptions options;
     options.nodes = copley::parse_node_list(nodes);

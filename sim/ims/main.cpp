@@ -11,11 +11,7 @@ namespace sim = fieldgate::sim;
 namespace ims = fieldgate::sim::ims;
 
 int main(int argc, char** argv) {
-  sim::LineSimulator simulator("ims",
-                               "IMS indexer party-line simulator: serves named axes on a "
-                               "pseudo-terminal; control commands on stdin (type help).");
-  simulator.describe_baud("line rate for --emulate-wire (the manual documents 9600 only)",
-                          CLI::Range(300u, 115200u));
+  sim::LineSimulator simulator("ims", "IMS indexer party-line simulator: serves named axes");
   CLI::App& app = simulator.app();
   std::string axes = "A";
   bool echo_name = false;
@@ -55,6 +51,8 @@ int main(int argc, char** argv) {
   app.add_option("--home-side", home_side, "where the home switch reads high: minus or plus")
       ->check(CLI::IsMember({"minus", "plus"}));
 
+  simulator.describe_baud("line rate for --emulate-wire (the manual documents 9600 only)",
+                          CLI::Range(300u, 115200u));
   return simulator.run(argc, argv, [&](sim::LineSimulator& s) {
     ims::PartyLineOptions options;
     options.names = ims::parse_names(axes);

@@ -14,10 +14,7 @@ namespace techno = fieldgate::sim::techno;
 
 int main(int argc, char** argv) {
   sim::LineSimulator simulator("techno",
-                               "Techno/isel C-series controller simulator: serves one controller "
-                               "on a pseudo-terminal; control commands on stdin (type help).");
-  simulator.describe_baud("link rate for --emulate-wire (2400, 4800, 9600, 19200)",
-                          CLI::IsMember({2400u, 4800u, 9600u, 19200u}));
+                               "Techno/isel C-series controller simulator: serves one controller");
   techno::set_line_framing(simulator.line());
   CLI::App& app = simulator.app();
   std::string variant = "c142";
@@ -57,6 +54,8 @@ int main(int argc, char** argv) {
   app.add_flag("--no-cr", no_cr, "no CR after the data of P and b/c");
   app.add_flag("--stop-ack", stop_ack, "a capital command ended by STOP still answers 0");
 
+  simulator.describe_baud("link rate for --emulate-wire (2400, 4800, 9600, 19200)",
+                          CLI::IsMember({2400u, 4800u, 9600u, 19200u}));
   return simulator.run(argc, argv, [&](sim::LineSimulator& s) {
     techno::ControllerOptions options;
     options.variant = *techno::parse_variant(variant);

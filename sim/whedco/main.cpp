@@ -11,11 +11,7 @@ namespace sim = fieldgate::sim;
 namespace whedco = fieldgate::sim::whedco;
 
 int main(int argc, char** argv) {
-  sim::LineSimulator simulator("whedco",
-                               "Whedco CMC simulator: serves CMC-0 units on a pseudo-terminal; "
-                               "control commands on stdin (type help).");
-  simulator.describe_baud("line rate for wire emulation (1200, 4800, 9600, 38400)",
-                          CLI::IsMember({1200u, 4800u, 9600u, 38400u, 115200u}));
+  sim::LineSimulator simulator("whedco", "Whedco CMC simulator: serves CMC-0 units");
   simulator.set_emulated_turnaround(std::chrono::microseconds(2000));
   simulator.line().terminators = "*\r\n";
   CLI::App& app = simulator.app();
@@ -57,6 +53,8 @@ int main(int argc, char** argv) {
   app.add_flag("--power-failure", power_failure,
                "start as after power-up: every fault reads Power Failure until WB (the default)");
 
+  simulator.describe_baud("line rate for wire emulation (1200, 4800, 9600, 38400)",
+                          CLI::IsMember({1200u, 4800u, 9600u, 38400u, 115200u}));
   return simulator.run(argc, argv, [&](sim::LineSimulator& s) {
     whedco::LineOptions options;
     options.units = whedco::parse_units(units, axes, non_echo, steppers);
