@@ -1,33 +1,21 @@
 // fieldgate-sim-centent: a daisy chain of Centent CN0170 two-axis controllers on a
 // pseudo-terminal. See README.md.
 
-#include <unistd.h>
-
-#include <CLI/CLI.hpp>
-#include <cstdio>
-#include <exception>
 #include <memory>
-#include <stdexcept>
 #include <string>
 
 #include "sim/centent/daisy_chain.hpp"
-#include "sim/common/control_channel.hpp"
-#include "sim/common/line_device_loop.hpp"
-#include "sim/common/pty_port.hpp"
+#include "sim/common/line_simulator.hpp"
 
 namespace sim = fieldgate::sim;
 namespace centent = fieldgate::sim::centent;
 
 int main(int argc, char** argv) {
-  CLI::App app{
-      "Centent CN0170 daisy-chain simulator: serves a chain of units on a pseudo-terminal; "
-      "control commands on stdin (type help)."};
-  std::string link;
-  std::string wire_log_path;
+  sim::LineSimulator simulator("centent",
+                               "Centent CN0170 daisy-chain simulator: serves a chain of units");
+  simulator.line().name = "cn0170";
+  CLI::App& app = simulator.app();
   std::string units = "0";
-  std::uint32_t baud = 9600;
-  bool emulate_wire = false;
-  long turnaround_us = -1;
   long hop_delay_us = 0;
   bool initialised = false;
   bool power_up = false;
@@ -41,22 +29,9 @@ int main(int argc, char** argv) {
   std::string terminator = "cr";
   std::string overflow_mnemonic = "both";
   std::size_t queue = 20;
-  bool verbose = false;
-  std::uint32_t seed = 1;
-  app.add_option("--link", link, "symlink to create for the PTY slave, e.g. /tmp/cn0170");
-  app.add_option("--wire-log", wire_log_path,
-                 "append a line per request: first byte and arrival (CLOCK_MONOTONIC ns), "
-                 "request, echo and reply bytes, device delay (for benchmarks)");
   app.add_option("--units", units,
                  "unit numbers in chain order, nearest the host first, e.g. 0,1,2 (duplicates "
                  "allowed)");
-  app.add_option("--baud", baud, "line rate for --emulate-wire (the units auto-baud to the host)")
-      ->check(CLI::Range(150u, 115200u));
-  app.add_flag("--emulate-wire", emulate_wire,
-               "take as long as the bytes would take on a real line at --baud");
-  app.add_option("--turnaround-us", turnaround_us,
-                 "processing time before a reply (default 0, or 1000 with --emulate-wire)")
-      ->check(CLI::NonNegativeNumber);
   app.add_option("--hop-delay-us", hop_delay_us,
                  "store-and-forward latency per unit passed, each way")
       ->check(CLI::NonNegativeNumber);
@@ -93,12 +68,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"backslash", "plain", "both"}));
   app.add_option("--queue", queue, "Immediate Queue length (the manual says about 20)")
       ->check(CLI::Range(std::size_t{3}, std::size_t{1000}));
-  app.add_option("--seed", seed, "seed for garbage replies");
-  app.add_flag("--verbose", verbose, "log every request and reply to stderr");
-  CLI11_PARSE(app, argc, argv);
 
-  try {
-    const sim::SimTime now = sim::SimClock::now();
+  simulator.describe_baud("line rate for --emulate-wire (the units auto-baud to the host)",
+                          CLI::Range(150u, 115200u));
+  return simulator.run(argc, argv, [&](sim::LineSimulator& s) {
     centent::ChainOptions options;
     options.units = centent::parse_unit_list(units);
     options.power_up = power_up || !initialised;
@@ -116,47 +89,7 @@ int main(int argc, char** argv) {
     options.unit.immediate_queue = queue;
     options.terminator = terminator == "cr" ? "\r" : terminator == "lf" ? "\n" : "\r\n";
     options.hop_delay = std::chrono::microseconds(hop_delay_us);
-    centent::DaisyChain chain(options, now);
-
-    sim::LineDeviceOptions line_options;
-    line_options.wire.enabled = emulate_wire;
-    line_options.wire.timing = sim::WireTiming(baud);
-    line_options.wire.turnaround =
-        std::chrono::microseconds(turnaround_us >= 0 ? turnaround_us : (emulate_wire ? 1000 : 0));
-    line_options.terminators = "\r\n";
-    line_options.seed = seed;
-    line_options.verbose = verbose;
-    std::unique_ptr<std::FILE, int (*)(std::FILE*)> wire_log(nullptr, &std::fclose);
-    if (!wire_log_path.empty()) {
-      wire_log.reset(std::fopen(wire_log_path.c_str(), "a"));
-      if (!wire_log) throw std::runtime_error("cannot open wire log " + wire_log_path);
-      line_options.wire_log = wire_log.get();
-    }
-    line_options.name = "cn0170";
-
-    sim::FaultInjection faults;
-    sim::LineExchange exchange(
-        {.frame = &centent::DaisyChain::frame,
-         .respond = [&](std::string_view request,
-                        sim::SimTime at) { return chain.handle(request, at); },
-         .echo = {}},
-        line_options, faults);
-    sim::ControlChannel control(
-        STDIN_FILENO, STDOUT_FILENO, faults,
-        [&](std::string_view verb, std::span<const std::string> arguments) {
-          return chain.control(verb, arguments, sim::SimClock::now());
-        },
-        centent::DaisyChain::control_help());
-
-    sim::PtyPort port(link);
-    // Tests and scripts wait for this line before opening the port.
-    std::printf("ready %s %s\n", link.empty() ? port.slave_name().c_str() : link.c_str(),
-                port.slave_name().c_str());
-    std::fflush(stdout);
-    sim::run_line_device(port, control, exchange);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "fieldgate-sim-centent: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    auto chain = std::make_shared<centent::DaisyChain>(options, s.start());
+    return sim::line_family(chain, sim::request_hooks(*chain));
+  });
 }

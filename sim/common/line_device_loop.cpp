@@ -58,26 +58,53 @@ LineExchange::LineExchange(LineDeviceHooks hooks, LineDeviceOptions options, Fau
 void LineExchange::receive(SimTime now, std::string_view bytes) {
   if (bytes.empty()) return;
   if (!log_epoch_) log_epoch_ = now;
-  if (rx_.empty()) receive_wire_.first_byte(now);
   if (hooks_.echo && !faults_.silence) {
     const std::string echoed = hooks_.echo(bytes);
     echoed_ += echoed.size();
     transmitter_.enqueue(now, echoed, options_.wire.enabled ? &options_.wire.timing : nullptr);
   }
+  while (!bytes.empty()) {
+    const std::size_t raw =
+        hooks_.raw ? bytes.find_first_of(hooks_.raw_bytes) : std::string_view::npos;
+    take(now, bytes.substr(0, raw));
+    if (raw == std::string_view::npos) break;
+    take_raw(now, bytes[raw]);
+    bytes.remove_prefix(raw + 1);
+  }
+}
+
+void LineExchange::take(SimTime now, std::string_view bytes) {
+  if (bytes.empty()) return;
+  const auto dropped = [&](char c) {
+    return options_.dropped_after_request.find(c) != std::string::npos;
+  };
+  if (after_request_ && rx_.empty() && dropped(bytes.front())) bytes.remove_prefix(1);
+  after_request_ = false;
+  if (bytes.empty()) return;
+  if (rx_.empty()) receive_wire_.first_byte(now);
   rx_.append(bytes);
   while (!rx_.empty()) {
     const std::size_t length = hooks_.frame(rx_);
     if (length == 0) break;
     const SimTime started = receive_wire_.started();
     const SimTime arrived = receive_wire_.complete(length, now, options_.wire);
-    requests_.push_back({rx_.substr(0, length), arrived, started, echoed_});
+    requests_.push_back({rx_.substr(0, length), arrived, started, echoed_, false});
     echoed_ = 0;
     rx_.erase(0, length);
+    after_request_ = rx_.empty();
+    if (!rx_.empty() && dropped(rx_.front())) rx_.erase(0, 1);
   }
   if (rx_.size() > options_.max_pending) {
     log(now, "overflow, discarded", rx_);
     rx_.clear();
   }
+}
+
+void LineExchange::take_raw(SimTime now, char byte) {
+  // No wire time of its own, but it cannot overtake what arrived before it.
+  SimTime at = now;
+  if (!requests_.empty()) at = std::max(at, requests_.back().arrived);
+  requests_.push_back({std::string(1, byte), at, at, 0, true});
 }
 
 void LineExchange::advance(SimTime now, std::string& out) {
@@ -87,7 +114,13 @@ void LineExchange::advance(SimTime now, std::string& out) {
     // Run it at the instant it arrived, so a late wake-up does not delay the reply schedule.
     execute(request, request.arrived);
   }
+  if (hooks_.advance) hooks_.advance(now);
   transmitter_.release(now, out);
+}
+
+void LineExchange::emit(SimTime at, std::string_view bytes) {
+  if (!log_epoch_) log_epoch_ = at;
+  send(at, {}, bytes, {});
 }
 
 std::optional<SimTime> LineExchange::next_deadline() const {
@@ -95,6 +128,10 @@ std::optional<SimTime> LineExchange::next_deadline() const {
   if (!requests_.empty()) {
     const SimTime arrived = requests_.front().arrived;
     deadline = deadline ? std::min(*deadline, arrived) : arrived;
+  }
+  if (hooks_.next_event) {
+    if (const auto event = hooks_.next_event())
+      deadline = deadline ? std::min(*deadline, *event) : *event;
   }
   return deadline;
 }
@@ -105,7 +142,8 @@ void LineExchange::execute(const PendingRequest& request, SimTime now) {
     return;
   }
   log(now, "rx", request.bytes);
-  const DeviceReply reply = hooks_.respond(request.bytes, now);
+  const DeviceReply reply =
+      request.raw ? hooks_.raw(request.bytes.front(), now) : hooks_.respond(request.bytes, now);
   if (options_.wire_log) {
     const auto ns = [](SimTime t) {
       return static_cast<long long>(
@@ -121,12 +159,17 @@ void LineExchange::execute(const PendingRequest& request, SimTime now) {
     options_.wire.timing.set_baud(*reply.new_baud);
     log(now, "baud " + std::to_string(*reply.new_baud), {});
   }
-  if (reply.bytes.empty()) {
-    journal(now, request.bytes, {}, {});
+  send(now, request.bytes, reply.bytes, reply.extra_delay);
+}
+
+void LineExchange::send(SimTime now, std::string_view request, std::string_view reply,
+                        std::chrono::microseconds extra_delay) {
+  if (reply.empty()) {
+    journal(now, request, {}, {});
     log(now, "tx (no reply)", {});
     return;
   }
-  std::string bytes = reply.bytes;
+  std::string bytes(reply);
   std::string_view note = "tx";
   auto delay = faults_.reply_delay;
   std::string_view chaos_fault;
@@ -148,7 +191,7 @@ void LineExchange::execute(const PendingRequest& request, SimTime now) {
       chaos_fault = "truncated";
     }
   }
-  journal(now, request.bytes, reply.bytes, chaos_fault);
+  journal(now, request, reply, chaos_fault);
   if (chaos_fault == "dropped") {
     log(now, "tx (dropped)", bytes);
     return;
@@ -168,7 +211,7 @@ void LineExchange::execute(const PendingRequest& request, SimTime now) {
     bytes = truncated(bytes);
     note = "tx (truncated)";
   }
-  const SimTime start = now + options_.wire.turnaround + delay + reply.extra_delay;
+  const SimTime start = now + options_.wire.turnaround + delay + extra_delay;
   transmitter_.enqueue(start, bytes, options_.wire.enabled ? &options_.wire.timing : nullptr);
   log(now, note, bytes);
 }

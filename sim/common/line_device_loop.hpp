@@ -34,12 +34,25 @@ struct LineDeviceHooks {
   std::function<DeviceReply(std::string_view request, SimTime now)> respond;
   // Optional: bytes a device echoes as characters arrive (IMS, Whedco echo mode).
   std::function<std::string(std::string_view received)> echo;
+  // Optional: bytes that act alone wherever they arrive, even inside a request, and take no wire
+  // time of their own (Techno's STOP 0xFF and RESET 0xFE). `raw` runs each in order with the
+  // requests around it; they never reach `frame`.
+  std::string raw_bytes;
+  std::function<DeviceReply(char byte, SimTime now)> raw;
+  // Optional, for a device that answers on its own timeline (Techno: a capital move answers at
+  // its end): runs it up to `now`, its replies going out through LineExchange::emit().
+  std::function<void(SimTime now)> advance;
+  // When `advance` next has something to do.
+  std::function<std::optional<SimTime>()> next_event;
 };
 
 struct LineDeviceOptions {
   WireEmulation wire;
   // Stripped from the end of a reply before it is truncated.
   std::string terminators = "\r\n";
+  // One of these bytes right after a complete request is dropped unheard and takes no wire time:
+  // Techno's LF that may follow the CR.
+  std::string dropped_after_request;
   // Unframed input beyond this is discarded, as an overflowing UART buffer would.
   std::size_t max_pending = 4096;
   std::uint32_t seed = 1;
@@ -65,9 +78,12 @@ class LineExchange {
 
   // Bytes read from the host at `now`.
   void receive(SimTime now, std::string_view bytes);
-  // Runs every request that has arrived by `now` (each at its arrival instant) and appends the
-  // reply bytes due by `now`.
+  // Runs every request that has arrived by `now` (each at its arrival instant), then the device's
+  // own timeline, and appends the reply bytes due by `now`.
   void advance(SimTime now, std::string& out);
+  // A reply the device produces at `at` outside `respond` (LineDeviceHooks::advance): faults,
+  // turnaround and wire time apply as to any reply. Journalled with an empty request.
+  void emit(SimTime at, std::string_view bytes);
   // When advance() next has something to do.
   std::optional<SimTime> next_deadline() const;
 
@@ -82,9 +98,15 @@ class LineExchange {
     SimTime arrived;
     SimTime started;         // its first byte on the wire
     std::size_t echoed = 0;  // bytes echoed while it arrived
+    bool raw = false;        // one of LineDeviceHooks::raw_bytes
   };
 
+  void take(SimTime now, std::string_view bytes);
+  void take_raw(SimTime now, char byte);
   void execute(const PendingRequest& request, SimTime now);
+  // Faults, journal and transmission of the reply `reply` to `request`.
+  void send(SimTime now, std::string_view request, std::string_view reply,
+            std::chrono::microseconds extra_delay);
   std::string garbage(std::string_view reply);
   std::string truncated(std::string_view reply) const;
   void journal(SimTime now, std::string_view request, std::string_view reply,
@@ -102,7 +124,8 @@ class LineExchange {
   std::mt19937 chaos_random_;
   unsigned chaos_generation_ = 0;
   std::optional<SimTime> log_epoch_;
-  std::size_t echoed_ = 0;  // echoed bytes of the request being received
+  std::size_t echoed_ = 0;      // echoed bytes of the request being received
+  bool after_request_ = false;  // the last byte taken completed a request
 };
 
 // Serves `exchange` on `port` and `control` until the control channel says quit or SIGINT,

@@ -62,10 +62,11 @@ PartyLine::PartyLine(PartyLineOptions options, FaultInjection& faults,
 }
 
 LineDeviceHooks PartyLine::hooks() {
-  return {
-      .frame = &PartyLine::frame,
-      .respond = [this](std::string_view request, SimTime now) { return respond(request, now); },
-      .echo = [this](std::string_view received) { return echo(received); }};
+  LineDeviceHooks hooks;
+  hooks.frame = &PartyLine::frame;
+  hooks.respond = [this](std::string_view request, SimTime now) { return respond(request, now); };
+  hooks.echo = [this](std::string_view received) { return echo(received); };
+  return hooks;
 }
 
 std::size_t PartyLine::frame(std::string_view pending) {

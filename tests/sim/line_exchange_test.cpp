@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,19 +22,19 @@ struct EchoDevice {
   DeviceReply next_reply_extras;
 
   LineDeviceHooks hooks() {
-    return {.frame = [](std::string_view pending) -> std::size_t {
-              const auto cr = pending.find('\r');
-              return cr == std::string_view::npos ? 0 : cr + 1;
-            },
-            .respond =
-                [this](std::string_view request, SimTime) {
-                  executed.emplace_back(request);
-                  DeviceReply reply = next_reply_extras;
-                  reply.bytes = std::string(request.substr(0, request.size() - 1)) + "=ok\r";
-                  next_reply_extras = {};
-                  return reply;
-                },
-            .echo = {}};
+    LineDeviceHooks hooks;
+    hooks.frame = [](std::string_view pending) -> std::size_t {
+      const auto cr = pending.find('\r');
+      return cr == std::string_view::npos ? 0 : cr + 1;
+    };
+    hooks.respond = [this](std::string_view request, SimTime) {
+      executed.emplace_back(request);
+      DeviceReply reply = next_reply_extras;
+      reply.bytes = std::string(request.substr(0, request.size() - 1)) + "=ok\r";
+      next_reply_extras = {};
+      return reply;
+    };
+    return hooks;
   }
 };
 
@@ -173,6 +174,80 @@ TEST(LineExchange, EchoesCharactersAsTheyArrive) {
   EXPECT_EQ(drain(exchange, kT0), "ab");
   exchange.receive(kT0, "\r");
   EXPECT_EQ(drain(exchange, kT0), "\rab=ok\r");
+}
+
+// Raw bytes (Techno's STOP 0xFF) act alone wherever they arrive, even inside a request, in
+// order with the requests around them and without wire time of their own.
+TEST(LineExchange, RawBytesActAloneInsideARequest) {
+  EchoDevice device;
+  FaultInjection faults;
+  LineDeviceHooks hooks = device.hooks();
+  hooks.raw_bytes = "\xff";
+  hooks.raw = [&](char byte, SimTime) {
+    device.executed.push_back("raw " + escape_bytes(std::string(1, byte)));
+    return DeviceReply{.bytes = "!", .new_baud = {}, .extra_delay = {}};
+  };
+  LineDeviceOptions options;
+  options.wire = {true, WireTiming(9600), 0us};
+  LineExchange exchange(hooks, options, faults);
+  const SimTime a_arrived = kT0 + options.wire.timing.wire_time(2);
+  exchange.receive(kT0,
+                   "a\rb\xff"
+                   "c");
+  // The raw byte waits for "a\r" ahead of it, not for "bc\r" around it.
+  std::string out;
+  exchange.advance(a_arrived, out);
+  EXPECT_EQ(device.executed, (std::vector<std::string>{"a\r", "raw \\xff"}));
+  exchange.receive(a_arrived, "\r");
+  while (const auto due = exchange.next_deadline()) exchange.advance(*due, out);
+  EXPECT_EQ(device.executed, (std::vector<std::string>{"a\r", "raw \\xff", "bc\r"}));
+  EXPECT_EQ(out, "a=ok\r!bc=ok\r");
+}
+
+TEST(LineExchange, DropsTheByteAfterARequestOnlyRightAfterIt) {
+  EchoDevice device;
+  FaultInjection faults;
+  LineDeviceOptions options;
+  options.dropped_after_request = "\n";
+  LineExchange exchange(device.hooks(), options, faults);
+  exchange.receive(kT0, "a\r\nb\r");
+  exchange.receive(kT0, "\n");
+  exchange.receive(kT0, "\nc\r");
+  EXPECT_EQ(drain(exchange, kT0), "a=ok\rb=ok\r\nc=ok\r");
+  EXPECT_EQ(device.executed, (std::vector<std::string>{"a\r", "b\r", "\nc\r"}));
+}
+
+// A device on its own timeline answers later through emit(); faults apply to those replies too.
+TEST(LineExchange, RepliesOnTheDeviceTimeline) {
+  FaultInjection faults;
+  std::optional<SimTime> due;
+  LineExchange* line = nullptr;
+  LineDeviceHooks hooks;
+  hooks.frame = [](std::string_view pending) -> std::size_t {
+    const auto cr = pending.find('\r');
+    return cr == std::string_view::npos ? 0 : cr + 1;
+  };
+  hooks.respond = [&](std::string_view, SimTime now) {
+    due = now + 10ms;
+    return DeviceReply{};
+  };
+  hooks.advance = [&](SimTime now) {
+    if (due && *due <= now) {
+      line->emit(*due, "done\r");
+      due.reset();
+    }
+  };
+  hooks.next_event = [&] { return due; };
+  LineExchange exchange(hooks, {}, faults);
+  line = &exchange;
+  exchange.receive(kT0, "go\r");
+  EXPECT_EQ(drain(exchange, kT0 + 9ms), "");
+  EXPECT_EQ(exchange.next_deadline(), kT0 + 10ms);
+  EXPECT_EQ(drain(exchange, kT0 + 10ms), "done\r");
+  faults.truncated_replies = 1;
+  exchange.receive(kT0 + 20ms, "go\r");
+  EXPECT_EQ(drain(exchange, kT0 + 30ms), "do");
+  EXPECT_FALSE(exchange.next_deadline());
 }
 
 TEST(EscapeBytes, ShowsControlCharacters) {
