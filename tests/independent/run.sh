@@ -8,8 +8,8 @@ set -euo pipefail
 family=$1 fieldgate=$2 axis_py=$3 scenario=${4:-}
 here=$(cd "$(dirname "$0")" && pwd)
 models=$(cd "$here/../../config/models" && pwd)
-dir=$(mktemp -d)
-trap 'kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+source "$here/../integration/lib.sh"
+scratch_dir
 
 axis_args=()
 case $family in
@@ -94,19 +94,11 @@ case $family in
     ;;
 esac
 
-PYTHONDONTWRITEBYTECODE=1 /usr/bin/python3 "$here/${unit[0]}" --link "$dir/port" "${unit[@]:1}" </dev/null \
-  >"$dir/unit.log" 2>&1 &
-for _ in $(seq 50); do [ -e "$dir/port" ] && break; sleep 0.1; done
+start_sim "$dir/unit.log" env PYTHONDONTWRITEBYTECODE=1 /usr/bin/python3 "$here/${unit[0]}" \
+  --link "$dir/port" "${unit[@]:1}"
 [ -e "$dir/port" ] || { echo "the $family unit did not start"; cat "$dir/unit.log"; exit 1; }
 
-cat >"$dir/gw.yaml" <<YAML
-modbus: {listen: 127.0.0.1:0}
-models: $models
-buses:
-  - name: $family
-    $bus
-YAML
-source "$here/../integration/daemon.sh"
+one_bus_config "$dir/gw.yaml" "$family"
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 rc=0
 if [ -n "$scenario" ]; then
