@@ -162,12 +162,16 @@ TEST_F(CopleyEndToEnd, TwoClientsAtOnce) {
         ++reads_failed;
     }
   });
-  ASSERT_TRUE(client_->write_single(2, kCommand, kEnable).ok());
-  ASSERT_TRUE(client_->write_i32(2, kSetpointTarget, -3000).ok());
-  ASSERT_TRUE(client_->write_single(2, kCommand, kMoveAbsolute).ok());
-  const bool done = wait_until([&] { return action_status(2) == 2; }, 20s);
+  // The reader is joined before any assertion can leave the test (a joinable thread aborts).
+  const bool enabled = client_->write_single(2, kCommand, kEnable).ok();
+  const bool targeted = enabled && client_->write_i32(2, kSetpointTarget, -3000).ok();
+  const bool started = targeted && client_->write_single(2, kCommand, kMoveAbsolute).ok();
+  const bool done = started && wait_until([&] { return action_status(2) == 2; }, 20s);
   moving = false;
   reader.join();
+  ASSERT_TRUE(enabled);
+  ASSERT_TRUE(targeted);
+  ASSERT_TRUE(started);
   ASSERT_TRUE(done);
   EXPECT_EQ(client_->read_input_i32(2, kPosition), -3000);
   EXPECT_GT(reads_ok.load(), 10);
