@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "config_file_test.hpp"
 #include "gateway/config/config_loader.hpp"
 
 namespace fieldgate {
@@ -10,33 +11,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class ConfigLoaderTest : public ::testing::Test {
+class ConfigLoaderTest : public test::ConfigFileTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fieldgate-config-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  // Loads a gateway file that uses the shipped models; returns the error text, "" if valid.
-  std::string load(const std::string& yaml, std::optional<LoadedConfig>* out = nullptr) {
-    const auto path = dir_ / "gw.yaml";
-    std::ofstream(path) << "models: " FIELDGATE_SOURCE_DIR "/config/models\n" << yaml;
-    Diagnostics d;
-    auto loaded = load_gateway_config(path.string(), d);
-    if (out) *out = std::move(loaded);
-    return d.to_text();
-  }
-
   static std::string bus(const std::string& nodes, const std::string& extra = "") {
     return "buses:\n  - name: b\n    protocol: copley-ascii\n    serial: {device: /dev/null, "
            "baud: 115200}\n" +
            extra + "    nodes:\n" + nodes;
   }
-
-  fs::path dir_;
 };
 
 TEST_F(ConfigLoaderTest, ValidConfigLoads) {

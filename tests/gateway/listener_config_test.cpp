@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "config_file_test.hpp"
 #include "gateway/config/config_loader.hpp"
 
 // Several Modbus listeners, each with its own unit-ID space.
@@ -11,27 +12,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class ListenerConfigTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fieldgate-listeners-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  std::string load(const std::string& yaml, std::optional<LoadedConfig>* out = nullptr) {
-    const auto path = dir_ / "gw.yaml";
-    std::ofstream(path) << "models: " FIELDGATE_SOURCE_DIR "/config/models\n" << yaml;
-    Diagnostics d;
-    auto loaded = load_gateway_config(path.string(), d);
-    if (out) *out = std::move(loaded);
-    return d.to_text();
-  }
-
-  fs::path dir_;
-};
+class ListenerConfigTest : public test::ConfigFileTest {};
 
 // Line 1 is models:; the listeners begin on line 2.
 const std::string kListeners =

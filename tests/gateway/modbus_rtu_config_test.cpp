@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "config_file_test.hpp"
 #include "gateway/config/config_loader.hpp"
 #include "gateway/modbus/modbus_rtu_port.hpp"
 
@@ -15,39 +16,25 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class ModbusRtuConfigTest : public ::testing::Test {
+class ModbusRtuConfigTest : public test::ConfigFileTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fieldgate-rtu-config-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   // Loads the section with two Copley nodes (units 1, 2; the first's axis profile on 21) and a
   // Techno pair (3, 4).
   std::string load(const std::string& rtu, std::optional<LoadedConfig>* out = nullptr) {
-    const auto path = dir_ / "gw.yaml";
-    std::ofstream(path) << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
-                        << rtu
-                        << "buses:\n"
-                           "  - name: c\n    protocol: copley-ascii\n"
-                           "    serial: {device: /dev/null, baud: 115200}\n    nodes:\n"
-                           "      - {name: a, address: 0, model: copley-amplifier, unit_id: 1,"
-                           " profile_unit: 21}\n"
-                           "      - {name: b, address: 3, model: copley-amplifier, unit_id: 2}\n"
-                           "  - name: t\n    protocol: techno-c\n"
-                           "    serial: {device: /dev/null, baud: 9600}\n    nodes:\n"
-                           "      - {name: t0, address: 0, model: techno-c116, unit_id: 3}\n"
-                           "      - {name: t1, address: 1, model: techno-c116, unit_id: 4}\n";
-    Diagnostics d;
-    auto loaded = load_gateway_config(path.string(), d);
-    if (out) *out = std::move(loaded);
-    return d.to_text();
+    return ConfigFileTest::load(
+        rtu +
+            "buses:\n"
+            "  - name: c\n    protocol: copley-ascii\n"
+            "    serial: {device: /dev/null, baud: 115200}\n    nodes:\n"
+            "      - {name: a, address: 0, model: copley-amplifier, unit_id: 1,"
+            " profile_unit: 21}\n"
+            "      - {name: b, address: 3, model: copley-amplifier, unit_id: 2}\n"
+            "  - name: t\n    protocol: techno-c\n"
+            "    serial: {device: /dev/null, baud: 9600}\n    nodes:\n"
+            "      - {name: t0, address: 0, model: techno-c116, unit_id: 3}\n"
+            "      - {name: t1, address: 1, model: techno-c116, unit_id: 4}\n",
+        out);
   }
-
-  fs::path dir_;
 };
 
 TEST_F(ModbusRtuConfigTest, DefaultsAreTheSpecs) {

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iterator>
 
+#include "config_file_test.hpp"
 #include "gateway/config/config_loader.hpp"
 #include "mapping/model_loader.hpp"
 #include "mapping/yaml_reader.hpp"
@@ -15,26 +16,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class ConfigHardening : public ::testing::Test {
+class ConfigHardening : public test::ConfigFileTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fieldgate-hardening-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
-  // Loads a gateway file (the shipped models on line 1); returns the error text, "" if valid.
-  std::string load(const std::string& yaml) {
-    const auto path = dir_ / "gw.yaml";
-    std::ofstream(path) << "models: " FIELDGATE_SOURCE_DIR "/config/models\n" << yaml;
-    Diagnostics d;
-    const auto loaded = load_gateway_config(path.string(), d);
-    EXPECT_EQ(loaded.has_value(), d.ok());
-    return d.to_text();
-  }
-
   static std::string bus(const std::string& serial, const std::string& timing = "") {
     return "buses:\n  - name: b\n    protocol: copley-ascii\n    serial: " + serial + "\n" +
            timing + "    nodes:\n      - {name: x, address: 0, model: copley-amplifier, " +
@@ -43,8 +26,6 @@ class ConfigHardening : public ::testing::Test {
   static std::string serial(const std::string& baud) {
     return "{device: /dev/null, baud: " + baud + "}";
   }
-
-  fs::path dir_;
 };
 
 TEST_F(ConfigHardening, TheBaseConfigIsValid) {

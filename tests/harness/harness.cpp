@@ -1,8 +1,11 @@
 #include "harness.hpp"
 
+#include <arpa/inet.h>
 #include <fcntl.h>
+#include <netinet/in.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -263,5 +266,37 @@ CopleyPlant::CopleyPlant(const std::string& sim_nodes, const std::string& config
                           "reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, "
                           "offline_after: 3, probe_interval: 300ms",
                           config_nodes}}) {}
+
+int listener_port(ChildProcess& daemon, const std::string& name) {
+  const std::regex listening("modbus " + name + ": listening on [0-9.]+:([0-9]+)");
+  std::smatch m;
+  std::string log;
+  if (!wait_until([&] {
+        log = daemon.log();
+        return std::regex_search(log, m, listening);
+      }))
+    return -1;
+  return std::stoi(m[1]);
+}
+
+std::string http_get(int port, const std::string& target) {
+  const int s = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(s, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    ::close(s);
+    return {};
+  }
+  const std::string req = "GET " + target + " HTTP/1.1\r\nHost: localhost\r\n\r\n";
+  ::send(s, req.data(), req.size(), 0);
+  std::string response;
+  char buf[4096];
+  ssize_t n;
+  while ((n = ::recv(s, buf, sizeof buf, 0)) > 0) response.append(buf, static_cast<std::size_t>(n));
+  ::close(s);
+  return response;
+}
 
 }  // namespace fieldgate::test

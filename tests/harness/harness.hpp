@@ -99,6 +99,7 @@ class Plant {
   ~Plant();
   int port() const { return port_; }
   ChildProcess& sim(std::size_t i = 0) { return *sims_.at(i); }
+  std::size_t sim_count() const { return sims_.size(); }
   ChildProcess& daemon() { return *daemon_; }
   const ScratchDir& dir() const { return dir_; }
   std::filesystem::path config_path() const { return dir_ / "gateway.yaml"; }
@@ -126,5 +127,12 @@ struct JournalEntry {
   std::string fault;
 };
 std::vector<JournalEntry> read_journal(const std::filesystem::path& file);
+
+// The TCP port the daemon logs for Modbus listener `name`, once logged (-1 after 10 s).
+int listener_port(ChildProcess& daemon, const std::string& name);
+
+// The raw response (status line, headers, body) to an HTTP/1.1 GET on the loopback port; "" if
+// the connection is refused.
+std::string http_get(int port, const std::string& target);
 
 }  // namespace fieldgate::test

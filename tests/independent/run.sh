@@ -8,44 +8,25 @@ set -euo pipefail
 family=$1 fieldgate=$2 axis_py=$3 scenario=${4:-}
 here=$(cd "$(dirname "$0")" && pwd)
 models=$(cd "$here/../../config/models" && pwd)
-dir=$(mktemp -d)
-trap 'kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+source "$here/../integration/lib.sh"
+source "$here/../integration/axis_family.sh"
+scratch_dir
 
 axis_args=()
 case $family in
   ims)
     unit=(ims_unit.py --axes A,B)
-    bus="protocol: ims-party-line
-    serial: {device: $dir/port, baud: 9600}
-    timing: {reply_timeout: 200ms, byte_timeout: 30ms, probe_interval: 300ms}
-    nodes:
-      - {name: ims_a, address: A, model: ims-indexer, unit_id: 1, profile_unit: 11,
-         limits: {target: {min: -100000, max: 100000}}}
-      - {name: ims_b, address: B, model: ims-indexer, unit_id: 2, profile_unit: 12,
-         limits: {target: {min: -100000, max: 100000}}}"
-    units=11,12
+    axis_family_bus ims "$dir/port" 200ms
     axis_args=(--distance 3000 --refused-target 200000)
     ;;
   copley)
     unit=(copley_unit.py --nodes 0,3)
-    bus="protocol: copley-ascii
-    serial: {device: $dir/port, baud: 115200}
-    timing: {reply_timeout: 200ms, probe_interval: 300ms}
-    nodes:
-      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21}
-      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2, profile_unit: 22}"
-    units=21,22
+    axis_family_bus copley "$dir/port" 200ms
     axis_args=(--distance 20000 --expect-homed)
     ;;
   centent)
     unit=(centent_unit.py --units 0)
-    bus="protocol: centent-cn0170
-    serial: {device: $dir/port, baud: 9600}
-    timing: {reply_timeout: 200ms, byte_timeout: 20ms, probe_interval: 300ms}
-    nodes:
-      - {name: table_0, address: 0, model: centent-cn0170, unit_id: 1, axis_units: {x: 21, y: 22},
-         limits: {x_target: {min: -10000000, max: 10000000}, y_target: {min: -10000000, max: 10000000}}}"
-    units=21,22
+    axis_family_bus centent "$dir/port" 200ms 20ms
     axis_args=(--distance 1024000 --refused-target 20000000 --tolerance 4)
     ;;
   techno-c142 | techno-it116g | techno-c142.live | techno-it116g.live)
@@ -58,18 +39,7 @@ case $family in
     fi
     family=techno-$variant
     unit=(techno_unit.py --variant "$variant" --baud 19200 --queries "$queries")
-    if [ "$variant" = c142 ]; then
-      units_yaml="axis_units: {x: 31, y: 32, z: 33}"
-      units=31,32,33
-    else
-      units_yaml="profile_unit: 31"
-      units=31
-    fi
-    bus="protocol: techno-c
-    serial: {device: $dir/port, baud: 19200}
-    timing: {reply_timeout: 200ms, byte_timeout: 20ms, probe_interval: 300ms}
-    nodes:
-      - {name: techno, address: 0, model: $family, unit_id: 1, $units_yaml}"
+    axis_family_bus "$family" "$dir/port" 200ms 20ms
     axis_args=(--distance 2000 --refused-target 9000000)
     ;;
   whedco | whedco.*)
@@ -78,13 +48,7 @@ case $family in
     unit=(whedco_unit.py --units 4 --axes XY --baud 38400)
     case $family in *non-echo*) unit+=(--non-echo) ;; esac
     case $family in *busy-first*) unit+=(--status-bits busy-first) ;; esac
-    bus="protocol: whedco-cmc
-    serial: {device: $dir/port, baud: 38400}
-    timing: {reply_timeout: 200ms, byte_timeout: 20ms, probe_interval: 300ms}
-    nodes:
-      - {name: cmc_4, address: 4, model: whedco-cmc-xy, unit_id: 1, axis_units: {x: 41, y: 42},
-         limits: {x_target: {min: -1000000, max: 1000000}, y_target: {min: -1000000, max: 1000000}}}"
-    units=41,42
+    axis_family_bus whedco "$dir/port" 200ms 20ms
     axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
                --refused-target 2000000)
     ;;
@@ -94,19 +58,11 @@ case $family in
     ;;
 esac
 
-PYTHONDONTWRITEBYTECODE=1 /usr/bin/python3 "$here/${unit[0]}" --link "$dir/port" "${unit[@]:1}" </dev/null \
-  >"$dir/unit.log" 2>&1 &
-for _ in $(seq 50); do [ -e "$dir/port" ] && break; sleep 0.1; done
+start_sim "$dir/unit.log" env PYTHONDONTWRITEBYTECODE=1 /usr/bin/python3 "$here/${unit[0]}" \
+  --link "$dir/port" "${unit[@]:1}"
 [ -e "$dir/port" ] || { echo "the $family unit did not start"; cat "$dir/unit.log"; exit 1; }
 
-cat >"$dir/gw.yaml" <<YAML
-modbus: {listen: 127.0.0.1:0}
-models: $models
-buses:
-  - name: $family
-    $bus
-YAML
-source "$here/../integration/daemon.sh"
+one_bus_config "$dir/gw.yaml" "$family"
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 rc=0
 if [ -n "$scenario" ]; then

@@ -5,19 +5,12 @@
 set -euo pipefail
 family=$1 fieldgate=$2 build=$3 models=$4 axis_py=$5
 here=$(cd "$(dirname "$0")" && pwd)
+source "$here/lib.sh"
 source "$here/axis_family.sh"
-dir=$(mktemp -d)
-trap 'kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+scratch_dir
 
 axis_family_start "$family" "$build" "$dir"
-cat >"$dir/gw.yaml" <<YAML
-modbus: {listen: 127.0.0.1:0}
-models: $models
-buses:
-  - name: $family
-    $bus
-YAML
-source "$here/daemon.sh"
+one_bus_config "$dir/gw.yaml" "$family"
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 rc=0
 /usr/bin/python3 "$axis_py" --port "$port" --unit "$units" "${axis_args[@]}" -v || rc=$?

@@ -7,22 +7,13 @@
 set -euo pipefail
 fieldgate=$1 build=$2 models=$3 demo_axes=$4
 here=$(cd "$(dirname "$0")" && pwd)
-dir=$(mktemp -d)
-trap 'kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+source "$here/lib.sh"
+scratch_dir
 
-"$build/sim/copley/fieldgate-sim-copley" --link "$dir/copley" --nodes 0 </dev/null \
-  >"$dir/copley.log" 2>&1 &
-"$build/sim/ims/fieldgate-sim-ims" --link "$dir/ims" --axes A </dev/null >"$dir/ims.log" 2>&1 &
-for link in copley ims; do
-  for _ in $(seq 50); do [ -e "$dir/$link" ] && break; sleep 0.1; done
-done
-cat >"$dir/gw.yaml" <<YAML
-modbus: {listen: 127.0.0.1:0}
-models: $models
-buses:
-  - name: copley
-    protocol: copley-ascii
-    serial: {device: $dir/copley, baud: 115200}
+start_copley "$build/sim/copley/fieldgate-sim-copley" "$dir/copley" 0 "$dir/copley.log"
+start_sim "$dir/ims.log" "$build/sim/ims/fieldgate-sim-ims" --link "$dir/ims" --axes A
+gateway_config "$dir/gw.yaml" <<YAML
+$copley_bus
     timing: {reply_timeout: 150ms, probe_interval: 300ms}
     nodes:
       - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21,
@@ -35,7 +26,6 @@ buses:
     nodes:
       - {name: ims_a, address: A, model: ims-indexer, unit_id: 11, profile_unit: 31}
 YAML
-source "$here/daemon.sh"
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 
 failures=0

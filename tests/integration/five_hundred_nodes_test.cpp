@@ -44,13 +44,6 @@ std::string run_check(const std::string& config) {
   return out;
 }
 
-int listener_port(ChildProcess& daemon, const std::string& name) {
-  const std::regex listening("modbus " + name + ": listening on [0-9.]+:([0-9]+)");
-  std::smatch m;
-  const std::string log = daemon.log();
-  return std::regex_search(log, m, listening) ? std::stoi(m[1]) : -1;
-}
-
 TEST(FiveHundredNodes, CheckPassesAndEveryUnitOfEveryListenerIsServed) {
   Plant plant(buses(),
               "listeners:\n  - {name: line-b, listen: 127.0.0.1:0}\n"

@@ -3,46 +3,22 @@
 # and the Copley simulator. Usage: foreign_clients.sh FIELDGATE SIM_COPLEY MODELS_DIR
 set -euo pipefail
 fieldgate=$1 sim=$2 models=$3
-dir=$(mktemp -d)
-trap 'kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+source "$(dirname "$0")/lib.sh"
+scratch_dir
 
-"$sim" --link "$dir/copley0" --nodes 0,3 </dev/null >"$dir/sim.log" 2>&1 &
-for _ in $(seq 50); do [ -e "$dir/copley0" ] && break; sleep 0.1; done
-cat >"$dir/gw.yaml" <<YAML
-modbus: {listen: 127.0.0.1:0}
-models: $models
-buses:
-  - name: copley
-    protocol: copley-ascii
-    serial: {device: $dir/copley0, baud: 115200}
+start_copley "$sim" "$dir/copley0" 0,3 "$dir/sim.log"
+gateway_config "$dir/gw.yaml" <<YAML
+$copley_bus
     timing: {reply_timeout: 50ms, probe_interval: 300ms}
     nodes:
       - {name: a0, address: 0, model: copley-amplifier, unit_id: 1}
       - {name: a3, address: 3, model: copley-amplifier, unit_id: 2}
       - {name: a9, address: 9, model: copley-amplifier, unit_id: 3}
 YAML
-source "$(dirname "$0")/daemon.sh"
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
+mbpoll_args=(-m tcp -p "$port") mbpoll_target=127.0.0.1
 
-fail=0
-check() {  # check NAME EXPECTED ACTUAL
-  if [ "$2" == "$3" ]; then echo "ok: $1"; else echo "FAIL: $1: expected '$2', got '$3'"; fail=1; fi
-}
-# mb OPTIONS... [-- WRITE_VALUES...]
-mb() {
-  local opts=() values=()
-  while [ $# -gt 0 ] && [ "$1" != "--" ]; do opts+=("$1"); shift; done
-  [ $# -gt 0 ] && { shift; values=("$@"); }
-  mbpoll -m tcp -p "$port" -0 -1 -q "${opts[@]}" -- 127.0.0.1 "${values[@]}" 2>&1
-}
-
-# Wait until unit 2 is polled.
-for _ in $(seq 100); do mb -a 2 -t 3:int -B -r 0 | grep -q '^\[0\]' && break; sleep 0.1; done
-
-check "mbpoll reads unit 1 position" "0" "$(mb -a 1 -t 3:int -B -r 0 | sed -n 's/^\[0\]:[[:space:]]*//p')"
-check "mbpoll reads online flag" "1" "$(mb -a 2 -t 1 -r 1000 | sed -n 's/^\[1000\]:[[:space:]]*//p')"
-mb -a 2 -t 4:int -B -r 110 -- -1500 >/dev/null
-check "mbpoll writes a 32-bit setpoint" "-1500" "$(mb -a 2 -t 4:int -B -r 110 | sed -n 's/^\[110\]:[[:space:]]*//p')"
+mbpoll_basics mbpoll
 check "mbpoll sees 0x0B for an absent node" "1" \
   "$(for _ in $(seq 50); do mb -a 3 -t 3 -r 0 | grep -c 'Target device failed to respond' && break; sleep 0.1; done | head -1)"
 check "mbpoll sees 0x02 for an unmapped address" "1" "$(mb -a 1 -t 3 -r 600 | grep -c 'Illegal data address')"

@@ -35,18 +35,6 @@ std::unique_ptr<Plant> plant(const std::string& line_b_extra = "", const std::st
       top + "listeners:\n  - {name: line-b, listen: 127.0.0.1:0" + line_b_extra + "}\n");
 }
 
-int listener_port(ChildProcess& daemon, const std::string& name) {
-  const std::regex listening("modbus " + name + ": listening on [0-9.]+:([0-9]+)");
-  std::smatch m;
-  std::string log;
-  if (!wait_until([&] {
-        log = daemon.log();
-        return std::regex_search(log, m, listening);
-      }))
-    return -1;
-  return std::stoi(m[1]);
-}
-
 // The command's standard output (its warnings go to the test's stderr).
 std::string run(const std::string& command) {
   std::string out;
@@ -127,26 +115,6 @@ TEST(Listeners, ReloadKeepsAnUnchangedListenersClientsAndOpensANewOne) {
   EXPECT_EQ(a.read_input(1, 1000, 1).exception, 0x0A);
   ModbusClient c("127.0.0.1", port_c);
   EXPECT_TRUE(wait_until([&] { return c.read_input(9, 0, 2).ok(); }));
-}
-
-std::string http_get(int port, const std::string& target) {
-  const int s = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(s, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    ::close(s);
-    return {};
-  }
-  const std::string req = "GET " + target + " HTTP/1.1\r\nHost: localhost\r\n\r\n";
-  ::send(s, req.data(), req.size(), 0);
-  std::string response;
-  char buf[4096];
-  ssize_t n;
-  while ((n = ::recv(s, buf, sizeof buf, 0)) > 0) response.append(buf, static_cast<std::size_t>(n));
-  ::close(s);
-  return response;
 }
 
 TEST(Listeners, MetricsPerListener) {

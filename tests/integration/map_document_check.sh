@@ -4,18 +4,12 @@
 # Usage: map_document_check.sh FIELDGATE SIM_COPLEY MODELS_DIR
 set -euo pipefail
 fieldgate=$1 sim=$2 models=$3
-dir=$(mktemp -d)
-trap 'kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+source "$(dirname "$0")/lib.sh"
+scratch_dir
 
-"$sim" --link "$dir/copley0" --nodes 0,3 </dev/null >"$dir/sim.log" 2>&1 &
-for _ in $(seq 50); do [ -e "$dir/copley0" ] && break; sleep 0.1; done
-cat >"$dir/gw.yaml" <<YAML
-modbus: {listen: 127.0.0.1:0}
-models: $models
-buses:
-  - name: copley
-    protocol: copley-ascii
-    serial: {device: $dir/copley0, baud: 115200}
+start_copley "$sim" "$dir/copley0" 0,3 "$dir/sim.log"
+gateway_config "$dir/gw.yaml" <<YAML
+$copley_bus
     nodes:
       - {name: a0, address: 0, model: copley-amplifier, unit_id: 1}
       - {name: a3, address: 3, model: copley-amplifier, unit_id: 2}
@@ -23,7 +17,6 @@ YAML
 "$fieldgate" map "$dir/gw.yaml" --format csv >"$dir/map.csv"
 "$fieldgate" map "$dir/gw.yaml" --format md >"$dir/map.md"
 grep -q '^| holding registers | 100 | 40101 | action.command |' "$dir/map.md" || { echo "FAIL: markdown lacks the action register"; exit 1; }
-source "$(dirname "$0")/daemon.sh"
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 
 /usr/bin/python3 - "$port" "$dir/map.csv" <<'PY'

@@ -13,26 +13,6 @@
 namespace fieldgate::test {
 namespace {
 
-std::string http_get(int port, const std::string& target) {
-  const int s = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(s, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    ::close(s);
-    return {};
-  }
-  const std::string req = "GET " + target + " HTTP/1.1\r\nHost: localhost\r\n\r\n";
-  ::send(s, req.data(), req.size(), 0);
-  std::string response;
-  char buf[4096];
-  ssize_t n;
-  while ((n = ::recv(s, buf, sizeof buf, 0)) > 0) response.append(buf, static_cast<std::size_t>(n));
-  ::close(s);
-  return response;
-}
-
 // name{labels} -> value; fails the test on any line that is not valid exposition format.
 std::map<std::string, double> parse_exposition(const std::string& body) {
   static const std::regex sample(

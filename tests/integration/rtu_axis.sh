@@ -8,15 +8,15 @@
 set -euo pipefail
 family=$1 fieldgate=$2 build=$3 models=$4
 here=$(cd "$(dirname "$0")" && pwd)
+source "$here/lib.sh"
 source "$here/axis_family.sh"
 baud=19200
-dir=$(mktemp -d)
-trap 'kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+scratch_dir
 
 axis_family_start "$family" "$build" "$dir"
 # 8E1 on the emulated line: 11 bits a character.
 "$here/rtu_wire_relay.py" "$dir/gw-rtu" "$dir/master" "$baud" 11 >"$dir/relay.log" 2>&1 &
-for _ in $(seq 50); do [ -e "$dir/master" ] && break; sleep 0.1; done
+wait_for_paths "$dir/master"
 unit=${units%%,*}
 distance=0 velocity="" home_velocity="" tolerance=0
 set -- "${axis_args[@]}"
@@ -31,39 +31,17 @@ while [ $# -gt 0 ]; do
   esac
 done
 
-cat >"$dir/gw.yaml" <<YAML
-modbus: {listen: 127.0.0.1:0}
-models: $models
-modbus_rtu:
+one_bus_config "$dir/gw.yaml" "$family" "modbus_rtu:
   device: $dir/gw-rtu
   baud: $baud
   parity: even
-  response_timeout: 1s
-buses:
-  - name: $family
-    $bus
-YAML
-: >"$dir/daemon.log"
-"$fieldgate" --config "$dir/gw.yaml" >"$dir/daemon.log" 2>&1 &
-for _ in $(seq 100); do
-  grep -q "modbus rtu: serving on" "$dir/daemon.log" && break
-  sleep 0.1
-done
-grep -q "modbus rtu: serving on" "$dir/daemon.log" ||
-  { echo "daemon did not serve RTU"; cat "$dir/daemon.log"; exit 1; }
+  response_timeout: 1s"
+start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log" "modbus rtu: serving on"
 
-fail=0
 check() {  # check NAME DETAIL COMMAND...: the check passes when COMMAND succeeds
   if "${@:3}"; then echo "ok: $1"; else echo "FAIL: $1 ($2)"; fail=1; fi
 }
-# mb OPTIONS... [-- WRITE_VALUES...]: one mbpoll request, 0-based addresses, 1 s timeout.
-mb() {
-  local opts=() values=()
-  while [ $# -gt 0 ] && [ "$1" != "--" ]; do opts+=("$1"); shift; done
-  [ $# -gt 0 ] && { shift; values=("$@"); }
-  mbpoll -m rtu -b "$baud" -P even -o 1 -0 -1 -q -a "$unit" "${opts[@]}" -- "$dir/master" \
-    "${values[@]}" 2>&1
-}
+mbpoll_args=(-m rtu -b "$baud" -P even -o 1 -a "$unit") mbpoll_target=$dir/master
 write32() { mb -t 4:int -B -r "$1" -- "$2" >/dev/null; }  # write32 ADDRESS VALUE
 # page: reads input registers 0-11 of the profile into the array in[] (false if no answer).
 page() {

@@ -7,36 +7,29 @@
 set -euo pipefail
 fieldgate=$1 sim=$2 models=$3 baud=$4
 here=$(cd "$(dirname "$0")" && pwd)
-dir=$(mktemp -d)
-trap 'exec 7>&- 2>/dev/null; kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+source "$here/lib.sh"
+scratch_dir 'exec 7>&- 2>/dev/null'
 
-"$sim" --link "$dir/copley0" --nodes 0,1,2,3,4,5,6,7,8 </dev/null >"$dir/fast.log" 2>&1 &
+start_sim "$dir/fast.log" "$sim" --link "$dir/copley0" --nodes 0,1,2,3,4,5,6,7,8
 mkfifo "$dir/slow.ctl"
 "$sim" --link "$dir/copley1" --nodes 0 <"$dir/slow.ctl" >"$dir/slow.log" 2>&1 &
 exec 7>"$dir/slow.ctl"
 echo "delay 1500" >&7
 # 8N1 on the emulated line: 10 bits a character.
 "$here/rtu_wire_relay.py" "$dir/gw-rtu" "$dir/master" "$baud" 10 >"$dir/relay.log" 2>&1 &
-for _ in $(seq 50); do
-  [ -e "$dir/copley0" ] && [ -e "$dir/copley1" ] && [ -e "$dir/master" ] && break
-  sleep 0.1
-done
+wait_for_paths "$dir/copley1" "$dir/master"
 
 nodes=""
 for n in 0 1 2 3 4 5 6 7 8; do
   nodes+="      - {name: a$n, address: $n, model: copley-amplifier, unit_id: $((n + 1))}"$'\n'
 done
-cat >"$dir/gw.yaml" <<YAML
-modbus: {listen: 127.0.0.1:0}
-metrics: {listen: 127.0.0.1:0}
-models: $models
+gateway_config "$dir/gw.yaml" "metrics: {listen: 127.0.0.1:0}
 modbus_rtu:
   device: $dir/gw-rtu
   baud: $baud
   parity: none
   response_timeout: 500ms
-  broadcast_stop: {actions: {copley-amplifier: abort}}
-buses:
+  broadcast_stop: {actions: {copley-amplifier: abort}}" <<YAML
   - name: fast
     protocol: copley-ascii
     serial: {device: $dir/copley0, baud: 115200}
@@ -49,36 +42,12 @@ $nodes  - name: slow
     nodes:
       - {name: s0, address: 0, model: copley-amplifier, unit_id: 10}
 YAML
-: >"$dir/daemon.log"
-"$fieldgate" ${FIELDGATE_VERBOSE:+-v} --config "$dir/gw.yaml" >"$dir/daemon.log" 2>&1 &
-metrics=""
-for _ in $(seq 100); do
-  grep -q "modbus rtu: serving on" "$dir/daemon.log" &&
-    metrics=$(sed -n 's|.*metrics: http://127.0.0.1:\([0-9]*\)/metrics.*|\1|p' "$dir/daemon.log") &&
-    [ -n "$metrics" ] && break
-  sleep 0.1
-done
+start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log" "modbus rtu: serving on"
+metrics=$(metrics_port "$dir/daemon.log")
 [ -n "$metrics" ] || { echo "daemon did not start"; cat "$dir/daemon.log"; exit 1; }
+mbpoll_args=(-m rtu -b "$baud" -P none -o 1) mbpoll_target=$dir/master
 
-fail=0
-check() {  # check NAME EXPECTED ACTUAL
-  if [ "$2" == "$3" ]; then echo "ok: $1"; else echo "FAIL: $1: expected '$2', got '$3'"; fail=1; fi
-}
-# mb OPTIONS... [-- WRITE_VALUES...]
-mb() {
-  local opts=() values=()
-  while [ $# -gt 0 ] && [ "$1" != "--" ]; do opts+=("$1"); shift; done
-  [ $# -gt 0 ] && { shift; values=("$@"); }
-  mbpoll -m rtu -b "$baud" -P none -o 1 -0 -1 -q "${opts[@]}" -- "$dir/master" "${values[@]}" 2>&1
-}
-
-# Wait until unit 2 is polled.
-for _ in $(seq 100); do mb -a 2 -t 3:int -B -r 0 | grep -q '^\[0\]' && break; sleep 0.1; done
-
-check "mbpoll rtu reads unit 1 position" "0" "$(mb -a 1 -t 3:int -B -r 0 | sed -n 's/^\[0\]:[[:space:]]*//p')"
-check "mbpoll rtu reads the online flag" "1" "$(mb -a 2 -t 1 -r 1000 | sed -n 's/^\[1000\]:[[:space:]]*//p')"
-mb -a 2 -t 4:int -B -r 110 -- -1500 >/dev/null || true
-check "mbpoll rtu writes a 32-bit setpoint" "-1500" "$(mb -a 2 -t 4:int -B -r 110 | sed -n 's/^\[110\]:[[:space:]]*//p')"
+mbpoll_basics "mbpoll rtu"
 check "mbpoll rtu sees 0x02 for an unmapped address" "1" "$(mb -a 1 -t 3 -r 600 | grep -c 'Illegal data address')"
 check "mbpoll rtu gets no answer for a unit nobody serves" "1" "$(mb -a 33 -t 3 -r 0 | grep -c 'timed out')"
 

@@ -6,17 +6,12 @@
 # Usage: wire_trace_check.sh FIELDGATE SIM_IMS MODELS_DIR
 set -euo pipefail
 fieldgate=$1 sim=$2 models=$3
-dir=$(mktemp -d)
-trap 'kill $(jobs -p) 2>/dev/null; wait 2>/dev/null; rm -rf "$dir"' EXIT
+source "$(dirname "$0")/lib.sh"
+scratch_dir
 fail() { echo "FAIL: $*"; echo "--- daemon log:"; tail -40 "$dir/daemon.log"; exit 1; }
 
-"$sim" --link "$dir/ims0" --axes A,B,C --baud 9600 --emulate-wire </dev/null >"$dir/sim.log" 2>&1 &
-for _ in $(seq 50); do [ -e "$dir/ims0" ] && break; sleep 0.1; done
-cat >"$dir/gw.yaml" <<YAML
-modbus: {listen: 127.0.0.1:0}
-metrics: {listen: 127.0.0.1:0}
-models: $models
-buses:
+start_sim "$dir/sim.log" "$sim" --link "$dir/ims0" --axes A,B,C --baud 9600 --emulate-wire
+gateway_config "$dir/gw.yaml" "metrics: {listen: 127.0.0.1:0}" <<YAML
   - name: ims
     protocol: ims-party-line
     trace: true
@@ -33,13 +28,7 @@ start_daemon() {
   "$fieldgate" --config "$dir/gw.yaml" 2>>"$dir/daemon.log" >/dev/null &
   daemon=$!
 }
-wait_for() {  # PATTERN: a line of the log matching it, within 10 s
-  for _ in $(seq 100); do
-    grep -qE "$1" "$dir/daemon.log" && return 0
-    sleep 0.1
-  done
-  return 1
-}
+wait_for() { wait_for_log "$dir/daemon.log" "$1"; }  # PATTERN: a log line matching it, in 10 s
 
 unset JOURNAL_STREAM
 start_daemon

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "harness.hpp"
+#include "plant_test.hpp"
 
 namespace fieldgate::test {
 namespace {
@@ -76,42 +77,22 @@ class CententPlant : public Plant {
   }
 };
 
-class CententEndToEnd : public ::testing::Test {
+class CententEndToEnd : public PlantFixture<::testing::Test, CententPlant> {
  protected:
   void start(const std::string& sim_units, const std::vector<int>& units,
              const std::string& poll = ", poll: {fast: 100ms, slow: 1s}",
              std::vector<std::string> extra = {}, const std::string& baud = "115200") {
-    plant_ = std::make_unique<CententPlant>(sim_units, nodes(units, poll), std::move(extra), baud);
-    client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
+    PlantFixture::start(
+        std::make_unique<CententPlant>(sim_units, nodes(units, poll), std::move(extra), baud));
   }
-  void wait_online(const std::vector<int>& unit_ids) {
-    for (int id : unit_ids)
-      ASSERT_TRUE(wait_until([&] { return client_->read_input(id, kXPosition, 5).ok(); }))
-          << "unit id " << id << " never came online\n"
-          << plant_->daemon().log();
-  }
-  void TearDown() override {
-    if (HasFailure() && plant_)
-      std::cerr << "--- daemon log ---\n"
-                << plant_->daemon().log() << "--- sim log ---\n"
-                << plant_->sim().log();
-  }
-  int action_status(int id) {
-    auto r = client_->read_holding(id, kActionStatus, 1);
-    return r.ok() ? r.values[0] : -1;
-  }
+  void wait_online(const std::vector<int>& unit_ids) { wait_inputs(unit_ids, kXPosition, 5); }
+  int action_status(int id) { return holding(id, kActionStatus); }
   std::optional<uint32_t> age_ms(int id) {
     auto r = client_->read_input(id, kDiagLastGoodAge, 2);
     if (!r.ok()) return std::nullopt;
     return (static_cast<uint32_t>(r.values[0]) << 16) | r.values[1];
   }
-  int motion(int id) {
-    auto r = client_->read_input(id, kMotion, 1);
-    return r.ok() ? r.values[0] : -1;
-  }
-
-  std::unique_ptr<CententPlant> plant_;
-  std::unique_ptr<ModbusClient> client_;
+  int motion(int id) { return input(id, kMotion); }
 };
 
 TEST_F(CententEndToEnd, BothAxesOfThreeUnitsPerCycleWithOneSelectionEach) {

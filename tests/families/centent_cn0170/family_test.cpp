@@ -1,80 +1,37 @@
 // CententFamily through a real Link against the simulated chain, in one process: the family
-// writes to one end of a socketpair, the DaisyChain answers on the other.
+// writes to the shared fake line (tests/harness/fake_line.hpp), the DaisyChain answers.
 #include <gtest/gtest.h>
 
 #include <boost/asio/as_tuple.hpp>
 #include <boost/asio/co_spawn.hpp>
 #include <boost/asio/io_context.hpp>
-#include <boost/asio/local/connect_pair.hpp>
-#include <boost/asio/local/stream_protocol.hpp>
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/use_awaitable.hpp>
-#include <boost/asio/write.hpp>
 
 #include <fmt/format.h>
 
-#include <deque>
 #include <random>
 #include <thread>
 
 #include "drivers/centent_cn0170/cn0170_family.hpp"
+#include "fake_line.hpp"
 #include "sim/centent/daisy_chain.hpp"
 
 namespace fieldgate {
 namespace {
 
 using namespace std::chrono_literals;
-using Socket = asio::local::stream_protocol::socket;
-constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
-
-class PairTransport final : public ByteTransport {
- public:
-  explicit PairTransport(Socket socket) : socket_(std::move(socket)) {}
-  asio::awaitable<std::error_code> open() override { co_return std::error_code{}; }
-  void close() override { socket_.close(); }
-  bool is_open() const override { return socket_.is_open(); }
-  asio::awaitable<std::error_code> write(std::string_view bytes) override {
-    auto [ec, n] =
-        co_await asio::async_write(socket_, asio::buffer(bytes.data(), bytes.size()), use_tuple);
-    (void)n;
-    co_return ec ? std::make_error_code(std::errc::io_error) : std::error_code{};
-  }
-  asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
-      asio::mutable_buffer buffer) override {
-    auto [ec, n] = co_await socket_.async_read_some(buffer, use_tuple);
-    co_return std::pair{ec ? std::make_error_code(std::errc::io_error) : std::error_code{}, n};
-  }
-  void discard_input() override {
-    boost::system::error_code ec;
-    char buf[4096];
-    while (socket_.available(ec) > 0 && !ec) socket_.read_some(asio::buffer(buf), ec);
-  }
-  std::string describe() const override { return "test-pair"; }
-  double char_time_us() const override { return 0; }
-
- private:
-  Socket socket_;
-};
 
 class FamilyOnChain : public ::testing::Test {
  protected:
-  void TearDown() override {
-    // Let the chain's coroutine see its socket close before the io_context goes.
-    if (sim_side_) sim_side_->close();
-    if (transport_) transport_->close();
-    io_.poll();
-  }
-
   void start(std::vector<int> units, sim::centent::ChainOptions options = {},
              std::vector<std::string> configured = {"0", "1", "2"}) {
     options.units = std::move(units);
     chain_ = std::make_unique<sim::centent::DaisyChain>(options, sim::SimClock::now());
-    Socket ours(io_), theirs(io_);
-    asio::local::connect_pair(ours, theirs);
-    transport_ = std::make_unique<PairTransport>(std::move(ours));
+    transport_ = std::make_unique<test::FakeLine>(io_, "test-pair", 0);
+    transport_->keep_order();  // late replies keep their order, as a chain delivers them
+    transport_->set_far_end([this](std::string_view bytes) { hear(bytes); });
     link_ = std::make_unique<Link>(*transport_);
-    sim_side_ = std::make_unique<Socket>(std::move(theirs));
-    asio::co_spawn(io_, serve(), [](std::exception_ptr) {});
     family_.set_log_sink([this](int level, std::string_view text) {
       log_ += std::to_string(level) + " " + std::string(text) + "\n";
     });
@@ -84,64 +41,19 @@ class FamilyOnChain : public ::testing::Test {
   }
 
   // The chain's side: frames host lines and answers them.
-  asio::awaitable<void> serve() {
-    std::string pending;
-    char buf[512];
-    for (;;) {
-      auto [ec, n] = co_await sim_side_->async_read_some(asio::buffer(buf), use_tuple);
-      if (ec) co_return;
-      pending.append(buf, n);
-      while (const auto length = sim::centent::DaisyChain::frame(pending)) {
-        const std::string line = pending.substr(0, length);
-        pending.erase(0, length);
-        wire_ += line;
-        const auto reply = chain_->handle(line, sim::SimClock::now());
-        if (reply.bytes.empty()) continue;
-        if (reply_delay_.count() > 0 || !outbox_.empty()) {
-          // Late replies keep their order, as a chain delivers them.
-          const auto due = std::max(
-              std::chrono::steady_clock::now() + reply_delay_,
-              outbox_.empty() ? std::chrono::steady_clock::time_point{} : outbox_.back().first);
-          outbox_.emplace_back(due, reply.bytes);
-          if (outbox_.size() == 1) asio::co_spawn(io_, send_late(), [](std::exception_ptr) {});
-          continue;
-        }
-        auto [wec, w] =
-            co_await asio::async_write(*sim_side_, asio::buffer(reply.bytes), use_tuple);
-        if (wec) co_return;
-      }
-    }
-  }
-
-  asio::awaitable<void> send_late() {
-    asio::steady_timer timer(io_);
-    while (!outbox_.empty()) {
-      timer.expires_at(outbox_.front().first);
-      co_await timer.async_wait(use_tuple);
-      const std::string bytes = outbox_.front().second;
-      outbox_.pop_front();
-      auto [ec, n] = co_await asio::async_write(*sim_side_, asio::buffer(bytes), use_tuple);
-      if (ec) co_return;
+  void hear(std::string_view bytes) {
+    pending_.append(bytes);
+    while (const auto length = sim::centent::DaisyChain::frame(pending_)) {
+      const std::string line = pending_.substr(0, length);
+      pending_.erase(0, length);
+      wire_ += line;
+      transport_->deliver(chain_->handle(line, sim::SimClock::now()).bytes, reply_delay_);
     }
   }
 
   template <typename T>
   T run(asio::awaitable<T> work) {
-    std::optional<T> result;
-    asio::co_spawn(io_, std::move(work), [&](std::exception_ptr e, T value) {
-      if (e) std::rethrow_exception(e);
-      result = std::move(value);
-    });
-    while (!result) io_.run_one();
-    return std::move(*result);
-  }
-  void run(asio::awaitable<void> work) {
-    bool done = false;
-    asio::co_spawn(io_, std::move(work), [&](std::exception_ptr e) {
-      if (e) std::rethrow_exception(e);
-      done = true;
-    });
-    while (!done) io_.run_one();
+    return test::run(io_, std::move(work));
   }
 
   Reply call(int unit, std::string command, Request::Expect expect = Request::Expect::values,
@@ -154,16 +66,15 @@ class FamilyOnChain : public ::testing::Test {
 
   asio::io_context io_;
   std::unique_ptr<sim::centent::DaisyChain> chain_;
-  std::unique_ptr<PairTransport> transport_;
+  std::unique_ptr<test::FakeLine> transport_;
   std::unique_ptr<Link> link_;
-  std::unique_ptr<Socket> sim_side_;
   CententFamily family_;
   std::map<int, NodeAddress> nodes_;
   LinkTiming timing_{30ms, 10ms};
   std::string log_;
   std::string wire_;
   std::chrono::milliseconds reply_delay_{0};
-  std::deque<std::pair<std::chrono::steady_clock::time_point, std::string>> outbox_;
+  std::string pending_;
 };
 
 TEST_F(FamilyOnChain, LinkOpenAutobaudsAndDiscoversTheChain) {

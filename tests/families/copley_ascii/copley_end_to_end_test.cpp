@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "harness.hpp"
+#include "plant_test.hpp"
 
 namespace fieldgate::test {
 namespace {
@@ -38,28 +39,15 @@ const char* kNodes =
     "      - {name: amp5, address: 5, model: copley-amplifier, unit_id: 3}\n"
     "      - {name: amp7, address: 7, model: copley-amplifier, unit_id: 4}\n";
 
-class CopleyEndToEnd : public ::testing::Test {
+class CopleyEndToEnd : public PlantTest {
  protected:
   void SetUp() override {
-    plant_ = std::make_unique<CopleyPlant>("0,3,5", kNodes);
-    client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
-    for (int unit : {1, 2, 3})
-      // Position, velocity, event and trajectory status: the fast poll class, all polled once.
-      ASSERT_TRUE(wait_until([&] { return client_->read_input(unit, kPosition, 7).ok(); }))
-          << "unit " << unit << " never came online\n"
-          << plant_->daemon().log();
-  }
-  void TearDown() override {
-    if (HasFailure() && plant_) std::cerr << "--- daemon log ---\n" << plant_->daemon().log();
+    start(std::make_unique<CopleyPlant>("0,3,5", kNodes));
+    // Position, velocity, event and trajectory status: the fast poll class, all polled once.
+    wait_inputs({1, 2, 3}, kPosition, 7);
   }
 
-  int action_status(int unit) {
-    auto r = client_->read_holding(unit, kActionStatus, 1);
-    return r.ok() ? r.values[0] : -1;
-  }
-
-  std::unique_ptr<CopleyPlant> plant_;
-  std::unique_ptr<ModbusClient> client_;
+  int action_status(int unit) { return holding(unit, kActionStatus); }
 };
 
 TEST_F(CopleyEndToEnd, ReadsPositionAndStatusOfEveryNode) {
@@ -174,12 +162,16 @@ TEST_F(CopleyEndToEnd, TwoClientsAtOnce) {
         ++reads_failed;
     }
   });
-  ASSERT_TRUE(client_->write_single(2, kCommand, kEnable).ok());
-  ASSERT_TRUE(client_->write_i32(2, kSetpointTarget, -3000).ok());
-  ASSERT_TRUE(client_->write_single(2, kCommand, kMoveAbsolute).ok());
-  const bool done = wait_until([&] { return action_status(2) == 2; }, 20s);
+  // The reader is joined before any assertion can leave the test (a joinable thread aborts).
+  const bool enabled = client_->write_single(2, kCommand, kEnable).ok();
+  const bool targeted = enabled && client_->write_i32(2, kSetpointTarget, -3000).ok();
+  const bool started = targeted && client_->write_single(2, kCommand, kMoveAbsolute).ok();
+  const bool done = started && wait_until([&] { return action_status(2) == 2; }, 20s);
   moving = false;
   reader.join();
+  ASSERT_TRUE(enabled);
+  ASSERT_TRUE(targeted);
+  ASSERT_TRUE(started);
   ASSERT_TRUE(done);
   EXPECT_EQ(client_->read_input_i32(2, kPosition), -3000);
   EXPECT_GT(reads_ok.load(), 10);

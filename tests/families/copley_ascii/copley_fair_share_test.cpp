@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "harness.hpp"
+#include "plant_test.hpp"
 
 namespace fieldgate::test {
 namespace {
@@ -19,7 +20,7 @@ uint32_t u32(const ModbusResult& r) {
   return (static_cast<uint32_t>(r.values[0]) << 16) | r.values[1];
 }
 
-class CopleyFairShare : public ::testing::Test {
+class CopleyFairShare : public PlantTest {
  protected:
   void SetUp() override {
     SimulatedBus bus;
@@ -32,13 +33,8 @@ class CopleyFairShare : public ::testing::Test {
         "      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1}\n"
         "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2}\n"
         "      - {name: amp5, address: 5, model: copley-amplifier, unit_id: 3}\n";
-    plant_ = std::make_unique<Plant>(std::vector<SimulatedBus>{bus});
-    client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
-    for (int unit : {1, 2, 3})
-      ASSERT_TRUE(wait_until([&] { return client_->read_input(unit, kPosition, 2).ok(); }));
-  }
-  void TearDown() override {
-    if (HasFailure() && plant_) std::cerr << "--- daemon log ---\n" << plant_->daemon().log();
+    start({bus});
+    wait_inputs({1, 2, 3}, kPosition, 2);
   }
   // Transactions of units 2 and 3 (polls only: nothing else addresses them) over `window`.
   std::pair<uint32_t, uint32_t> polls_during(std::chrono::milliseconds window) {
@@ -48,8 +44,6 @@ class CopleyFairShare : public ::testing::Test {
     return {u32(client_->read_input(2, kDiagTransactions, 2)) - a2,
             u32(client_->read_input(3, kDiagTransactions, 2)) - a3};
   }
-  std::unique_ptr<Plant> plant_;
-  std::unique_ptr<ModbusClient> client_;
 };
 
 TEST_F(CopleyFairShare, FloodingOneUnitKeepsTheOthersPollRate) {

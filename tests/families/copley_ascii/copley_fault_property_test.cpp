@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "harness.hpp"
+#include "plant_test.hpp"
 
 namespace fieldgate::test {
 namespace {
@@ -35,7 +36,7 @@ struct FaultRun {
 const std::map<int, uint16_t> kInputs = {{1, 0x11}, {2, 0x22}, {3, 0x44}};   // by unit ID
 const std::map<int, std::string> kPrefix = {{1, ""}, {2, "3 "}, {3, "5 "}};  // node prefix
 
-class CopleyFaultProperty : public ::testing::TestWithParam<FaultRun> {
+class CopleyFaultProperty : public PlantFixture<::testing::TestWithParam<FaultRun>> {
  protected:
   void SetUp() override {
     const FaultRun run = GetParam();
@@ -57,8 +58,7 @@ class CopleyFaultProperty : public ::testing::TestWithParam<FaultRun> {
         "      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1}\n"
         "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2}\n"
         "      - {name: amp5, address: 5, model: copley-amplifier, unit_id: 3}\n";
-    plant_ = std::make_unique<Plant>(std::vector<SimulatedBus>{bus});
-    client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
+    start({bus});
     plant_->sim().send_line("inputs 0 0x11");
     plant_->sim().send_line("inputs 3 0x22");
     plant_->sim().send_line("inputs 5 0x44");
@@ -72,11 +72,6 @@ class CopleyFaultProperty : public ::testing::TestWithParam<FaultRun> {
           << "unit " << unit << "\n"
           << plant_->daemon().log();
   }
-  void TearDown() override {
-    if (HasFailure() && plant_) std::cerr << "--- daemon log ---\n" << plant_->daemon().log();
-  }
-  std::unique_ptr<Plant> plant_;
-  std::unique_ptr<ModbusClient> client_;
 };
 
 TEST_P(CopleyFaultProperty, NoWriteConfirmedByAnotherReplyAndNoWrongValueServed) {

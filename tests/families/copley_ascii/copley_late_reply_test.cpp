@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "harness.hpp"
+#include "plant_test.hpp"
 
 namespace fieldgate::test {
 namespace {
@@ -20,21 +21,12 @@ const char* kNodes =
     "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2}\n"
     "      - {name: amp5, address: 5, model: copley-amplifier, unit_id: 3}\n";
 
-class CopleyLateReply : public ::testing::Test {
+class CopleyLateReply : public PlantTest {
  protected:
   void SetUp() override {
-    plant_ = std::make_unique<CopleyPlant>("0,3,5", kNodes);
-    client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
-    for (int unit : {1, 2, 3})
-      ASSERT_TRUE(wait_until([&] { return client_->read_input(unit, kPosition, 2).ok(); }))
-          << "unit " << unit << " never came online\n"
-          << plant_->daemon().log();
+    start(std::make_unique<CopleyPlant>("0,3,5", kNodes));
+    wait_inputs({1, 2, 3}, kPosition, 2);
   }
-  void TearDown() override {
-    if (HasFailure() && plant_) std::cerr << "--- daemon log ---\n" << plant_->daemon().log();
-  }
-  std::unique_ptr<CopleyPlant> plant_;
-  std::unique_ptr<ModbusClient> client_;
 };
 
 // reply_timeout 50 ms, the amplifiers answer in 70 ms: desired state 41 is no valid mode and

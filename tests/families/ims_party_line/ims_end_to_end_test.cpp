@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "harness.hpp"
+#include "plant_test.hpp"
 
 namespace fieldgate::test {
 namespace {
@@ -40,50 +41,25 @@ const char* kNodes =
     "      - {name: axis_c, address: C, model: ims-indexer, unit_id: 3}\n"
     "      - {name: axis_d, address: D, model: ims-indexer, unit_id: 4}\n";
 
-class ImsEndToEnd : public ::testing::Test {
+class ImsEndToEnd : public PlantTest {
  protected:
   void SetUp() override {
-    plant_ = std::make_unique<Plant>(std::vector<SimulatedBus>{
-        SimulatedBus{"ims",
-                     "ims-party-line",
-                     {FIELDGATE_SIM_IMS, "--link", "{link}", "--axes", "A,B,C", "--emulate-wire",
-                      "--baud", "9600"},
-                     "baud: 9600",
-                     "reply_timeout: 80ms, byte_timeout: 30ms, retries: 1, offline_after: 3, "
-                     "probe_interval: 500ms",
-                     kNodes}});
-    client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
-    for (int unit : {1, 2, 3})
-      ASSERT_TRUE(wait_until([&] { return client_->read_input(unit, kPosition, 6).ok(); }))
-          << "unit " << unit << " never came online\n"
-          << plant_->daemon().log();
-  }
-  void TearDown() override {
-    if (HasFailure())
-      std::cerr << "--- daemon log ---\n"
-                << plant_->daemon().log() << "--- simulator log ---\n"
-                << plant_->sim().log();
+    start({SimulatedBus{"ims",
+                        "ims-party-line",
+                        {FIELDGATE_SIM_IMS, "--link", "{link}", "--axes", "A,B,C", "--emulate-wire",
+                         "--baud", "9600"},
+                        "baud: 9600",
+                        "reply_timeout: 80ms, byte_timeout: 30ms, retries: 1, offline_after: 3, "
+                        "probe_interval: 500ms",
+                        kNodes}});
+    wait_inputs({1, 2, 3}, kPosition, 6);
   }
 
-  int holding(int unit, int address) {
-    auto r = client_->read_holding(unit, address, 1);
-    return r.ok() ? r.values[0] : -1;
-  }
-  int status(int unit) {
-    auto r = client_->read_input(unit, kStatus, 1);
-    return r.ok() ? r.values[0] : -1;
-  }
-  uint32_t input_u32(int unit, int address) {
-    auto r = client_->read_input(unit, address, 2);
-    return r.ok() ? (static_cast<uint32_t>(r.values[0]) << 16) | r.values[1] : 0xffffffff;
-  }
+  int status(int unit) { return input(unit, kStatus); }
   uint32_t errors(int unit) { return input_u32(unit, kDiagErrors); }
   uint32_t transactions(int unit) { return input_u32(unit, kDiagTransactions); }
   bool command(int unit, int code) { return client_->write_single(unit, kCommand, code).ok(); }
   bool done(int unit) { return holding(unit, kActionStatus) == 2; }
-
-  std::unique_ptr<Plant> plant_;
-  std::unique_ptr<ModbusClient> client_;
 };
 
 TEST_F(ImsEndToEnd, ReadsThePositionsOfThreeAxes) {

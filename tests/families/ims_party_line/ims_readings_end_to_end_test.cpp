@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "harness.hpp"
+#include "plant_test.hpp"
 
 namespace fieldgate::test {
 namespace {
@@ -63,17 +64,7 @@ std::unique_ptr<Plant> make_plant(const std::vector<std::string>& extra, const s
       SimulatedBus{"ims", "ims-party-line", argv, "baud: " + baud, timing, kNodes}});
 }
 
-class ImsReadingEndToEnd : public ::testing::TestWithParam<Reading> {
- protected:
-  void TearDown() override {
-    if (HasFailure() && plant_)
-      std::cerr << "--- daemon log ---\n"
-                << plant_->daemon().log() << "--- simulator log ---\n"
-                << plant_->sim().log();
-  }
-  std::unique_ptr<Plant> plant_;
-  std::unique_ptr<ModbusClient> client_;
-};
+class ImsReadingEndToEnd : public PlantFixture<::testing::TestWithParam<Reading>> {};
 
 TEST_P(ImsReadingEndToEnd, ReadsMovesAndReadsBack) {
   plant_ = make_plant(GetParam().sim_args, "9600", true,
@@ -126,14 +117,8 @@ std::ostream& operator<<(std::ostream& os, const LateCase& c) {
   return os << c.name;
 }
 
-class ImsLateEndToEnd : public ::testing::TestWithParam<LateCase> {
+class ImsLateEndToEnd : public PlantFixture<::testing::TestWithParam<LateCase>> {
  protected:
-  void TearDown() override {
-    if (HasFailure() && plant_)
-      std::cerr << "--- daemon log ---\n"
-                << plant_->daemon().log() << "--- simulator log ---\n"
-                << plant_->sim().log();
-  }
   // The sim's `status NAME` outputs field, after a control round trip.
   int sim_outputs(char name) {
     const std::string tag = std::string("ok ") + name + " position=";
@@ -152,8 +137,6 @@ class ImsLateEndToEnd : public ::testing::TestWithParam<LateCase> {
     if (!std::regex_search(line, m, std::regex(" outputs=([0-9]+)"))) return -1;
     return std::stoi(m[1]);
   }
-  std::unique_ptr<Plant> plant_;
-  std::unique_ptr<ModbusClient> client_;
 };
 
 TEST_P(ImsLateEndToEnd, NoWrongValueAndNoWrongConfirmation) {

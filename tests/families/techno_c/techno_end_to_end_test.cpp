@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "harness.hpp"
+#include "plant_test.hpp"
 
 namespace fieldgate::test {
 namespace {
@@ -31,43 +32,28 @@ constexpr int kIllegalValue = 0x03, kDeviceFailure = 0x04, kServerBusy = 0x06;
 constexpr int kDiagOnline = 1000;
 constexpr int kC142 = 1, kIt116g = 2;
 
-class TechnoEndToEnd : public ::testing::Test {
+class TechnoEndToEnd : public PlantTest {
  protected:
   void SetUp() override {
     const std::string timing =
         "reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, offline_after: 3, "
         "probe_interval: 300ms";
-    plant_ = std::make_unique<Plant>(std::vector<SimulatedBus>{
-        {"techno-c142",
-         "techno-c",
-         // Power-up state (axes undefined): the family initialises at first contact.
-         {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "c142", "--verbose"},
-         "baud: 19200",
-         timing,
-         "      - {name: c142, address: 0, model: techno-c142, unit_id: 1}\n"},
-        {"techno-it116g",
-         "techno-c",
-         {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "it116g"},
-         "baud: 9600",
-         timing,
-         "      - {name: it116g, address: 0, model: techno-it116g, unit_id: 2}\n"}});
-    client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
-    for (int unit : {kC142, kIt116g})
-      ASSERT_TRUE(wait_until([&] { return client_->read_input(unit, 0, 2).ok(); }))
-          << "unit " << unit << " never came online\n"
-          << plant_->daemon().log();
-  }
-  void TearDown() override {
-    if (HasFailure())
-      std::cerr << "--- daemon log ---\n"
-                << plant_->daemon().log() << "--- simulator log ---\n"
-                << plant_->sim(0).log();
+    start({{"techno-c142",
+            "techno-c",
+            // Power-up state (axes undefined): the family initialises at first contact.
+            {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "c142", "--verbose"},
+            "baud: 19200",
+            timing,
+            "      - {name: c142, address: 0, model: techno-c142, unit_id: 1}\n"},
+           {"techno-it116g",
+            "techno-c",
+            {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "it116g"},
+            "baud: 9600",
+            timing,
+            "      - {name: it116g, address: 0, model: techno-it116g, unit_id: 2}\n"}});
+    wait_inputs({kC142, kIt116g}, 0, 2);
   }
 
-  int holding(int unit, int address) {
-    auto r = client_->read_holding(unit, address, 1);
-    return r.ok() ? r.values[0] : -1;
-  }
   std::optional<int32_t> input32(int unit, int address) {
     return client_->read_input_i32(unit, address);
   }
@@ -99,9 +85,6 @@ class TechnoEndToEnd : public ::testing::Test {
     }();
     return m.empty() ? -1 : std::stol(m[1]);
   }
-
-  std::unique_ptr<Plant> plant_;
-  std::unique_ptr<ModbusClient> client_;
 };
 
 TEST_F(TechnoEndToEnd, ThreeAxisMoveItsCompletionSeenByThePlc) {

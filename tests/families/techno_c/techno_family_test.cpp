@@ -80,25 +80,7 @@ class TechnoBench : public ::testing::Test {
 
   template <typename T>
   T run(asio::awaitable<T> a) {
-    std::optional<T> result;
-    asio::co_spawn(io_, std::move(a), [&](std::exception_ptr e, T v) {
-      if (e) std::rethrow_exception(e);
-      result = std::move(v);
-    });
-    io_.restart();
-    io_.run();
-    return *result;
-  }
-
-  void run(asio::awaitable<void> a) {
-    bool finished = false;
-    asio::co_spawn(io_, std::move(a), [&](std::exception_ptr e) {
-      if (e) std::rethrow_exception(e);
-      finished = true;
-    });
-    io_.restart();
-    io_.run();
-    ASSERT_TRUE(finished);
+    return test::run(io_, std::move(a));
   }
 
   asio::io_context io_;

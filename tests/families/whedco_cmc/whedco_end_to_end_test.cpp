@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "harness.hpp"
+#include "plant_test.hpp"
 
 namespace fieldgate::test {
 namespace {
@@ -43,7 +44,7 @@ void PrintTo(const Format& f, std::ostream* os) {
   *os << f.name;
 }
 
-class WhedcoEndToEnd : public ::testing::TestWithParam<Format> {
+class WhedcoEndToEnd : public PlantFixture<::testing::TestWithParam<Format>> {
  protected:
   void SetUp() override {
     const Format& f = GetParam();
@@ -63,44 +64,16 @@ class WhedcoEndToEnd : public ::testing::TestWithParam<Format> {
                      "reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, offline_after: 3, "
                      "probe_interval: 300ms",
                      nodes};
-    plant_ = std::make_unique<Plant>(std::vector<SimulatedBus>{bus});
-    client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
-    for (int unit : {1, 2})
-      ASSERT_TRUE(wait_until(
-          [&] {
-            return client_->read_input(unit, 0, 27).ok() && client_->read_holding(unit, 0, 52).ok();
-          },
-          30s))
-          << "unit " << unit << " never came online\n"
-          << plant_->daemon().log();
-  }
-  void TearDown() override {
-    if (HasFailure())
-      std::cerr << "--- daemon log ---\n"
-                << plant_->daemon().log() << "--- simulator log ---\n"
-                << plant_->sim().log();
+    start({bus});
+    wait_online(
+        {1, 2},
+        [&](int unit) {
+          return client_->read_input(unit, 0, 27).ok() && client_->read_holding(unit, 0, 52).ok();
+        },
+        30s);
   }
 
-  int input(int unit, int address) {
-    auto r = client_->read_input(unit, address, 1);
-    return r.ok() ? r.values[0] : -1;
-  }
-  int holding(int unit, int address) {
-    auto r = client_->read_holding(unit, address, 1);
-    return r.ok() ? r.values[0] : -1;
-  }
-  std::optional<int32_t> holding_i32(int unit, int address) {
-    auto r = client_->read_holding(unit, address, 2);
-    if (!r.ok()) return std::nullopt;
-    return static_cast<int32_t>((static_cast<uint32_t>(r.values[0]) << 16) | r.values[1]);
-  }
-  uint32_t age_ms(int unit) {
-    auto r = client_->read_input(unit, in::kDiagAge, 2);
-    return r.ok() ? (static_cast<uint32_t>(r.values[0]) << 16) | r.values[1] : 0xffffffffu;
-  }
-
-  std::unique_ptr<Plant> plant_;
-  std::unique_ptr<ModbusClient> client_;
+  uint32_t age_ms(int unit) { return input_u32(unit, in::kDiagAge); }
 };
 
 TEST_P(WhedcoEndToEnd, BothUnitsReadAtRest) {
