@@ -59,7 +59,7 @@ struct CanBus::PendingCommand {
 
 struct CanBus::NodeRuntime {
   NodeRuntime(asio::any_io_executor ex, uint8_t id, std::chrono::microseconds sdo_timeout)
-      : id(id), sdo(id, sdo_timeout), wake(ex) {}
+      : id(id), wake(ex), sdo(id, sdo_timeout, wake) {}
 
   int index = 0;  // position on this bus
   uint8_t id = 0;
@@ -70,11 +70,9 @@ struct CanBus::NodeRuntime {
   std::map<uint32_t, SteadyTime> tpdo_seen;
   std::vector<int> local_points;
 
-  SdoClient sdo;
-  std::optional<SdoStep> sdo_step;  // delivered by the reader, taken by the worker
-  SteadyTime step_time{};           // when sdo_step was delivered
-  SteadyTime finished_at{};         // when the last transfer ended
   asio::steady_timer wake;
+  SdoChannel sdo;
+  SteadyTime finished_at{};  // when the last transfer ended
   std::deque<std::shared_ptr<PendingCommand>> commands;
   bool urgent_waiting = false;
   SteadyTime next_probe{};
@@ -109,6 +107,7 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
     : executor_(executor),
       config_owner_(std::move(config_owner)),
       config_(config),
+      family_(dynamic_cast<const FrameFamily&>(*config.family)),
       first_node_index_(first_node_index),
       on_update_(std::move(on_update)),
       channel_(std::move(channel)),
@@ -132,7 +131,7 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
       n.image->setpoints.push_back(it != nc.setpoints.end() ? it->second : s.default_value);
     }
     n.sources.resize(model.points.size());
-    for (const uint32_t base : {cob::sdo_tx, cob::heartbeat, cob::emcy}) by_cob_[base + n.id] = &n;
+    for (const uint32_t cob : family_.receive_ids(nc.address, model)) by_cob_[cob] = &n;
 
     // One poll item per object and period: points that share an object share its upload.
     const auto add_target = [&](ItemInfo info, int point, SteadyTime::duration period) {
@@ -175,7 +174,6 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
       if (src->kind == PointSource::Kind::tpdo) {
         const uint32_t cob = src->tpdo.cob_for(n.id);
         n.tpdo_points[cob].push_back(pi);
-        by_cob_[cob] = &n;
       }
       if (point.poll_class.empty()) continue;
       const auto period = nc.period_of(point.poll_class);
@@ -373,8 +371,8 @@ asio::awaitable<void> CanBus::read_loop() {
     const auto ec = co_await channel_->receive(frames);
     const auto now = BusClock::now();
     for (const auto& f : frames) dispatch(f, now);
-    counters_.rx_dropped = channel_->stats().rx_dropped;
-    counters_.tx_dropped = channel_->stats().tx_dropped;
+    can_counters_.rx_dropped = channel_->stats().rx_dropped;
+    can_counters_.tx_dropped = channel_->stats().tx_dropped;
     if (ec) {
       if (!stopping_) link_failed(ec);
       break;
@@ -382,39 +380,24 @@ asio::awaitable<void> CanBus::read_loop() {
   }
 }
 
-namespace {
-std::string_view to_string(SdoResult::Status status) {
-  switch (status) {
-    case SdoResult::Status::ok:
-      return "ok";
-    case SdoResult::Status::server_abort:
-      return "device_error";
-    case SdoResult::Status::client_abort:
-      return "garbled";
-    case SdoResult::Status::timeout:
-      return "timeout";
-  }
-  return "garbled";
-}
-}  // namespace
-
 void CanBus::trace_frame(const CanFrame& frame, TraceDirection direction, SteadyTime at,
                          std::string_view outcome) {
   if (!trace_.enabled()) return;
-  // NMT names its node in the data; every other COB-ID in its low seven bits.
-  const unsigned id = frame.id == 0 ? (frame.len > 1 ? frame.data[1] : 0) : (frame.id & 0x7f);
-  std::string node = frame.error ? "-" : (frame.id == 0 && id == 0) ? "*" : std::to_string(id);
+  const int id = family_.frame_node(frame);
+  std::string node = id == FrameFamily::kNoNode      ? "-"
+                     : id == FrameFamily::kEveryNode ? "*"
+                                                     : std::to_string(id);
   for (const auto& n : nodes_)
-    if (!frame.error && n->id == id) node = n->config->name;
+    if (n->id == id) node = n->config->name;
   trace_.emit(at, node, direction, outcome, to_string(frame));
 }
 
-asio::awaitable<bool> CanBus::send_frame(const CanFrame& frame, std::string_view outcome) {
+asio::awaitable<bool> CanBus::send(const CanFrame& frame, std::string_view outcome) {
   if (!link_up_) co_return false;
   const auto ec = co_await channel_->send(frame, config_.timing.link.reply_timeout);
   if (!ec) {
     trace_frame(frame, TraceDirection::tx, BusClock::now(), outcome);
-    ++counters_.frames_sent;
+    ++can_counters_.frames_sent;
     counters_.bytes_sent += frame.len;
     co_return true;
   }
@@ -435,44 +418,41 @@ void CanBus::dispatch(const CanFrame& frame, SteadyTime now) {
     on_error_frame(frame, now);
     return;
   }
-  ++counters_.frames_received;
+  ++can_counters_.frames_received;
   counters_.bytes_received += frame.len;
   const auto it = by_cob_.find(frame.id);
-  if (it == by_cob_.end() || frame.rtr) {
+  if (it == by_cob_.end()) {
     trace_frame(frame, TraceDirection::rx, now, {});
     return;
   }
   NodeRuntime& n = *it->second;
-  if (frame.id == cob::sdo_tx + n.id) {
-    if (n.sdo.idle()) {
-      trace_frame(frame, TraceDirection::rx, now, "late");
-      n.sdo.on_frame(frame, now);  // counted as ignored: a late answer
+  switch (family_.classify(n.config->address, frame)) {
+    case FrameRole::transfer_response:
+      trace_frame(frame, TraceDirection::rx, now, n.sdo.on_response(frame, now));
+      break;
+    case FrameRole::heartbeat:
+      trace_frame(frame, TraceDirection::rx, now, {});
+      if (auto hb = parse_heartbeat(frame)) on_heartbeat(n, hb->state, now);
+      break;
+    case FrameRole::emergency:
+      trace_frame(frame, TraceDirection::rx, now, {});
+      if (auto e = parse_emergency(frame)) on_emergency(n, *e);
+      break;
+    case FrameRole::none:
+      trace_frame(frame, TraceDirection::rx, now, {});
       return;
-    }
-    auto step = n.sdo.on_frame(frame, now);
-    trace_frame(frame, TraceDirection::rx, now, step.done ? to_string(step.done->status) : "");
-    if (step.send || step.done) {
-      n.sdo_step = std::move(step);
-      n.step_time = now;
-      n.wake.cancel();
-    }
-  } else if (frame.id == cob::heartbeat + n.id) {
-    trace_frame(frame, TraceDirection::rx, now, {});
-    if (auto hb = parse_heartbeat(frame)) on_heartbeat(n, hb->state, now);
-  } else if (frame.id == cob::emcy + n.id) {
-    trace_frame(frame, TraceDirection::rx, now, {});
-    if (auto e = parse_emergency(frame)) on_emergency(n, *e);
-  } else {
-    trace_frame(frame, TraceDirection::rx, now, {});
+    case FrameRole::other:
+      trace_frame(frame, TraceDirection::rx, now, {});
+      break;
   }
   if (n.tpdo_points.count(frame.id)) on_tpdo(n, frame, now);
 }
 
 void CanBus::on_error_frame(const CanFrame& frame, SteadyTime now) {
   const auto info = decode_error_frame(frame);
-  ++counters_.error_frames;
+  ++can_counters_.error_frames;
   if (info.bus_off) {
-    ++counters_.bus_off;
+    ++can_counters_.bus_off;
     // The controller stops until it restarts (restart-ms, or `ip link set ... type can restart`):
     // nodes time out or lose their heartbeat meanwhile and come back by themselves.
     log::error("bus {}: CAN controller bus-off ({})", config_.name, to_string(frame));
@@ -713,7 +693,7 @@ asio::awaitable<void> CanBus::guard(NodeRuntime& n, SteadyTime now) {
   rtr.id = cob::heartbeat + n.id;
   rtr.len = 1;
   rtr.rtr = true;
-  co_await send_frame(rtr);
+  co_await send(rtr);
 }
 
 uint16_t CanBus::heartbeat_producer_ms() const {
@@ -792,33 +772,6 @@ void CanBus::record_latency(double seconds) {
 
 // --- transfers -------------------------------------------------------------------------------
 
-asio::awaitable<std::optional<SdoResult>> CanBus::sdo_exchange(NodeRuntime& n, SdoStep step) {
-  for (;;) {
-    if (step.send) co_await send_frame(*step.send, step.done ? to_string(step.done->status) : "");
-    if (step.done) co_return std::move(*step.done);
-    n.sdo_step.reset();
-    while (!n.sdo_step) {
-      if (stopping_ || !link_up_) {
-        n.sdo.abort(sdo_abort::general);  // forget it; there is no link to tell the node
-        co_return std::nullopt;
-      }
-      const auto deadline = n.sdo.deadline();
-      if (!deadline) co_return std::nullopt;
-      const bool expired = co_await sleep_until(n.wake, *deadline);
-      if (n.sdo_step || !expired) continue;
-      const auto now = BusClock::now();
-      auto timed = n.sdo.on_time(now);
-      if (timed.send || timed.done) {
-        n.sdo_step = std::move(timed);
-        n.step_time = now;
-      }
-    }
-    step = std::move(*n.sdo_step);
-    n.sdo_step.reset();
-    n.finished_at = n.step_time;
-  }
-}
-
 Reply CanBus::reply_of(NodeRuntime& n, const SdoResult& result) {
   switch (result.status) {
     case SdoResult::Status::ok:
@@ -847,8 +800,8 @@ asio::awaitable<Reply> CanBus::upload(NodeRuntime& n, const ObjectAddress& objec
     }
     n.finished_at = started;
     // A named step, not a temporary: GCC 12 destroys prvalue arguments of a coroutine twice.
-    const SdoStep first = n.sdo.upload(object.index, object.sub, started);
-    auto result = co_await sdo_exchange(n, first);
+    const SdoStep first = n.sdo.client().upload(object.index, object.sub, started);
+    auto result = co_await n.sdo.run(first, *this, n.finished_at);
     if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
     record_latency(std::chrono::duration<double>(n.finished_at - started).count());
     ++counters_.transactions;
@@ -889,8 +842,9 @@ asio::awaitable<Reply> CanBus::download(NodeRuntime& n, const Operation& op, Ste
     data = encode_integer(op.object.type, op.value);
   n.finished_at = now;
   const std::vector<uint8_t> written = data;
-  const SdoStep first = n.sdo.download(op.object.index, op.object.sub, std::move(data), now);
-  auto result = co_await sdo_exchange(n, first);
+  const SdoStep first =
+      n.sdo.client().download(op.object.index, op.object.sub, std::move(data), now);
+  auto result = co_await n.sdo.run(first, *this, n.finished_at);
   if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
   record_latency(std::chrono::duration<double>(n.finished_at - now).count());
   ++counters_.transactions;
@@ -964,7 +918,7 @@ asio::awaitable<Reply> CanBus::execute(NodeRuntime& n, const Request& request, b
     }
     case Operation::Kind::nmt: {
       const uint8_t target = request.bus_wide ? 0 : n.id;
-      const bool sent = co_await send_frame(nmt_frame(op->nmt, target));
+      const bool sent = co_await send(nmt_frame(op->nmt, target));
       if (!sent)
         co_return make_reply(Reply::Status::link_down, "cannot send NMT: bus link is down");
       if (op->nmt == NmtCommand::start) {
@@ -986,7 +940,7 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
     if (op && op->kind == Operation::Kind::nmt) {
       ++counters_.commands;
       if (options.on_sent) options.on_sent();
-      const bool sent = co_await send_frame(nmt_frame(op->nmt, request.bus_wide ? 0 : n.id));
+      const bool sent = co_await send(nmt_frame(op->nmt, request.bus_wide ? 0 : n.id));
       co_return sent ? make_reply(Reply::Status::ok, {})
                      : make_reply(Reply::Status::link_down, "bus link is down");
     }
@@ -1116,7 +1070,7 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
       n.start_pending = false;
       log::info("bus {}: NMT start node {} ({})", config_.name, n.config->name, n.id);
       n.start_sent = BusClock::now();
-      co_await send_frame(nmt_frame(NmtCommand::start, n.id));
+      co_await send(nmt_frame(NmtCommand::start, n.id));
       continue;
     }
     if (n.pre_operational_check && reachable) {

@@ -12,7 +12,8 @@
 #include <vector>
 
 #include "drivers/canopen/canopen_request.hpp"
-#include "drivers/canopen/sdo_client.hpp"
+#include "drivers/canopen/sdo_channel.hpp"
+#include "drivers/frame_family.hpp"
 #include "drivers/transport/socketcan_transport.hpp"
 #include "gateway/bus/bus.hpp"
 #include "gateway/bus/poll_plan.hpp"
@@ -29,7 +30,7 @@ namespace fieldgate {
 // to the node's client, heartbeats to the consumer (online/offline, NMT state, boot-up), EMCY
 // to the node's diagnostics and TPDOs straight into the process image. The bus reopens the
 // interface with back-off when it goes down or away.
-class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
+class CanBus final : public Bus, public FramePort, public std::enable_shared_from_this<CanBus> {
  public:
   // Must be owned by a shared_ptr (run() keeps it alive for its workers). Without a channel
   // the bus opens SocketCAN on config.transport.can_interface; tests pass an in-memory one.
@@ -45,10 +46,16 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
 
   const BusConfig& config() const override { return config_; }
   const BusCounters& counters() const override { return counters_; }
+  const CanCounters* can_counters() const override { return &can_counters_; }
   WireTrace& trace() override { return trace_; }
   const NodeConfig& node_config(int node_index) const override;
   std::vector<std::shared_ptr<NodeImage>> node_images() const override;
   void rebind(int first_node_index, NodeUpdated on_update) override;
+
+  // The port the nodes' transfers use.
+  asio::awaitable<bool> send(const canopen::CanFrame& frame,
+                             std::string_view outcome = {}) override;
+  bool up() const override { return !stopping_ && link_up_; }
 
   // What the bus consumed from a node, for diagnostics and tests.
   // How the bus knows a node is alive: by its heartbeat (the consumer, after the bus set the
@@ -91,11 +98,6 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
                                 SteadyTime now);
   asio::awaitable<Reply> download(NodeRuntime& n, const canopen::Operation& op, SteadyTime now);
   asio::awaitable<Reply> wait_for(NodeRuntime& n, const canopen::Operation& op);
-  // One SDO transfer from its first step to its result; nullopt when the link went down.
-  asio::awaitable<std::optional<canopen::SdoResult>> sdo_exchange(NodeRuntime& n,
-                                                                  canopen::SdoStep step);
-  // `outcome`: how the SDO transfer this frame ends came out, for the wire trace.
-  asio::awaitable<bool> send_frame(const canopen::CanFrame& frame, std::string_view outcome = {});
   void trace_frame(const canopen::CanFrame& frame, TraceDirection direction, SteadyTime at,
                    std::string_view outcome);
   asio::awaitable<void> run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now);
@@ -144,6 +146,7 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
   asio::any_io_executor executor_;
   std::shared_ptr<const void> config_owner_;
   const BusConfig& config_;
+  const FrameFamily& family_;
   int first_node_index_;
   NodeUpdated on_update_;
   std::unique_ptr<CanChannel> channel_;
@@ -154,6 +157,7 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
   asio::steady_timer wake_;                  // run(): back-off, waiting for workers
   asio::steady_timer supervisor_wake_;
   BusCounters counters_;
+  CanCounters can_counters_;
   bool stopping_ = false;
   bool link_up_ = false;
   bool link_error_logged_ = false;
