@@ -257,9 +257,9 @@ void NodeSupervision::report_pre_operational(const Reply& r) {
 std::optional<CanFrame> NodeSupervision::guard(TimePoint now) {
   if (!guard_answered_ && now - *guarding_since_ >= timing_.heartbeat_timeout) {
     next_guard_ = TimePoint::max();
-    host_.log(kWarning,
-              fmt::format("node {} answers no node guarding either: its NMT state is unknown",
-                          who()));
+    host_.log(
+        kWarning,
+        fmt::format("node {} answers no node guarding either: its NMT state is unknown", who()));
     status_.nmt_state.reset();
     host_.nmt_state_forgotten();
     return std::nullopt;

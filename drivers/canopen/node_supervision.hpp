@@ -92,8 +92,8 @@ class NodeSupervision {
 
   // Link opened, boot-up, back from offline: configure the heartbeat, then NMT start.
   void bring_up(bool start);
-  void link_lost();       // offline with the link
-  void sdo_silent();      // offline by SDO timeouts; its heartbeat may go on meanwhile
+  void link_lost();   // offline with the link
+  void sdo_silent();  // offline by SDO timeouts; its heartbeat may go on meanwhile
   void went_online(bool from_offline);
   void went_offline();
 

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "drivers/canopen/canopen_request.hpp"
+#include "drivers/canopen/node_supervision.hpp"
 #include "drivers/canopen/sdo_channel.hpp"
 #include "drivers/frame_family.hpp"
 #include "drivers/transport/socketcan_transport.hpp"
@@ -58,19 +59,8 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   bool up() const override { return !stopping_ && link_up_; }
 
   // What the bus consumed from a node, for diagnostics and tests.
-  // How the bus knows a node is alive: by its heartbeat (the consumer, after the bus set the
-  // node's producer time), or by its SDO answers where it produces no heartbeat.
-  enum class Liveness { heartbeat, sdo };
-  struct NodeStatus {
-    std::optional<uint8_t> nmt_state;  // from the last heartbeat
-    Liveness liveness = Liveness::sdo;
-    bool stays_pre_operational = false;  // NMT start sent, the node did not leave pre-op
-    uint16_t emcy_code = 0;
-    uint8_t emcy_register = 0;
-    uint64_t emergencies = 0;
-    uint32_t last_abort = 0;  // last SDO abort code the node sent
-    uint64_t pdos = 0;        // TPDOs taken into the process image
-  };
+  using Liveness = canopen::Liveness;
+  using NodeStatus = canopen::NodeStatus;
   NodeStatus node_status(int node_index) const;
 
  private:
@@ -109,26 +99,14 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
 
   void dispatch(const canopen::CanFrame& frame, SteadyTime now);
   void on_error_frame(const canopen::CanFrame& frame, SteadyTime now);
-  void on_heartbeat(NodeRuntime& n, uint8_t state, SteadyTime now);
-  void on_emergency(NodeRuntime& n, const canopen::Emergency& emcy);
   void on_tpdo(NodeRuntime& n, const canopen::CanFrame& frame, SteadyTime now);
   void refresh_local_points(NodeRuntime& n, SteadyTime now);
   // Every point read from `object` takes the value its bytes hold (a confirmed write, a read).
   void store_object(NodeRuntime& n, uint16_t index, uint8_t sub, std::span<const uint8_t> bytes,
                     SteadyTime now);
-  // Link opened, boot-up, back from offline: configure the heartbeat, then NMT start.
-  void bring_up(NodeRuntime& n, bool start);
   // Overdue polls of a node back online run at once, each on its own phase.
   void resume_polls(NodeRuntime& n, SteadyTime now);
-  uint16_t heartbeat_producer_ms() const;
-  // The node's error register as last read or sent: NMT start again when it cleared on a node
-  // that stayed pre-operational with an error.
-  void error_register_seen(NodeRuntime& n, uint8_t reg);
-  // The node produces no heartbeat: SDO answers tell that it is there, node guarding (if it
-  // answers) its NMT state.
-  void watch_by_sdo(NodeRuntime& n, SteadyTime now);
   asio::awaitable<void> guard(NodeRuntime& n, SteadyTime now);
-  void forget_nmt_state(NodeRuntime& n);
 
   Reply reply_of(NodeRuntime& n, const canopen::SdoResult& result);
   void record(NodeRuntime& n, const Reply& reply, SteadyTime at);
