@@ -3,6 +3,8 @@
 #include <boost/asio/as_tuple.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
+#include <fmt/format.h>
+
 namespace fieldgate::canopen {
 
 std::string_view trace_outcome(SdoResult::Status status) {
@@ -17,6 +19,52 @@ std::string_view trace_outcome(SdoResult::Status status) {
       return "timeout";
   }
   return "garbled";
+}
+
+Reply reply_of(const SdoResult& result) {
+  Reply r;
+  r.text = result.text;
+  switch (result.status) {
+    case SdoResult::Status::ok:
+      r.status = Reply::Status::ok;
+      r.text.clear();
+      break;
+    case SdoResult::Status::server_abort:
+      r.status = Reply::Status::device_error;
+      r.device_code = result.abort_code;
+      break;
+    case SdoResult::Status::client_abort:
+      r.status = Reply::Status::garbled;
+      r.device_code = result.abort_code;
+      break;
+    case SdoResult::Status::timeout:
+      r.status = Reply::Status::timeout;
+      break;
+  }
+  return r;
+}
+
+Reply upload_reply(const ObjectAddress& object, const SdoResult& result) {
+  Reply reply = reply_of(result);
+  if (reply.status != Reply::Status::ok) return reply;
+  if (is_integer(object.type)) {
+    PointSource src;
+    src.type = object.type;
+    std::string error;
+    // Every point type holds the widest integer the model may use, so decode as int64.
+    const auto v = decode_point_value(src, ValueType::int32, result.data, error);
+    if (!v) {
+      Reply garbled;
+      garbled.status = Reply::Status::garbled;
+      garbled.text = fmt::format("0x{:04X}:{}: {}", object.index, object.sub, error);
+      return garbled;
+    }
+    reply.values = {*v};
+  } else {
+    reply.text.assign(result.data.begin(), result.data.end());
+    reply.values.assign(result.data.begin(), result.data.end());
+  }
+  return reply;
 }
 
 SdoChannel::SdoChannel(uint8_t node, std::chrono::microseconds timeout, asio::steady_timer& wake)

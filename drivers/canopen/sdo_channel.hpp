@@ -9,6 +9,7 @@
 #include <optional>
 #include <string_view>
 
+#include "drivers/canopen/canopen_request.hpp"
 #include "drivers/canopen/sdo_client.hpp"
 #include "drivers/frame_family.hpp"
 
@@ -16,6 +17,13 @@ namespace fieldgate::canopen {
 
 // How a transfer came out, as the wire trace names it on the frame that ends it.
 std::string_view trace_outcome(SdoResult::Status status);
+// The reply of a finished transfer: the server's abort is a device error with its code, our own
+// abort a garbled reply, no response a timeout.
+Reply reply_of(const SdoResult& result);
+// The reply of a finished upload of `object`: its value (an integer object) or its bytes (in
+// text and values, for string points, which slice the bytes themselves); garbled where the
+// bytes do not hold the type.
+Reply upload_reply(const ObjectAddress& object, const SdoResult& result);
 
 class SdoChannel {
  public:

@@ -622,20 +622,10 @@ void CanBus::record_latency(double seconds) {
 
 // --- transfers -------------------------------------------------------------------------------
 
-Reply CanBus::reply_of(NodeRuntime& n, const SdoResult& result) {
-  switch (result.status) {
-    case SdoResult::Status::ok:
-      return make_reply(Reply::Status::ok, {});
-    case SdoResult::Status::server_abort:
-      n.nmt.status().last_abort = result.abort_code;
-      refresh_local_points(n, BusClock::now());
-      return make_reply(Reply::Status::device_error, result.text, result.abort_code);
-    case SdoResult::Status::client_abort:
-      return make_reply(Reply::Status::garbled, result.text, result.abort_code);
-    case SdoResult::Status::timeout:
-      return make_reply(Reply::Status::timeout, result.text);
-  }
-  return make_reply(Reply::Status::garbled, result.text);
+void CanBus::note_abort(NodeRuntime& n, const SdoResult& result) {
+  if (result.status != SdoResult::Status::server_abort) return;
+  n.nmt.status().last_abort = result.abort_code;
+  refresh_local_points(n, BusClock::now());
 }
 
 asio::awaitable<Reply> CanBus::upload(NodeRuntime& n, const ObjectAddress& object, int retries,
@@ -656,27 +646,10 @@ asio::awaitable<Reply> CanBus::upload(NodeRuntime& n, const ObjectAddress& objec
     record_latency(std::chrono::duration<double>(n.finished_at - started).count());
     ++counters_.transactions;
     ++n.image->counters.transactions;
-    reply = reply_of(n, *result);
-    if (reply.status == Reply::Status::ok) {
-      if (is_integer(object.type)) {
-        PointSource src;
-        src.type = object.type;
-        std::string error;
-        // Every point type holds the widest integer the model may use, so decode as int64.
-        const auto v = decode_point_value(src, ValueType::int32, result->data, error);
-        if (!v)
-          reply = make_reply(Reply::Status::garbled,
-                             fmt::format("0x{:04X}:{}: {}", object.index, object.sub, error));
-        else
-          reply.values = {*v};
-      } else {
-        reply.text.assign(result->data.begin(), result->data.end());
-      }
-      // Kept for decode_point_value of string points, which slice the bytes themselves.
-      if (!is_integer(object.type)) reply.values.assign(result->data.begin(), result->data.end());
-      if (reply.status == Reply::Status::ok)
-        store_object(n, object.index, object.sub, result->data, n.finished_at);
-    }
+    note_abort(n, *result);
+    reply = upload_reply(object, *result);
+    if (reply.status == Reply::Status::ok)
+      store_object(n, object.index, object.sub, result->data, n.finished_at);
     if (reply.status != Reply::Status::timeout && reply.status != Reply::Status::garbled) break;
     if (attempt < retries) record(n, reply, n.finished_at);
   }
@@ -699,7 +672,8 @@ asio::awaitable<Reply> CanBus::download(NodeRuntime& n, const Operation& op, Ste
   record_latency(std::chrono::duration<double>(n.finished_at - now).count());
   ++counters_.transactions;
   ++n.image->counters.transactions;
-  Reply reply = reply_of(n, *result);
+  note_abort(n, *result);
+  Reply reply = reply_of(*result);
   record(n, reply, n.finished_at);
   // Confirmed: the points of this object hold the written value until their next poll.
   if (reply.status == Reply::Status::ok) {

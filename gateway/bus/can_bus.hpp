@@ -108,7 +108,8 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   void resume_polls(NodeRuntime& n, SteadyTime now);
   asio::awaitable<void> guard(NodeRuntime& n, SteadyTime now);
 
-  Reply reply_of(NodeRuntime& n, const canopen::SdoResult& result);
+  // The node's last abort, for its point, where the server aborted.
+  void note_abort(NodeRuntime& n, const canopen::SdoResult& result);
   void record(NodeRuntime& n, const Reply& reply, SteadyTime at);
   void record_latency(double seconds);
   void set_state(NodeRuntime& n, NodeState state, std::string_view why);
