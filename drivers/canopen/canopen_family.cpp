@@ -87,17 +87,36 @@ void CanopenFamily::validate_model(const Model& model, Diagnostics& diagnostics)
   }
 }
 
-asio::awaitable<Reply> CanopenFamily::transact(Link&, const NodeAddress&, const Request& request,
-                                               const LinkTiming&) {
-  Reply r;
-  r.status = Reply::Status::link_down;
-  r.text = fmt::format("'{}': the canopen family runs on a CAN bus (can: {{interface: ...}})",
-                       request.command);
-  co_return r;
+std::vector<uint32_t> CanopenFamily::receive_ids(const NodeAddress& node,
+                                                 const Model& model) const {
+  const auto id = static_cast<uint8_t>(node.number);
+  std::vector<uint32_t> ids{cob::sdo_tx + id, cob::heartbeat + id, cob::emcy + id};
+  for (const auto& point : model.points) {
+    if (!point.read) continue;
+    std::string error;
+    const auto src = compile_point_read(point, error);
+    if (src && src->kind == PointSource::Kind::tpdo) ids.push_back(src->tpdo.cob_for(id));
+  }
+  return ids;
 }
 
-std::size_t CanopenFamily::estimate_wire_chars(const NodeAddress&, const Request&) const {
-  return 0;  // CAN frames are not characters on a serial line; the serial budget does not apply
+FrameRole CanopenFamily::classify(const NodeAddress& node, const CanFrame& frame) const {
+  const auto id = static_cast<uint32_t>(node.number);
+  if (frame.error || frame.rtr) return FrameRole::none;
+  if (frame.id == cob::sdo_tx + id) return FrameRole::transfer_response;
+  if (frame.id == cob::heartbeat + id) return FrameRole::heartbeat;
+  if (frame.id == cob::emcy + id) return FrameRole::emergency;
+  return FrameRole::other;
+}
+
+int CanopenFamily::frame_node(const CanFrame& frame) const {
+  if (frame.error) return kNoNode;
+  // NMT names its node in the data (0: every node); every other COB-ID in its low seven bits.
+  if (frame.id == cob::nmt) {
+    const int node = frame.len > 1 ? frame.data[1] : 0;
+    return node == 0 ? kEveryNode : node;
+  }
+  return static_cast<int>(frame.id & 0x7f);
 }
 
 FamilyPtr make_canopen_family() {

@@ -52,11 +52,9 @@ SdoStep SdoClient::download(uint16_t index, uint8_t sub, std::vector<uint8_t> da
 }
 
 SdoStep SdoClient::busy() const {
-  SdoResult r;
-  r.status = SdoResult::Status::client_abort;
-  r.abort_code = sdo_abort::general;
-  r.text = "an SDO transfer to this node is already running";
-  return {std::nullopt, r};
+  // The running transfer goes on: this one fails without touching it.
+  return {std::nullopt, failure(SdoResult::Status::client_abort, sdo_abort::general,
+                                "an SDO transfer to this node is already running")};
 }
 
 void SdoClient::begin(uint16_t index, uint8_t sub, std::vector<uint8_t> data) {
@@ -80,14 +78,11 @@ SdoStep SdoClient::on_frame(const CanFrame& frame, TimePoint now) {
 
 SdoStep SdoClient::on_time(TimePoint now) {
   if (idle() || now < deadline_) return {};
-  SdoResult r;
-  r.status = SdoResult::Status::timeout;
-  r.abort_code = sdo_abort::timeout;
-  r.text = fmt::format("no SDO response from node {} within {} ms ({} of 0x{:04X}:{})", node_,
-                       std::chrono::duration_cast<std::chrono::milliseconds>(timeout_).count(),
-                       state_->name, index_, sub_);
-  return finish(std::move(r),
-                sdo_request_frame(node_, sdo_abort_request(index_, sub_, sdo_abort::timeout)));
+  return end(SdoResult::Status::timeout, sdo_abort::timeout,
+             fmt::format("no SDO response from node {} within {} ms ({} of 0x{:04X}:{})", node_,
+                         std::chrono::duration_cast<std::chrono::milliseconds>(timeout_).count(),
+                         state_->name, index_, sub_),
+             Tell::server);
 }
 
 SdoStep SdoClient::abort(uint32_t code) {
@@ -116,22 +111,33 @@ SdoStep SdoClient::finish_ok() {
   return finish(SdoResult{});
 }
 
-SdoStep SdoClient::server_abort(const SdoPayload& response) {
+SdoResult SdoClient::failure(SdoResult::Status status, uint32_t code, std::string text) {
   SdoResult r;
-  r.status = SdoResult::Status::server_abort;
-  r.abort_code = sdo_u32(response);
-  r.text = fmt::format("SDO abort 0x{:08X} from node {} for 0x{:04X}:{}: {}", r.abort_code, node_,
-                       index_, sub_, abort_text(r.abort_code));
-  return finish(std::move(r));
+  r.status = status;
+  r.abort_code = code;
+  r.text = std::move(text);
+  return r;
+}
+
+SdoStep SdoClient::end(SdoResult::Status status, uint32_t code, std::string text, Tell tell) {
+  std::optional<CanFrame> send;
+  if (tell == Tell::server) send = sdo_request_frame(node_, sdo_abort_request(index_, sub_, code));
+  return finish(failure(status, code, std::move(text)), std::move(send));
+}
+
+SdoStep SdoClient::server_abort(const SdoPayload& response) {
+  const uint32_t code = sdo_u32(response);
+  return end(SdoResult::Status::server_abort, code,
+             fmt::format("SDO abort 0x{:08X} from node {} for 0x{:04X}:{}: {}", code, node_, index_,
+                         sub_, abort_text(code)),
+             Tell::nobody);
 }
 
 SdoStep SdoClient::client_abort(uint32_t code, std::string why) {
-  SdoResult r;
-  r.status = SdoResult::Status::client_abort;
-  r.abort_code = code;
-  r.text = fmt::format("SDO transfer with node {} for 0x{:04X}:{} aborted by the gateway: {}",
-                       node_, index_, sub_, why);
-  return finish(std::move(r), sdo_request_frame(node_, sdo_abort_request(index_, sub_, code)));
+  return end(SdoResult::Status::client_abort, code,
+             fmt::format("SDO transfer with node {} for 0x{:04X}:{} aborted by the gateway: {}",
+                         node_, index_, sub_, why),
+             Tell::server);
 }
 
 SdoStep SdoClient::idle_recv(const SdoPayload&, TimePoint) {
@@ -199,12 +205,10 @@ SdoStep SdoClient::upload_segment_recv(const SdoPayload& response, TimePoint now
   }
   if (size_ && data_.size() != *size_) {
     // The server has ended the transfer, so there is nobody left to send an abort to.
-    SdoResult r;
-    r.status = SdoResult::Status::client_abort;
-    r.abort_code = sdo_abort::length_too_low;
-    r.text = fmt::format("node {} sent {} bytes of 0x{:04X}:{} but announced {}", node_,
-                         data_.size(), index_, sub_, *size_);
-    return finish(std::move(r));
+    return end(SdoResult::Status::client_abort, sdo_abort::length_too_low,
+               fmt::format("node {} sent {} bytes of 0x{:04X}:{} but announced {}", node_,
+                           data_.size(), index_, sub_, *size_),
+               Tell::nobody);
   }
   return finish_ok();
 }

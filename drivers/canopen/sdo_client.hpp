@@ -88,6 +88,11 @@ class SdoClient {
   SdoStep request(const State& next, const SdoPayload& payload, TimePoint now);
   SdoStep next_download_segment(TimePoint now);
   SdoStep finish_ok();
+  // Every way a transfer fails: the result and, where the server still holds the transfer
+  // open, the abort that tells it.
+  enum class Tell { server, nobody };
+  static SdoResult failure(SdoResult::Status status, uint32_t code, std::string text);
+  SdoStep end(SdoResult::Status status, uint32_t code, std::string text, Tell tell);
   SdoStep server_abort(const SdoPayload& response);
   SdoStep client_abort(uint32_t code, std::string why);
   SdoStep finish(SdoResult result, std::optional<CanFrame> send = std::nullopt);

@@ -48,7 +48,11 @@ struct BusCounters {
   uint64_t resync_bytes = 0;
   bool link_up = false;
   bool open_attempted = false;  // the first open finished, successfully or not
-  // CAN buses (bytes_sent/bytes_received count the frames' data bytes there).
+};
+
+// What only a CAN bus counts (its BusCounters' bytes_sent/bytes_received count the frames' data
+// bytes).
+struct CanCounters {
   uint64_t frames_sent = 0;
   uint64_t frames_received = 0;
   uint64_t error_frames = 0;  // error frames from the CAN controller or driver, all classes
@@ -73,6 +77,8 @@ class Bus {
                                         CommandOptions options = {}) = 0;
   virtual const BusConfig& config() const = 0;
   virtual const BusCounters& counters() const = 0;
+  // A CAN bus's frame counters; null on every other bus.
+  virtual const CanCounters* can_counters() const { return nullptr; }
   virtual class WireTrace& trace() = 0;
   virtual const NodeConfig& node_config(int node_index) const = 0;
   // The bus's nodes' images, in config order; the process image points at them, so they

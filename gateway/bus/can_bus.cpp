@@ -22,25 +22,6 @@ using BusClock = std::chrono::steady_clock;
 constexpr auto kWaitInterval = std::chrono::milliseconds(10);
 // Error frames can flood (a bus without termination): one log line per this interval at most.
 constexpr auto kErrorLogInterval = std::chrono::seconds(10);
-// Probe of an offline node without heartbeat consumer: the device type, which every CiA 301
-// device has.
-const ObjectAddress kProbeObject{0x1000, 0, DataType::unsigned32};
-const ObjectAddress kHeartbeatObject{0x1017, 0, DataType::unsigned16};
-const ObjectAddress kErrorRegisterObject{0x1001, 0, DataType::unsigned8};
-// The consumer time is this many producer times, as in Lely's dcfgen (heartbeat_multiplier):
-// two heartbeats may be lost before the node counts as gone.
-constexpr int kHeartbeatMultiplier = 3;
-
-std::string error_register_text(uint8_t reg) {
-  static constexpr const char* kBits[] = {
-      "generic",       "current",        "voltage",  "temperature",
-      "communication", "device profile", "reserved", "manufacturer-specific"};
-  std::string text;
-  for (int bit = 0; bit < 8; ++bit)
-    if (reg & (1u << bit)) text += (text.empty() ? "" : ", ") + std::string(kBits[bit]);
-  return text.empty() ? "no error" : text;
-}
-
 Reply make_reply(Reply::Status status, std::string text, int64_t code = 0) {
   Reply r;
   r.status = status;
@@ -57,10 +38,55 @@ struct CanBus::PendingCommand {
   asio::experimental::channel<void(boost::system::error_code, Reply)> done;
 };
 
-struct CanBus::NodeRuntime {
-  NodeRuntime(asio::any_io_executor ex, uint8_t id, std::chrono::microseconds sdo_timeout)
-      : id(id), sdo(id, sdo_timeout), wake(ex) {}
+struct CanBus::NodeRuntime final : NodeHost {
+  NodeRuntime(CanBus& bus, asio::any_io_executor ex, const NodeConfig& nc,
+              const SupervisionTiming& timing)
+      : bus(bus),
+        id(static_cast<uint8_t>(nc.address.number)),
+        config(&nc),
+        wake(ex),
+        sdo(id, bus.config_.timing.link.reply_timeout, wake),
+        nmt(id, nc.name, timing, *this) {}
 
+  Presence presence() const override {
+    switch (image->state) {
+      case NodeState::starting:
+        return Presence::starting;
+      case NodeState::online:
+        return Presence::online;
+      case NodeState::offline:
+        return Presence::offline;
+      case NodeState::faulted:
+        break;
+    }
+    return Presence::faulted;
+  }
+  void go_online() override { bus.set_state(*this, NodeState::online, {}); }
+  void go_offline(std::string why) override { bus.set_state(*this, NodeState::offline, why); }
+  void probe_by(SteadyTime when) override { next_probe = std::min(next_probe, when); }
+  void refresh_local_points(SteadyTime now) override { bus.refresh_local_points(*this, now); }
+  void nmt_state_forgotten() override {
+    for (const int p : local_points)
+      if (sources[static_cast<std::size_t>(p)]->local == LocalValue::nmt_state)
+        image->points[static_cast<std::size_t>(p)].valid = false;
+    bus.notify(*this);
+  }
+  void device_error(uint16_t code, std::string text) override {
+    image->counters.last_device_error = code;
+    image->counters.last_error_text = std::move(text);
+  }
+  void error_text(std::string text) override {
+    image->counters.last_error_text = std::move(text);
+    bus.notify(*this);
+  }
+  void wake_worker() override { wake.cancel(); }
+  void log(int level, std::string text) override {
+    log::write(static_cast<log::Level>(std::clamp(level, 3, 7)),
+               fmt::format("bus {}: {}", bus.config_.name, text));
+  }
+  SteadyTime now() const override { return BusClock::now(); }
+
+  CanBus& bus;
   int index = 0;  // position on this bus
   uint8_t id = 0;
   const NodeConfig* config = nullptr;
@@ -70,37 +96,13 @@ struct CanBus::NodeRuntime {
   std::map<uint32_t, SteadyTime> tpdo_seen;
   std::vector<int> local_points;
 
-  SdoClient sdo;
-  std::optional<SdoStep> sdo_step;  // delivered by the reader, taken by the worker
-  SteadyTime step_time{};           // when sdo_step was delivered
-  SteadyTime finished_at{};         // when the last transfer ended
   asio::steady_timer wake;
+  SdoChannel sdo;
+  NodeSupervision nmt;       // heartbeat, NMT, EMCY
+  SteadyTime finished_at{};  // when the last transfer ended
   std::deque<std::shared_ptr<PendingCommand>> commands;
   bool urgent_waiting = false;
   SteadyTime next_probe{};
-
-  // Heartbeat consumer. The deadline is armed once the producer time is configured; until a
-  // heartbeat follows, a passing deadline means the node produces none (SDO liveness), after
-  // that it means the heartbeat was lost (offline).
-  SteadyTime heartbeat_deadline = SteadyTime::max();
-  bool heartbeat_seen = false;        // since the producer time was configured
-  int64_t producer_ms = 0;            // the producer time last written
-  bool offline_by_heartbeat = false;  // its heartbeat stopped; probed by SDO meanwhile
-  bool configure_pending = false;     // 0x1017 to write (before NMT start)
-  bool start_pending = false;         // NMT start to send
-  // Node guarding, for the NMT state of a node watched by SDO: sent every producer time until
-  // one consumer time passed without an answer (the node does not guard either).
-  SteadyTime next_guard = SteadyTime::max();
-  std::optional<SteadyTime> guarding_since;
-  bool guard_answered = false;
-  // NMT start sent by the bus; a later pre-operational heartbeat means the node stayed there.
-  std::optional<SteadyTime> start_sent;
-  bool pre_operational_check = false;  // read its error register and report
-  // The error register read when the node was found staying pre-operational: when it clears,
-  // the bus sends NMT start once more.
-  std::optional<uint8_t> stuck_error_register;
-
-  NodeStatus status;
 };
 
 CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
@@ -109,6 +111,7 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
     : executor_(executor),
       config_owner_(std::move(config_owner)),
       config_(config),
+      family_(dynamic_cast<const FrameFamily&>(*config.family)),
       first_node_index_(first_node_index),
       on_update_(std::move(on_update)),
       channel_(std::move(channel)),
@@ -117,13 +120,17 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
       trace_(config.name, config.trace) {
   if (!channel_)
     channel_ = std::make_unique<SocketCanTransport>(executor, config.transport.can_interface);
+  SupervisionTiming timing;
+  timing.heartbeat_timeout =
+      std::chrono::duration_cast<std::chrono::microseconds>(config.timing.heartbeat_timeout);
+  timing.reply_timeout = config.timing.link.reply_timeout;
+  timing.start_nodes = config.timing.start_nodes;
+  timing.offline_after = config.timing.offline_after;
   int index = 0;
   for (const auto& nc : config.nodes) {
-    auto rt = std::make_unique<NodeRuntime>(executor, static_cast<uint8_t>(nc.address.number),
-                                            config.timing.link.reply_timeout);
+    auto rt = std::make_unique<NodeRuntime>(*this, executor, nc, timing);
     auto& n = *rt;
     n.index = index;
-    n.config = &nc;
     n.image = std::make_shared<NodeImage>();
     const Model& model = *nc.model;
     n.image->points.assign(model.points.size(), {});
@@ -132,7 +139,7 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
       n.image->setpoints.push_back(it != nc.setpoints.end() ? it->second : s.default_value);
     }
     n.sources.resize(model.points.size());
-    for (const uint32_t base : {cob::sdo_tx, cob::heartbeat, cob::emcy}) by_cob_[base + n.id] = &n;
+    for (const uint32_t cob : family_.receive_ids(nc.address, model)) by_cob_[cob] = &n;
 
     // One poll item per object and period: points that share an object share its upload.
     const auto add_target = [&](ItemInfo info, int point, SteadyTime::duration period) {
@@ -175,7 +182,6 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
       if (src->kind == PointSource::Kind::tpdo) {
         const uint32_t cob = src->tpdo.cob_for(n.id);
         n.tpdo_points[cob].push_back(pi);
-        by_cob_[cob] = &n;
       }
       if (point.poll_class.empty()) continue;
       const auto period = nc.period_of(point.poll_class);
@@ -225,7 +231,7 @@ const CanBus::NodeRuntime& CanBus::node(int node_index) const {
 }
 
 CanBus::NodeStatus CanBus::node_status(int node_index) const {
-  return node(node_index).status;
+  return node(node_index).nmt.status();
 }
 
 std::vector<std::shared_ptr<NodeImage>> CanBus::node_images() const {
@@ -300,7 +306,7 @@ asio::awaitable<void> CanBus::run() {
         link_error_logged_ = true;
       }
       for (auto& n : nodes_) {
-        n->offline_by_heartbeat = heartbeat_consumer();
+        n->nmt.link_lost();
         set_state(*n, NodeState::offline, "bus link is down");
       }
       fail_commands("bus link is down");
@@ -318,7 +324,7 @@ asio::awaitable<void> CanBus::run() {
                 config_.timing.start_nodes ? ", NMT start" : "");
     const auto now = BusClock::now();
     for (auto& n : nodes_) {
-      bring_up(*n, true);
+      n->nmt.bring_up(true);
       // TPDOs get one poll period to show up before their points are read by SDO.
       for (const auto& [cob, points] : n->tpdo_points) n->tpdo_seen[cob] = now;
       n->next_probe = now;
@@ -330,7 +336,7 @@ asio::awaitable<void> CanBus::run() {
     channel_->close();
     if (stopping_) break;
     for (auto& n : nodes_) {
-      n->offline_by_heartbeat = heartbeat_consumer();
+      n->nmt.link_lost();
       set_state(*n, NodeState::offline, "bus link is down");
     }
     fail_commands("bus link is down");
@@ -373,8 +379,8 @@ asio::awaitable<void> CanBus::read_loop() {
     const auto ec = co_await channel_->receive(frames);
     const auto now = BusClock::now();
     for (const auto& f : frames) dispatch(f, now);
-    counters_.rx_dropped = channel_->stats().rx_dropped;
-    counters_.tx_dropped = channel_->stats().tx_dropped;
+    can_counters_.rx_dropped = channel_->stats().rx_dropped;
+    can_counters_.tx_dropped = channel_->stats().tx_dropped;
     if (ec) {
       if (!stopping_) link_failed(ec);
       break;
@@ -382,39 +388,24 @@ asio::awaitable<void> CanBus::read_loop() {
   }
 }
 
-namespace {
-std::string_view to_string(SdoResult::Status status) {
-  switch (status) {
-    case SdoResult::Status::ok:
-      return "ok";
-    case SdoResult::Status::server_abort:
-      return "device_error";
-    case SdoResult::Status::client_abort:
-      return "garbled";
-    case SdoResult::Status::timeout:
-      return "timeout";
-  }
-  return "garbled";
-}
-}  // namespace
-
 void CanBus::trace_frame(const CanFrame& frame, TraceDirection direction, SteadyTime at,
                          std::string_view outcome) {
   if (!trace_.enabled()) return;
-  // NMT names its node in the data; every other COB-ID in its low seven bits.
-  const unsigned id = frame.id == 0 ? (frame.len > 1 ? frame.data[1] : 0) : (frame.id & 0x7f);
-  std::string node = frame.error ? "-" : (frame.id == 0 && id == 0) ? "*" : std::to_string(id);
+  const int id = family_.frame_node(frame);
+  std::string node = id == FrameFamily::kNoNode      ? "-"
+                     : id == FrameFamily::kEveryNode ? "*"
+                                                     : std::to_string(id);
   for (const auto& n : nodes_)
-    if (!frame.error && n->id == id) node = n->config->name;
+    if (n->id == id) node = n->config->name;
   trace_.emit(at, node, direction, outcome, to_string(frame));
 }
 
-asio::awaitable<bool> CanBus::send_frame(const CanFrame& frame, std::string_view outcome) {
+asio::awaitable<bool> CanBus::send(const CanFrame& frame, std::string_view outcome) {
   if (!link_up_) co_return false;
   const auto ec = co_await channel_->send(frame, config_.timing.link.reply_timeout);
   if (!ec) {
     trace_frame(frame, TraceDirection::tx, BusClock::now(), outcome);
-    ++counters_.frames_sent;
+    ++can_counters_.frames_sent;
     counters_.bytes_sent += frame.len;
     co_return true;
   }
@@ -435,44 +426,41 @@ void CanBus::dispatch(const CanFrame& frame, SteadyTime now) {
     on_error_frame(frame, now);
     return;
   }
-  ++counters_.frames_received;
+  ++can_counters_.frames_received;
   counters_.bytes_received += frame.len;
   const auto it = by_cob_.find(frame.id);
-  if (it == by_cob_.end() || frame.rtr) {
+  if (it == by_cob_.end()) {
     trace_frame(frame, TraceDirection::rx, now, {});
     return;
   }
   NodeRuntime& n = *it->second;
-  if (frame.id == cob::sdo_tx + n.id) {
-    if (n.sdo.idle()) {
-      trace_frame(frame, TraceDirection::rx, now, "late");
-      n.sdo.on_frame(frame, now);  // counted as ignored: a late answer
+  switch (family_.classify(n.config->address, frame)) {
+    case FrameRole::transfer_response:
+      trace_frame(frame, TraceDirection::rx, now, n.sdo.on_response(frame, now));
+      break;
+    case FrameRole::heartbeat:
+      trace_frame(frame, TraceDirection::rx, now, {});
+      if (auto hb = parse_heartbeat(frame)) n.nmt.on_heartbeat(hb->state, now);
+      break;
+    case FrameRole::emergency:
+      trace_frame(frame, TraceDirection::rx, now, {});
+      if (auto e = parse_emergency(frame)) n.nmt.on_emergency(*e);
+      break;
+    case FrameRole::none:
+      trace_frame(frame, TraceDirection::rx, now, {});
       return;
-    }
-    auto step = n.sdo.on_frame(frame, now);
-    trace_frame(frame, TraceDirection::rx, now, step.done ? to_string(step.done->status) : "");
-    if (step.send || step.done) {
-      n.sdo_step = std::move(step);
-      n.step_time = now;
-      n.wake.cancel();
-    }
-  } else if (frame.id == cob::heartbeat + n.id) {
-    trace_frame(frame, TraceDirection::rx, now, {});
-    if (auto hb = parse_heartbeat(frame)) on_heartbeat(n, hb->state, now);
-  } else if (frame.id == cob::emcy + n.id) {
-    trace_frame(frame, TraceDirection::rx, now, {});
-    if (auto e = parse_emergency(frame)) on_emergency(n, *e);
-  } else {
-    trace_frame(frame, TraceDirection::rx, now, {});
+    case FrameRole::other:
+      trace_frame(frame, TraceDirection::rx, now, {});
+      break;
   }
   if (n.tpdo_points.count(frame.id)) on_tpdo(n, frame, now);
 }
 
 void CanBus::on_error_frame(const CanFrame& frame, SteadyTime now) {
   const auto info = decode_error_frame(frame);
-  ++counters_.error_frames;
+  ++can_counters_.error_frames;
   if (info.bus_off) {
-    ++counters_.bus_off;
+    ++can_counters_.bus_off;
     // The controller stops until it restarts (restart-ms, or `ip link set ... type can restart`):
     // nodes time out or lose their heartbeat meanwhile and come back by themselves.
     log::error("bus {}: CAN controller bus-off ({})", config_.name, to_string(frame));
@@ -492,79 +480,9 @@ void CanBus::on_error_frame(const CanFrame& frame, SteadyTime now) {
   error_frames_unlogged_ = 0;
 }
 
-void CanBus::on_heartbeat(NodeRuntime& n, uint8_t state, SteadyTime now) {
-  const auto previous = n.status.nmt_state;
-  n.status.nmt_state = state;
-  if (n.guarding_since) n.guard_answered = true;
-  auto& img = *n.image;
-  if (state == nmt_state::boot_up) {
-    if (img.state == NodeState::online)
-      log::warning("bus {}: node {} ({}) sent boot-up: it restarted", config_.name, n.config->name,
-                   n.id);
-    n.next_probe = now;
-    bring_up(n, true);  // its 0x1017 is back at its default
-    if (heartbeat_consumer()) set_state(n, NodeState::online, {});
-  } else {
-    // The consumer is armed once the producer time is configured (and not given up on).
-    if (heartbeat_consumer() && n.heartbeat_deadline != SteadyTime::max()) {
-      if (!n.heartbeat_seen) {
-        n.heartbeat_seen = true;
-        n.status.liveness = Liveness::heartbeat;
-      }
-      n.heartbeat_deadline = now + config_.timing.heartbeat_timeout;
-    }
-    if (img.state == NodeState::offline) {
-      if (heartbeat_consumer() && n.offline_by_heartbeat) {
-        set_state(n, NodeState::online, {});
-        if (state == nmt_state::operational) n.start_pending = false;
-      } else {
-        n.next_probe = std::min(n.next_probe, now);  // it is there: probe now
-      }
-    } else if (img.state == NodeState::starting && heartbeat_consumer()) {
-      set_state(n, NodeState::online, {});
-    }
-    if (state == nmt_state::operational) {
-      if (n.status.stays_pre_operational)
-        log::notice("bus {}: node {} ({}) is operational now", config_.name, n.config->name, n.id);
-      n.status.stays_pre_operational = false;
-      n.stuck_error_register.reset();
-      n.start_sent.reset();
-    } else if (state == nmt_state::pre_operational && n.start_sent && !n.start_pending &&
-               !n.status.stays_pre_operational && !n.pre_operational_check) {
-      // A heartbeat sent after the node had time to carry out the start.
-      const auto grace = std::max<SteadyTime::duration>(
-          config_.timing.link.reply_timeout, std::chrono::milliseconds(heartbeat_producer_ms()));
-      if (now - *n.start_sent >= grace) n.pre_operational_check = true;
-    }
-  }
-  if (previous != state) {
-    log::info("bus {}: node {} NMT state {}", config_.name, n.config->name, nmt_state_text(state));
-    refresh_local_points(n, now);
-  }
-  if (n.start_pending || n.pre_operational_check || img.state == NodeState::offline)
-    n.wake.cancel();
-}
-
-void CanBus::on_emergency(NodeRuntime& n, const Emergency& e) {
-  n.status.emcy_code = e.code;
-  n.status.emcy_register = e.error_register;
-  ++n.status.emergencies;
-  auto& c = n.image->counters;
-  if (e.code != 0) {
-    c.last_device_error = e.code;
-    c.last_error_text = fmt::format("EMCY 0x{:04X} ({}), error register 0x{:02X}", e.code,
-                                    emergency_text(e.code), e.error_register);
-    log::warning("bus {}: node {}: {}", config_.name, n.config->name, c.last_error_text);
-  } else {
-    log::notice("bus {}: node {}: EMCY error reset", config_.name, n.config->name);
-    error_register_seen(n, e.error_register);
-  }
-  refresh_local_points(n, BusClock::now());
-}
-
 void CanBus::on_tpdo(NodeRuntime& n, const CanFrame& frame, SteadyTime now) {
   n.tpdo_seen[frame.id] = now;
-  ++n.status.pdos;
+  ++n.nmt.status().pdos;
   auto& img = *n.image;
   for (const int p : n.tpdo_points[frame.id]) {
     std::string error;
@@ -581,21 +499,22 @@ void CanBus::on_tpdo(NodeRuntime& n, const CanFrame& frame, SteadyTime now) {
 
 void CanBus::refresh_local_points(NodeRuntime& n, SteadyTime now) {
   if (n.local_points.empty()) return;
+  const auto& status = n.nmt.status();
   for (const int p : n.local_points) {
     int64_t v = 0;
     switch (n.sources[static_cast<std::size_t>(p)]->local) {
       case LocalValue::emcy_code:
-        v = n.status.emcy_code;
+        v = status.emcy_code;
         break;
       case LocalValue::emcy_register:
-        v = n.status.emcy_register;
+        v = status.emcy_register;
         break;
       case LocalValue::nmt_state:
-        if (!n.status.nmt_state) continue;  // no heartbeat seen yet: no value
-        v = *n.status.nmt_state;
+        if (!status.nmt_state) continue;  // no heartbeat seen yet: no value
+        v = *status.nmt_state;
         break;
       case LocalValue::sdo_abort:
-        v = n.status.last_abort;
+        v = status.last_abort;
         break;
     }
     n.image->points[static_cast<std::size_t>(p)] = {v, now, true};
@@ -609,29 +528,7 @@ asio::awaitable<void> CanBus::heartbeat_supervisor() {
     SteadyTime next = SteadyTime::max();
     for (auto& n : nodes_) {
       if (!link_up_ || n->image->state == NodeState::offline) continue;
-      if (now >= n->heartbeat_deadline && !n->heartbeat_seen) {
-        // The producer time was accepted, yet nothing came: this node has no working heartbeat
-        // producer. Its SDO answers tell whether it is there, never a deadline.
-        watch_by_sdo(*n, now);
-        log::warning(
-            "bus {}: node {} ({}) sent no heartbeat within {} ms of its producer time 0x1017 "
-            "being set to {} ms; liveness by SDO from now on (offline after {} SDO timeouts)",
-            config_.name, n->config->name, n->id,
-            std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.heartbeat_timeout)
-                .count(),
-            n->producer_ms, config_.timing.offline_after);
-        continue;
-      }
-      if (now >= n->heartbeat_deadline) {
-        n->offline_by_heartbeat = true;
-        set_state(*n, NodeState::offline,
-                  fmt::format("no heartbeat within {} ms",
-                              std::chrono::duration_cast<std::chrono::milliseconds>(
-                                  config_.timing.heartbeat_timeout)
-                                  .count()));
-        continue;
-      }
-      next = std::min(next, n->heartbeat_deadline);
+      next = std::min(next, n->nmt.check_heartbeat(now));
     }
     co_await sleep_until(supervisor_wake_, next);
   }
@@ -650,9 +547,7 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
   if (state == NodeState::online) {
     log::notice("bus {}: node {} ({}) online{}", config_.name, n.config->name, n.id,
                 old == NodeState::offline ? " again" : "");
-    n.offline_by_heartbeat = false;
-    // Back from offline, it may have restarted unseen: configure it again, then NMT start.
-    if (old == NodeState::offline) bring_up(n, true);
+    n.nmt.went_online(old == NodeState::offline);
     resume_polls(n, now);
     for (const auto& [cob, points] : n.tpdo_points) n.tpdo_seen[cob] = now;
     refresh_local_points(n, now);
@@ -660,68 +555,13 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
     log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name, n.id, why);
     img.counters.last_error_text = std::string(why);
     n.next_probe = now + config_.timing.probe_interval;
-    n.heartbeat_deadline = SteadyTime::max();
-    n.pre_operational_check = false;
+    n.nmt.went_offline();
   }
   n.wake.cancel();
-}
-
-void CanBus::bring_up(NodeRuntime& n, bool start) {
-  n.configure_pending = heartbeat_consumer();
-  n.status.liveness = Liveness::sdo;  // until a heartbeat follows the configuration
-  n.heartbeat_deadline = SteadyTime::max();
-  n.heartbeat_seen = false;
-  n.start_pending = start && config_.timing.start_nodes;
-  n.start_sent.reset();
-  n.pre_operational_check = false;
-  n.stuck_error_register.reset();
-  n.status.stays_pre_operational = false;
-  n.next_guard = SteadyTime::max();
-  n.guarding_since.reset();
-  n.guard_answered = false;
-  n.wake.cancel();
-}
-
-void CanBus::watch_by_sdo(NodeRuntime& n, SteadyTime now) {
-  n.status.liveness = Liveness::sdo;
-  n.heartbeat_deadline = SteadyTime::max();
-  if (n.guarding_since) return;
-  n.guarding_since = now;
-  n.guard_answered = false;
-  n.next_guard = now;
-  n.wake.cancel();
-}
-
-void CanBus::forget_nmt_state(NodeRuntime& n) {
-  n.status.nmt_state.reset();
-  for (const int p : n.local_points)
-    if (n.sources[static_cast<std::size_t>(p)]->local == LocalValue::nmt_state)
-      n.image->points[static_cast<std::size_t>(p)].valid = false;
-  notify(n);
 }
 
 asio::awaitable<void> CanBus::guard(NodeRuntime& n, SteadyTime now) {
-  if (!n.guard_answered && now - *n.guarding_since >= config_.timing.heartbeat_timeout) {
-    n.next_guard = SteadyTime::max();
-    log::warning("bus {}: node {} ({}) answers no node guarding either: its NMT state is unknown",
-                 config_.name, n.config->name, n.id);
-    forget_nmt_state(n);
-    co_return;
-  }
-  n.next_guard = now + std::chrono::milliseconds(heartbeat_producer_ms());
-  CanFrame rtr;
-  rtr.id = cob::heartbeat + n.id;
-  rtr.len = 1;
-  rtr.rtr = true;
-  co_await send_frame(rtr);
-}
-
-uint16_t CanBus::heartbeat_producer_ms() const {
-  const auto ms =
-      std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.heartbeat_timeout)
-          .count() /
-      kHeartbeatMultiplier;
-  return static_cast<uint16_t>(std::clamp<int64_t>(ms, 1, 0xFFFF));
+  if (auto rtr = n.nmt.guard(now)) co_await send(*rtr);
 }
 
 void CanBus::resume_polls(NodeRuntime& n, SteadyTime now) {
@@ -733,16 +573,6 @@ void CanBus::resume_polls(NodeRuntime& n, SteadyTime now) {
     if (item.node != n.index || item.next_due >= now || item.period.count() <= 0) continue;
     item.next_due += item.period * ((now - item.next_due) / item.period);
   }
-}
-
-void CanBus::error_register_seen(NodeRuntime& n, uint8_t reg) {
-  if (reg != 0 || !n.stuck_error_register || *n.stuck_error_register == 0) return;
-  log::notice("bus {}: node {} ({}) error register cleared: NMT start again", config_.name,
-              n.config->name, n.id);
-  n.stuck_error_register.reset();  // once: if it stays pre-operational, that is reported
-  n.status.stays_pre_operational = false;
-  n.start_pending = config_.timing.start_nodes;
-  n.wake.cancel();
 }
 
 void CanBus::store_object(NodeRuntime& n, uint16_t index, uint8_t sub,
@@ -761,7 +591,7 @@ void CanBus::store_object(NodeRuntime& n, uint16_t index, uint8_t sub,
     stored = true;
   }
   if (index == kErrorRegisterObject.index && sub == 0 && !bytes.empty())
-    error_register_seen(n, bytes[0]);
+    n.nmt.error_register_seen(bytes[0]);
   if (stored) notify(n);
 }
 
@@ -776,7 +606,7 @@ void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {
     case ReplyOutcome::failed:
       if (reply.status == Reply::Status::timeout &&
           c.consecutive_timeouts >= static_cast<uint32_t>(config_.timing.offline_after)) {
-        n.offline_by_heartbeat = false;  // its heartbeat may go on while SDO is dead
+        n.nmt.sdo_silent();  // its heartbeat may go on while SDO is dead
         set_state(n, NodeState::offline, "no SDO response");
       }
       break;
@@ -792,47 +622,10 @@ void CanBus::record_latency(double seconds) {
 
 // --- transfers -------------------------------------------------------------------------------
 
-asio::awaitable<std::optional<SdoResult>> CanBus::sdo_exchange(NodeRuntime& n, SdoStep step) {
-  for (;;) {
-    if (step.send) co_await send_frame(*step.send, step.done ? to_string(step.done->status) : "");
-    if (step.done) co_return std::move(*step.done);
-    n.sdo_step.reset();
-    while (!n.sdo_step) {
-      if (stopping_ || !link_up_) {
-        n.sdo.abort(sdo_abort::general);  // forget it; there is no link to tell the node
-        co_return std::nullopt;
-      }
-      const auto deadline = n.sdo.deadline();
-      if (!deadline) co_return std::nullopt;
-      const bool expired = co_await sleep_until(n.wake, *deadline);
-      if (n.sdo_step || !expired) continue;
-      const auto now = BusClock::now();
-      auto timed = n.sdo.on_time(now);
-      if (timed.send || timed.done) {
-        n.sdo_step = std::move(timed);
-        n.step_time = now;
-      }
-    }
-    step = std::move(*n.sdo_step);
-    n.sdo_step.reset();
-    n.finished_at = n.step_time;
-  }
-}
-
-Reply CanBus::reply_of(NodeRuntime& n, const SdoResult& result) {
-  switch (result.status) {
-    case SdoResult::Status::ok:
-      return make_reply(Reply::Status::ok, {});
-    case SdoResult::Status::server_abort:
-      n.status.last_abort = result.abort_code;
-      refresh_local_points(n, BusClock::now());
-      return make_reply(Reply::Status::device_error, result.text, result.abort_code);
-    case SdoResult::Status::client_abort:
-      return make_reply(Reply::Status::garbled, result.text, result.abort_code);
-    case SdoResult::Status::timeout:
-      return make_reply(Reply::Status::timeout, result.text);
-  }
-  return make_reply(Reply::Status::garbled, result.text);
+void CanBus::note_abort(NodeRuntime& n, const SdoResult& result) {
+  if (result.status != SdoResult::Status::server_abort) return;
+  n.nmt.status().last_abort = result.abort_code;
+  refresh_local_points(n, BusClock::now());
 }
 
 asio::awaitable<Reply> CanBus::upload(NodeRuntime& n, const ObjectAddress& object, int retries,
@@ -847,33 +640,16 @@ asio::awaitable<Reply> CanBus::upload(NodeRuntime& n, const ObjectAddress& objec
     }
     n.finished_at = started;
     // A named step, not a temporary: GCC 12 destroys prvalue arguments of a coroutine twice.
-    const SdoStep first = n.sdo.upload(object.index, object.sub, started);
-    auto result = co_await sdo_exchange(n, first);
+    const SdoStep first = n.sdo.client().upload(object.index, object.sub, started);
+    auto result = co_await n.sdo.run(first, *this, n.finished_at);
     if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
     record_latency(std::chrono::duration<double>(n.finished_at - started).count());
     ++counters_.transactions;
     ++n.image->counters.transactions;
-    reply = reply_of(n, *result);
-    if (reply.status == Reply::Status::ok) {
-      if (is_integer(object.type)) {
-        PointSource src;
-        src.type = object.type;
-        std::string error;
-        // Every point type holds the widest integer the model may use, so decode as int64.
-        const auto v = decode_point_value(src, ValueType::int32, result->data, error);
-        if (!v)
-          reply = make_reply(Reply::Status::garbled,
-                             fmt::format("0x{:04X}:{}: {}", object.index, object.sub, error));
-        else
-          reply.values = {*v};
-      } else {
-        reply.text.assign(result->data.begin(), result->data.end());
-      }
-      // Kept for decode_point_value of string points, which slice the bytes themselves.
-      if (!is_integer(object.type)) reply.values.assign(result->data.begin(), result->data.end());
-      if (reply.status == Reply::Status::ok)
-        store_object(n, object.index, object.sub, result->data, n.finished_at);
-    }
+    note_abort(n, *result);
+    reply = upload_reply(object, *result);
+    if (reply.status == Reply::Status::ok)
+      store_object(n, object.index, object.sub, result->data, n.finished_at);
     if (reply.status != Reply::Status::timeout && reply.status != Reply::Status::garbled) break;
     if (attempt < retries) record(n, reply, n.finished_at);
   }
@@ -889,27 +665,20 @@ asio::awaitable<Reply> CanBus::download(NodeRuntime& n, const Operation& op, Ste
     data = encode_integer(op.object.type, op.value);
   n.finished_at = now;
   const std::vector<uint8_t> written = data;
-  const SdoStep first = n.sdo.download(op.object.index, op.object.sub, std::move(data), now);
-  auto result = co_await sdo_exchange(n, first);
+  const SdoStep first =
+      n.sdo.client().download(op.object.index, op.object.sub, std::move(data), now);
+  auto result = co_await n.sdo.run(first, *this, n.finished_at);
   if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
   record_latency(std::chrono::duration<double>(n.finished_at - now).count());
   ++counters_.transactions;
   ++n.image->counters.transactions;
-  Reply reply = reply_of(n, *result);
+  note_abort(n, *result);
+  Reply reply = reply_of(*result);
   record(n, reply, n.finished_at);
   // Confirmed: the points of this object hold the written value until their next poll.
   if (reply.status == Reply::Status::ok) {
     store_object(n, op.object.index, op.object.sub, written, n.finished_at);
-    if (heartbeat_consumer() && op.object.index == kHeartbeatObject.index &&
-        op.object.sub == kHeartbeatObject.sub) {
-      // A new producer time (ours or a PLC's): a heartbeat must follow within the consumer
-      // time, or the node is one without (a PLC wrote 0): SDO liveness, never a false loss.
-      n.heartbeat_seen = false;
-      n.producer_ms = op.value;
-      n.status.liveness = Liveness::sdo;
-      n.heartbeat_deadline = n.finished_at + config_.timing.heartbeat_timeout;
-      supervisor_wake_.cancel();
-    }
+    if (n.nmt.on_downloaded(op.object, op.value, n.finished_at)) supervisor_wake_.cancel();
   }
   co_return reply;
 }
@@ -964,13 +733,10 @@ asio::awaitable<Reply> CanBus::execute(NodeRuntime& n, const Request& request, b
     }
     case Operation::Kind::nmt: {
       const uint8_t target = request.bus_wide ? 0 : n.id;
-      const bool sent = co_await send_frame(nmt_frame(op->nmt, target));
+      const bool sent = co_await send(nmt_frame(op->nmt, target));
       if (!sent)
         co_return make_reply(Reply::Status::link_down, "cannot send NMT: bus link is down");
-      if (op->nmt == NmtCommand::start) {
-        n.start_pending = false;
-        n.start_sent = BusClock::now();
-      }
+      if (op->nmt == NmtCommand::start) n.nmt.started_by_command(BusClock::now());
       co_return make_reply(Reply::Status::ok, {});
     }
   }
@@ -986,7 +752,7 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
     if (op && op->kind == Operation::Kind::nmt) {
       ++counters_.commands;
       if (options.on_sent) options.on_sent();
-      const bool sent = co_await send_frame(nmt_frame(op->nmt, request.bus_wide ? 0 : n.id));
+      const bool sent = co_await send(nmt_frame(op->nmt, request.bus_wide ? 0 : n.id));
       co_return sent ? make_reply(Reply::Status::ok, {})
                      : make_reply(Reply::Status::link_down, "bus link is down");
     }
@@ -1038,62 +804,23 @@ asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, S
 
 asio::awaitable<void> CanBus::probe(NodeRuntime& n, SteadyTime now) {
   n.next_probe = now + config_.timing.probe_interval;
-  co_await upload(n, kProbeObject, 0, now);
+  co_await upload(n, kDeviceTypeObject, 0, now);
 }
 
 asio::awaitable<void> CanBus::configure_heartbeat(NodeRuntime& n, SteadyTime now) {
   Operation op;
   op.kind = Operation::Kind::write;
   op.object = kHeartbeatObject;
-  op.value = heartbeat_producer_ms();
+  op.value = n.nmt.producer_ms();
   const Reply r = co_await download(n, op, now);
-  const auto consumer_ms =
-      std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.heartbeat_timeout)
-          .count();
-  switch (r.status) {
-    case Reply::Status::ok:  // download() armed the consumer
-      n.configure_pending = false;
-      log::info("bus {}: node {} ({}) heartbeat producer time 0x1017 set to {} ms (consumer {} ms)",
-                config_.name, n.config->name, n.id, op.value, consumer_ms);
-      break;
-    case Reply::Status::device_error:
-    case Reply::Status::garbled:
-      n.configure_pending = false;
-      watch_by_sdo(n, n.finished_at);
-      log::warning(
-          "bus {}: node {} ({}) did not take heartbeat producer time 0x1017 = {} ms: {}; liveness "
-          "by SDO (offline after {} SDO timeouts)",
-          config_.name, n.config->name, n.id, op.value, r.text, config_.timing.offline_after);
-      break;
-    default:
-      // No answer: tried again while the node is online; after its timeouts it is offline,
-      // and configured when it answers a probe.
-      break;
-  }
+  n.nmt.configured(r, op.value, n.finished_at);
 }
 
 asio::awaitable<void> CanBus::report_pre_operational(NodeRuntime& n, SteadyTime now) {
-  n.pre_operational_check = false;
+  n.nmt.begin_pre_operational_report();
   // upload() puts it into the error register point, so the map shows it with the NMT state.
   const Reply r = co_await upload(n, kErrorRegisterObject, config_.timing.retries, now);
-  if (n.status.nmt_state != nmt_state::pre_operational) co_return;  // it moved meanwhile
-  n.status.stays_pre_operational = true;
-  std::string text;
-  if (r.status == Reply::Status::ok && !r.values.empty()) {
-    const auto reg = static_cast<uint8_t>(r.values[0]);
-    n.stuck_error_register = reg;
-    text = fmt::format("stays pre-operational after NMT start; error register 0x{:02X} ({})", reg,
-                       error_register_text(reg));
-  } else {
-    text = fmt::format("stays pre-operational after NMT start; error register unread: {}",
-                       r.text.empty() ? std::string(to_string(r.status)) : r.text);
-  }
-  n.image->counters.last_error_text = text;
-  log::warning(
-      "bus {}: node {} ({}) {}; not started again until its error register clears or "
-      "it boots",
-      config_.name, n.config->name, n.id, text);
-  notify(n);
+  n.nmt.report_pre_operational(r);
 }
 
 asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
@@ -1105,27 +832,24 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
       co_await sleep_until(n.wake, SteadyTime::max());
       continue;
     }
-    const bool reachable = n.image->state != NodeState::offline;
-    // A stopped node answers no SDO: where it is to be started, the start goes first.
-    const bool stopped = n.status.nmt_state == nmt_state::stopped;
-    if (n.configure_pending && reachable && !(stopped && n.start_pending)) {
+    using Duty = NodeSupervision::Duty;
+    const Duty duty = n.nmt.duty(n.image->state != NodeState::offline);
+    if (duty == Duty::configure) {
       co_await configure_heartbeat(n, BusClock::now());
       continue;
     }
-    if (n.start_pending && (!n.configure_pending || stopped)) {
-      n.start_pending = false;
-      log::info("bus {}: NMT start node {} ({})", config_.name, n.config->name, n.id);
-      n.start_sent = BusClock::now();
-      co_await send_frame(nmt_frame(NmtCommand::start, n.id));
+    if (duty == Duty::start) {
+      const CanFrame start = n.nmt.start(BusClock::now());
+      co_await send(start);
       continue;
     }
-    if (n.pre_operational_check && reachable) {
+    if (duty == Duty::report_pre_operational) {
       co_await report_pre_operational(n, BusClock::now());
       continue;
     }
-    if (n.next_guard != SteadyTime::max() && reachable) {
+    if (duty == Duty::guard) {
       const auto guard_now = BusClock::now();
-      if (n.next_guard <= guard_now) {
+      if (n.nmt.next_guard() <= guard_now) {
         co_await guard(n, guard_now);
         continue;
       }
@@ -1158,9 +882,10 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
         due = d->item;
         when = d->when;
       }
-      if (n.next_guard < when) {
-        const bool expired = co_await sleep_until(n.wake, n.next_guard);
-        if (expired) known_now = n.next_guard;
+      if (n.nmt.next_guard() < when) {
+        const SteadyTime guard_at = n.nmt.next_guard();
+        const bool expired = co_await sleep_until(n.wake, guard_at);
+        if (expired) known_now = guard_at;
         continue;
       }
     } else {

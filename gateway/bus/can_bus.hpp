@@ -12,7 +12,9 @@
 #include <vector>
 
 #include "drivers/canopen/canopen_request.hpp"
-#include "drivers/canopen/sdo_client.hpp"
+#include "drivers/canopen/node_supervision.hpp"
+#include "drivers/canopen/sdo_channel.hpp"
+#include "drivers/frame_family.hpp"
 #include "drivers/transport/socketcan_transport.hpp"
 #include "gateway/bus/bus.hpp"
 #include "gateway/bus/poll_plan.hpp"
@@ -29,7 +31,7 @@ namespace fieldgate {
 // to the node's client, heartbeats to the consumer (online/offline, NMT state, boot-up), EMCY
 // to the node's diagnostics and TPDOs straight into the process image. The bus reopens the
 // interface with back-off when it goes down or away.
-class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
+class CanBus final : public Bus, public FramePort, public std::enable_shared_from_this<CanBus> {
  public:
   // Must be owned by a shared_ptr (run() keeps it alive for its workers). Without a channel
   // the bus opens SocketCAN on config.transport.can_interface; tests pass an in-memory one.
@@ -45,25 +47,20 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
 
   const BusConfig& config() const override { return config_; }
   const BusCounters& counters() const override { return counters_; }
+  const CanCounters* can_counters() const override { return &can_counters_; }
   WireTrace& trace() override { return trace_; }
   const NodeConfig& node_config(int node_index) const override;
   std::vector<std::shared_ptr<NodeImage>> node_images() const override;
   void rebind(int first_node_index, NodeUpdated on_update) override;
 
+  // The port the nodes' transfers use.
+  asio::awaitable<bool> send(const canopen::CanFrame& frame,
+                             std::string_view outcome = {}) override;
+  bool up() const override { return !stopping_ && link_up_; }
+
   // What the bus consumed from a node, for diagnostics and tests.
-  // How the bus knows a node is alive: by its heartbeat (the consumer, after the bus set the
-  // node's producer time), or by its SDO answers where it produces no heartbeat.
-  enum class Liveness { heartbeat, sdo };
-  struct NodeStatus {
-    std::optional<uint8_t> nmt_state;  // from the last heartbeat
-    Liveness liveness = Liveness::sdo;
-    bool stays_pre_operational = false;  // NMT start sent, the node did not leave pre-op
-    uint16_t emcy_code = 0;
-    uint8_t emcy_register = 0;
-    uint64_t emergencies = 0;
-    uint32_t last_abort = 0;  // last SDO abort code the node sent
-    uint64_t pdos = 0;        // TPDOs taken into the process image
-  };
+  using Liveness = canopen::Liveness;
+  using NodeStatus = canopen::NodeStatus;
   NodeStatus node_status(int node_index) const;
 
  private:
@@ -91,11 +88,6 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
                                 SteadyTime now);
   asio::awaitable<Reply> download(NodeRuntime& n, const canopen::Operation& op, SteadyTime now);
   asio::awaitable<Reply> wait_for(NodeRuntime& n, const canopen::Operation& op);
-  // One SDO transfer from its first step to its result; nullopt when the link went down.
-  asio::awaitable<std::optional<canopen::SdoResult>> sdo_exchange(NodeRuntime& n,
-                                                                  canopen::SdoStep step);
-  // `outcome`: how the SDO transfer this frame ends came out, for the wire trace.
-  asio::awaitable<bool> send_frame(const canopen::CanFrame& frame, std::string_view outcome = {});
   void trace_frame(const canopen::CanFrame& frame, TraceDirection direction, SteadyTime at,
                    std::string_view outcome);
   asio::awaitable<void> run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now);
@@ -107,28 +99,17 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
 
   void dispatch(const canopen::CanFrame& frame, SteadyTime now);
   void on_error_frame(const canopen::CanFrame& frame, SteadyTime now);
-  void on_heartbeat(NodeRuntime& n, uint8_t state, SteadyTime now);
-  void on_emergency(NodeRuntime& n, const canopen::Emergency& emcy);
   void on_tpdo(NodeRuntime& n, const canopen::CanFrame& frame, SteadyTime now);
   void refresh_local_points(NodeRuntime& n, SteadyTime now);
   // Every point read from `object` takes the value its bytes hold (a confirmed write, a read).
   void store_object(NodeRuntime& n, uint16_t index, uint8_t sub, std::span<const uint8_t> bytes,
                     SteadyTime now);
-  // Link opened, boot-up, back from offline: configure the heartbeat, then NMT start.
-  void bring_up(NodeRuntime& n, bool start);
   // Overdue polls of a node back online run at once, each on its own phase.
   void resume_polls(NodeRuntime& n, SteadyTime now);
-  uint16_t heartbeat_producer_ms() const;
-  // The node's error register as last read or sent: NMT start again when it cleared on a node
-  // that stayed pre-operational with an error.
-  void error_register_seen(NodeRuntime& n, uint8_t reg);
-  // The node produces no heartbeat: SDO answers tell that it is there, node guarding (if it
-  // answers) its NMT state.
-  void watch_by_sdo(NodeRuntime& n, SteadyTime now);
   asio::awaitable<void> guard(NodeRuntime& n, SteadyTime now);
-  void forget_nmt_state(NodeRuntime& n);
 
-  Reply reply_of(NodeRuntime& n, const canopen::SdoResult& result);
+  // The node's last abort, for its point, where the server aborted.
+  void note_abort(NodeRuntime& n, const canopen::SdoResult& result);
   void record(NodeRuntime& n, const Reply& reply, SteadyTime at);
   void record_latency(double seconds);
   void set_state(NodeRuntime& n, NodeState state, std::string_view why);
@@ -144,6 +125,7 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
   asio::any_io_executor executor_;
   std::shared_ptr<const void> config_owner_;
   const BusConfig& config_;
+  const FrameFamily& family_;
   int first_node_index_;
   NodeUpdated on_update_;
   std::unique_ptr<CanChannel> channel_;
@@ -154,6 +136,7 @@ class CanBus final : public Bus, public std::enable_shared_from_this<CanBus> {
   asio::steady_timer wake_;                  // run(): back-off, waiting for workers
   asio::steady_timer supervisor_wake_;
   BusCounters counters_;
+  CanCounters can_counters_;
   bool stopping_ = false;
   bool link_up_ = false;
   bool link_error_logged_ = false;

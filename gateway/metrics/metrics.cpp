@@ -77,27 +77,39 @@ std::string render_metrics(const Gateway& gateway) {
       {"fieldgate_bus_sent_bytes_total", "Bytes written to the link.", &BusCounters::bytes_sent},
       {"fieldgate_bus_received_bytes_total", "Bytes read from the link.",
        &BusCounters::bytes_received},
-      {"fieldgate_bus_can_frames_sent_total", "CAN frames sent.", &BusCounters::frames_sent},
-      {"fieldgate_bus_can_frames_received_total", "CAN frames received.",
-       &BusCounters::frames_received},
-      {"fieldgate_bus_can_error_frames_total", "CAN error frames.", &BusCounters::error_frames},
-      {"fieldgate_bus_can_bus_off_total", "CAN bus-off events.", &BusCounters::bus_off},
-      {"fieldgate_bus_can_rx_dropped_total", "CAN frames the kernel dropped on receive.",
-       &BusCounters::rx_dropped},
-      {"fieldgate_bus_can_tx_dropped_total", "CAN frames that could not be sent.",
-       &BusCounters::tx_dropped},
   };
   for (const auto& c : counters) {
-    const bool can_only = std::string_view(c.name).starts_with("fieldgate_bus_can_");
-    if (can_only && std::none_of(buses.begin(), buses.end(), [](const auto& bus) {
-          return bus->config().transport.kind == TransportConfig::Kind::can;
-        }))
-      continue;
     w.family(c.name, "counter", c.help);
     for (const auto& bus : buses)
-      if (!can_only || bus->config().transport.kind == TransportConfig::Kind::can)
+      w.sample(c.name, fmt::format("bus=\"{}\"", label(bus->config().name)),
+               static_cast<double>(bus->counters().*c.field));
+  }
+  // Families and samples only where there are CAN buses.
+  struct CanCounter {
+    const char* name;
+    const char* help;
+    uint64_t CanCounters::*field;
+  };
+  const CanCounter can_counters[] = {
+      {"fieldgate_bus_can_frames_sent_total", "CAN frames sent.", &CanCounters::frames_sent},
+      {"fieldgate_bus_can_frames_received_total", "CAN frames received.",
+       &CanCounters::frames_received},
+      {"fieldgate_bus_can_error_frames_total", "CAN error frames.", &CanCounters::error_frames},
+      {"fieldgate_bus_can_bus_off_total", "CAN bus-off events.", &CanCounters::bus_off},
+      {"fieldgate_bus_can_rx_dropped_total", "CAN frames the kernel dropped on receive.",
+       &CanCounters::rx_dropped},
+      {"fieldgate_bus_can_tx_dropped_total", "CAN frames that could not be sent.",
+       &CanCounters::tx_dropped},
+  };
+  const bool any_can = std::any_of(buses.begin(), buses.end(),
+                                   [](const auto& bus) { return bus->can_counters() != nullptr; });
+  for (const auto& c : can_counters) {
+    if (!any_can) break;
+    w.family(c.name, "counter", c.help);
+    for (const auto& bus : buses)
+      if (const auto* can = bus->can_counters())
         w.sample(c.name, fmt::format("bus=\"{}\"", label(bus->config().name)),
-                 static_cast<double>(bus->counters().*c.field));
+                 static_cast<double>(can->*c.field));
   }
   w.family("fieldgate_bus_up", "gauge", "1 while the bus's link is open.");
   for (const auto& bus : buses)

@@ -179,7 +179,7 @@ TEST_F(CanBusTest, StartsNodesAndTakesPdosWithoutSdo) {
   EXPECT_EQ(wire_count("60[23]#4064600000000000"), 0u) << wire_text();
   EXPECT_GT(wire_count("602#40.*"), 0u);  // other points are polled
   EXPECT_TRUE(online(0) && online(1));
-  EXPECT_GT(bus_->counters().frames_received, 0u);
+  EXPECT_GT(bus_->can_counters()->frames_received, 0u);
   EXPECT_EQ(bus_->counters().reconnects, 1u);
 }
 
@@ -398,8 +398,8 @@ TEST_F(CanBusTest, ErrorFramesAreCounted) {
   ASSERT_TRUE(run_until([&] { return online(0); }));
   sim_->inject_error(*canopen::parse_frame("20000004#0030000000000000"));
   sim_->inject_error(*canopen::parse_frame("20000040#0000000000000000"));
-  ASSERT_TRUE(run_until([&] { return bus_->counters().error_frames == 2; }));
-  EXPECT_EQ(bus_->counters().bus_off, 1u);
+  ASSERT_TRUE(run_until([&] { return bus_->can_counters()->error_frames == 2; }));
+  EXPECT_EQ(bus_->can_counters()->bus_off, 1u);
   EXPECT_TRUE(bus_->counters().link_up);
 }
 

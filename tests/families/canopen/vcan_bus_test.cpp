@@ -282,12 +282,12 @@ TEST_F(VcanBus, EmergencyIsConsumed) {
 }
 
 TEST_F(VcanBus, ErrorFramesAreCounted) {
-  const auto before = s->bus->counters();
+  const auto before = *s->bus->can_counters();
   ASSERT_TRUE(test::raw_send(*parse_frame("20000004#0030000000000000")));  // error passive
   ASSERT_TRUE(test::raw_send(*parse_frame("20000040#0000000000000000")));  // bus-off
   ASSERT_TRUE(
-      run_until([&] { return s->bus->counters().error_frames >= before.error_frames + 2; }));
-  EXPECT_EQ(s->bus->counters().bus_off, before.bus_off + 1);
+      run_until([&] { return s->bus->can_counters()->error_frames >= before.error_frames + 2; }));
+  EXPECT_EQ(s->bus->can_counters()->bus_off, before.bus_off + 1);
   EXPECT_TRUE(s->bus->counters().link_up);
 }
 
