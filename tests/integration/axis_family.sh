@@ -117,6 +117,23 @@ axis_family_start() {
       # answers 2, "outside the reach of the axes".
       axis_args=(--distance 2000 --refused-target 9000000 --beyond 200000)
       ;;
+    canopen)
+      # Needs a kernel SocketCAN interface: run under scripts/vcan-run (tests/vcan).
+      "$build/sim/canopen/fieldgate-sim-canopen" --interface "${FIELDGATE_VCAN_IF:-vcan0}" \
+        --nodes 2 <"$dir/sim.in" >"$dir/sim.log" 2>&1 &
+      bus="protocol: canopen
+    can: {interface: ${FIELDGATE_VCAN_IF:-vcan0}}
+    timing: {reply_timeout: 500ms, retries: 1, offline_after: 3, probe_interval: 300ms,
+             heartbeat_timeout: 500ms, start_nodes: true}
+    nodes:
+      - {name: drive_2, address: 2, model: canopen-cia402, unit_id: 1, profile_unit: 21}"
+      units=21
+      axis_args=(--distance 4000 --no-device-error)
+      for _ in $(seq 100); do grep -q '^ready' "$dir/sim.log" && return 0; sleep 0.1; done
+      echo "the CANopen simulator did not start"
+      cat "$dir/sim.log"
+      return 1
+      ;;
     *)
       echo "unknown family $family"
       return 2

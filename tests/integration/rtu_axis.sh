@@ -5,8 +5,11 @@
 # write target (and velocity), command move_absolute with a new sequence number, poll the status
 # until done and check the position read back is the target.
 # Usage: rtu_axis.sh FAMILY FIELDGATE BUILD_DIR MODELS_DIR
+# FIELDGATE_RTU_TIMEOUT: the RTU response timeout in seconds, in the daemon and in mbpoll
+# (default 1; canopen under QEMU's TCG needs more).
 set -euo pipefail
 family=$1 fieldgate=$2 build=$3 models=$4
+timeout=${FIELDGATE_RTU_TIMEOUT:-1}
 here=$(cd "$(dirname "$0")" && pwd)
 source "$here/axis_family.sh"
 baud=19200
@@ -38,7 +41,7 @@ modbus_rtu:
   device: $dir/gw-rtu
   baud: $baud
   parity: even
-  response_timeout: 1s
+  response_timeout: ${timeout}s
 buses:
   - name: $family
     $bus
@@ -56,12 +59,12 @@ fail=0
 check() {  # check NAME DETAIL COMMAND...: the check passes when COMMAND succeeds
   if "${@:3}"; then echo "ok: $1"; else echo "FAIL: $1 ($2)"; fail=1; fi
 }
-# mb OPTIONS... [-- WRITE_VALUES...]: one mbpoll request, 0-based addresses, 1 s timeout.
+# mb OPTIONS... [-- WRITE_VALUES...]: one mbpoll request, 0-based addresses.
 mb() {
   local opts=() values=()
   while [ $# -gt 0 ] && [ "$1" != "--" ]; do opts+=("$1"); shift; done
   [ $# -gt 0 ] && { shift; values=("$@"); }
-  mbpoll -m rtu -b "$baud" -P even -o 1 -0 -1 -q -a "$unit" "${opts[@]}" -- "$dir/master" \
+  mbpoll -m rtu -b "$baud" -P even -o "$timeout" -0 -1 -q -a "$unit" "${opts[@]}" -- "$dir/master" \
     "${values[@]}" 2>&1
 }
 write32() { mb -t 4:int -B -r "$1" -- "$2" >/dev/null; }  # write32 ADDRESS VALUE
