@@ -31,6 +31,20 @@ axis_family_start() {
       axis_args=(--distance 20000 --expect-homed --fault-command
                  'case {unit} in 21) n=0 ;; *) n=3 ;; esac; echo "fault $n 512" >'"$dir/sim.in")
       ;;
+    copley-slow-poll)
+      # Copley with its status polled once a second: power_on's confirmation comes long before
+      # the poll that shows the axis enabled (the profile's power_on must wait for that poll).
+      "$build/sim/copley/fieldgate-sim-copley" --link "$dir/port" --nodes 0 <"$dir/sim.in" \
+        >"$dir/sim.log" 2>&1 &
+      bus="protocol: copley-ascii
+    serial: {device: $dir/port, baud: 115200}
+    timing: {reply_timeout: 150ms, probe_interval: 300ms}
+    nodes:
+      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21,
+         poll: {fast: 1s}}"
+      units=21
+      axis_args=(--distance 20000 --expect-homed)
+      ;;
     ims)
       "$build/sim/ims/fieldgate-sim-ims" --link "$dir/port" --axes A,B <"$dir/sim.in" \
         >"$dir/sim.log" 2>&1 &

@@ -113,7 +113,12 @@ check "mbpoll rtu reads profile unit $unit online" "$(tail -n 5 "$dir/daemon.log
 seq=${in[7]}
 echo "info: start $(status)"
 if [ "${in[5]}" -eq 6 ]; then command 10 reset; fi
-if supports 1; then command 1 power_on; fi
+if supports 1; then
+  command 1 power_on
+  # PLCopen's MC_Power: done means the axis is enabled; the next command must not find it Disabled.
+  check "power_on done leaves the axis enabled, not Disabled ($(status))" "" \
+    test $((in[4] & 1)) -eq 1 -a "${in[5]}" -ne 0
+fi
 if supports 3; then
   if [ -n "$home_velocity" ]; then
     check "mbpoll rtu writes home velocity $home_velocity" "" write32 2 "$home_velocity"
