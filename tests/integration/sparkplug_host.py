@@ -275,6 +275,9 @@ def dump_logs(gateways):
     for g in gateways:
         print(f"--- {g.edge} daemon log (tail), exit status {g.daemon.poll()} ---")
         print("".join(open(g.log_path).readlines()[-40:]))
+        for link in getattr(g, "sims", {}):
+            print(f"--- {g.edge} simulator {link} log (tail) ---")
+            print("".join(open(os.path.join(g.dir, link + ".log")).readlines()[-15:]))
 
 
 def single(d):
@@ -630,6 +633,15 @@ def latest(host, edge, dev, name, after=0):
     return found
 
 
+def alive(host, edge, dev):
+    """Whether the device's last birth or death the host saw is a birth."""
+    last = None
+    for t, _ in host.snapshot():
+        if t in (topic("DBIRTH", edge, dev), topic("DDEATH", edge, dev)):
+            last = t
+    return last == topic("DBIRTH", edge, dev)
+
+
 def check_lifecycle(host, edge, devices):
     """Births and deaths in order: NBIRTH before any DBIRTH; a device's DBIRTH, DDATA and DDEATH
     only while the node is born; DDATA and DDEATH only while the device is born; nothing after
@@ -765,6 +777,12 @@ def run_demo_fleet(host, gws):
         t.join()
 
     # Every simulator silenced: every node of every family dies; back, every node is born again.
+    # First every node is alive (a node that went offline on its own is born again meanwhile).
+    for g in gws:
+        for dev in g.nodes:
+            if dev not in DEMO_ABSENT:
+                check(f"{g.edge}: {dev} is alive before the silence",
+                      wait_for(lambda: alive(host, g.edge, dev), 20))
     mark = host.count()
     for g in gws:
         g.control("silence on")
