@@ -728,6 +728,44 @@ def dcmd_move(host, g, dev, axis, distance, setpoints, tolerance):
           latest(host, e, dev, position, after=mark))
 
 
+# Per edge node, a setpoint DCMD writes to drive seq past 255 (a setpoint is the gateway's own:
+# confirmed at once, each write one DDATA): node, metric, value, value of the next write.
+DEMO_SEQ_WRAP = {"gw1": ("axis_5", "Setpoints/target", 1000),
+                 "gw2": ("ims_b", "Setpoints/target", 1000),
+                 "gw3": ("table_1", "Setpoints/x_target", 1000)}
+
+
+def seq_wrapped(host, edge):
+    """Whether a message of the edge node's current session has seq 0 right after seq 255."""
+    last = None
+    for t, p in host.snapshot():
+        parts = t.split("/")
+        if parts[3] != edge or parts[2] in ("NCMD", "DCMD"):
+            continue
+        if parts[2] == "NBIRTH":
+            last = p.seq
+            continue
+        if last == 255 and p.seq == 0:
+            return True
+        last = p.seq
+    return False
+
+
+def wrap_sequence(host, g, dev, name, base):
+    birth = host.find(topic("DBIRTH", g.edge, dev))
+    dtype = next(m.datatype for m in birth[1].metrics if m.name == name)
+    for i in range(400):
+        if seq_wrapped(host, g.edge):
+            break
+        mark = host.count()
+        host.command(topic("DCMD", g.edge, dev), [(name, dtype, base + i % 2)])
+        if host.wait(topic("DDATA", g.edge, dev), lambda p: value(p, name) == base + i % 2,
+                     after=mark, timeout=5) is None:
+            break
+    check(f"{g.edge}: seq runs past 255 and on from 0 (setpoint writes by DCMD to {dev})",
+          seq_wrapped(host, g.edge))
+
+
 def demo_fleet(d):
     port = free_port()
     broker = Broker(d, port)
@@ -774,6 +812,13 @@ def run_demo_fleet(host, gws):
     for t in movers:
         t.start()
     for t in movers:
+        t.join()
+
+    wrappers = [threading.Thread(target=wrap_sequence, args=(host, g, *DEMO_SEQ_WRAP[g.edge]))
+                for g in gws]
+    for t in wrappers:
+        t.start()
+    for t in wrappers:
         t.join()
 
     # Every simulator silenced: every node of every family dies; back, every node is born again.
