@@ -691,11 +691,13 @@ def dcmd_move(host, g, dev, axis, distance, setpoints, tolerance):
     birth = host.find(topic("DBIRTH", e, dev))
     types = {m.name: m.datatype for m in birth[1].metrics}
     ends = ("done", "failed", "error", "unknown", "rejected")
+    # A node that goes offline meanwhile (a starved host) publishes the result in its next DBIRTH.
+    results = [topic("DDATA", e, dev), topic("DBIRTH", e, dev)]
     if "power_on" in cmds:
         mark = host.count()
         name = "Actions/" + cmds["power_on"]
         host.command(topic("DCMD", e, dev), [(name, 11, True)])
-        r = host.wait(topic("DDATA", e, dev), lambda p: value(p, "Command/Metric") == name and
+        r = host.wait_any(results, lambda p: value(p, "Command/Metric") == name and
                       value(p, "Command/Result") in ends, after=mark)
         if not check(f"{label}: DCMD {name} ends done",
                      r is not None and value(r[1], "Command/Result") == "done",
@@ -714,10 +716,10 @@ def dcmd_move(host, g, dev, axis, distance, setpoints, tolerance):
     move = "Actions/" + cmds["move_absolute"]
     mark = host.count()
     host.command(topic("DCMD", e, dev), [(n, types[n], v) for n, v in values] + [(move, 11, True)])
-    confirmed = host.wait(topic("DDATA", e, dev), lambda p: value(p, "Command/Metric") == move and
+    confirmed = host.wait_any(results, lambda p: value(p, "Command/Metric") == move and
                           value(p, "Command/Result") == "confirmed", after=mark)
     check(f"{label}: DCMD {move} to {target} is confirmed by the controller", confirmed is not None)
-    done = host.wait(topic("DDATA", e, dev), lambda p: value(p, "Command/Metric") == move and
+    done = host.wait_any(results, lambda p: value(p, "Command/Metric") == move and
                      value(p, "Command/Result") in ends, after=mark, timeout=25)
     check(f"{label}: DCMD {move} ends done", done is not None and
           value(done[1], "Command/Result") == "done",
