@@ -698,7 +698,7 @@ def dcmd_move(host, g, dev, axis, distance, setpoints, tolerance):
         name = "Actions/" + cmds["power_on"]
         host.command(topic("DCMD", e, dev), [(name, 11, True)])
         r = host.wait_any(results, lambda p: value(p, "Command/Metric") == name and
-                      value(p, "Command/Result") in ends, after=mark)
+                          value(p, "Command/Result") in ends, after=mark)
         if not check(f"{label}: DCMD {name} ends done",
                      r is not None and value(r[1], "Command/Result") == "done",
                      r and (value(r[1], "Command/Result"), value(r[1], "Command/Detail"))):
@@ -717,10 +717,10 @@ def dcmd_move(host, g, dev, axis, distance, setpoints, tolerance):
     mark = host.count()
     host.command(topic("DCMD", e, dev), [(n, types[n], v) for n, v in values] + [(move, 11, True)])
     confirmed = host.wait_any(results, lambda p: value(p, "Command/Metric") == move and
-                          value(p, "Command/Result") == "confirmed", after=mark)
+                              value(p, "Command/Result") == "confirmed", after=mark)
     check(f"{label}: DCMD {move} to {target} is confirmed by the controller", confirmed is not None)
     done = host.wait_any(results, lambda p: value(p, "Command/Metric") == move and
-                     value(p, "Command/Result") in ends, after=mark, timeout=25)
+                         value(p, "Command/Result") in ends, after=mark, timeout=25)
     check(f"{label}: DCMD {move} ends done", done is not None and
           value(done[1], "Command/Result") == "done",
           done and (value(done[1], "Command/Result"), value(done[1], "Command/Detail")))
