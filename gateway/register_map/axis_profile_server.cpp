@@ -21,8 +21,8 @@ namespace ap = axis_profile;
 namespace {
 
 constexpr auto kFollowInterval = std::chrono::milliseconds(20);
-// How long a command's completion waits for the profile's moving bit to agree with it (a jog that
-// cannot move, e.g. standing on a limit, ends done after it).
+// How long a command's completion waits for the profile's moving (or enabled) bit to agree with
+// it (a jog that cannot move, e.g. standing on a limit, ends done after it).
 constexpr auto kJogStartPatience = std::chrono::seconds(2);
 constexpr std::size_t kTarget = 0, kVelocity = 1, kAcceleration = 2, kDeceleration = 3;
 
@@ -406,10 +406,14 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
     // may come from another point than the action's done condition) shows standstill.
     const bool jog =
         rt.command == ProfileCommand::jog_positive || rt.command == ProfileCommand::jog_negative;
-    const bool motion = rt.command != ProfileCommand::power_on &&
-                        rt.command != ProfileCommand::power_off &&
-                        rt.command != ProfileCommand::reset;
-    if (motion && observe(unit, rt).moving != jog) {
+    // A power on (off) is done only once the profile's enabled bit shows it: a master that
+    // commands a home as soon as power_on is done must not find the axis still Disabled.
+    const bool power =
+        rt.command == ProfileCommand::power_on || rt.command == ProfileCommand::power_off;
+    const bool motion = !power && rt.command != ProfileCommand::reset;
+    const AxisObservation seen = observe(unit, rt);
+    if ((motion && seen.moving != jog) ||
+        (power && seen.enabled != (rt.command == ProfileCommand::power_on))) {
       if (!jog_deadline) jog_deadline = std::chrono::steady_clock::now() + kJogStartPatience;
       if (std::chrono::steady_clock::now() < *jog_deadline) {
         --step;

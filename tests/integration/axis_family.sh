@@ -20,6 +20,20 @@ axis_family_bus() {
       - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2, profile_unit: 22}"
       units=21,22
       ;;
+    copley-slow-poll)
+      # Copley with its status polled once a second: power_on's confirmation comes long before
+      # the poll that shows the axis enabled (the profile's power_on must wait for that poll).
+      "$build/sim/copley/fieldgate-sim-copley" --link "$dir/port" --nodes 0 <"$dir/sim.in" \
+        >"$dir/sim.log" 2>&1 &
+      bus="protocol: copley-ascii
+    serial: {device: $dir/port, baud: 115200}
+    timing: {reply_timeout: 150ms, probe_interval: 300ms}
+    nodes:
+      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21,
+         poll: {fast: 1s}}"
+      units=21
+      axis_args=(--distance 20000 --expect-homed)
+      ;;
     ims)
       protocol=ims-party-line baud=9600
       timing="reply_timeout: ${reply:-100ms}, byte_timeout: ${byte:-30ms}"
@@ -62,6 +76,23 @@ axis_family_bus() {
         *) units_yaml="profile_unit: 31" units=31 ;;
       esac
       nodes="      - {name: techno, address: 0, model: $family, unit_id: 1, $units_yaml}"
+      ;;
+    canopen)
+      # Needs a kernel SocketCAN interface: run under scripts/vcan-run (tests/vcan).
+      "$build/sim/canopen/fieldgate-sim-canopen" --interface "${FIELDGATE_VCAN_IF:-vcan0}" \
+        --nodes 2 <"$dir/sim.in" >"$dir/sim.log" 2>&1 &
+      bus="protocol: canopen
+    can: {interface: ${FIELDGATE_VCAN_IF:-vcan0}}
+    timing: {reply_timeout: 500ms, retries: 1, offline_after: 3, probe_interval: 300ms,
+             heartbeat_timeout: 500ms, start_nodes: true}
+    nodes:
+      - {name: drive_2, address: 2, model: canopen-cia402, unit_id: 1, profile_unit: 21}"
+      units=21
+      axis_args=(--distance 4000 --no-device-error)
+      for _ in $(seq 100); do grep -q '^ready' "$dir/sim.log" && return 0; sleep 0.1; done
+      echo "the CANopen simulator did not start"
+      cat "$dir/sim.log"
+      return 1
       ;;
     *)
       echo "unknown family $family"

@@ -5,8 +5,11 @@
 # write target (and velocity), command move_absolute with a new sequence number, poll the status
 # until done and check the position read back is the target.
 # Usage: rtu_axis.sh FAMILY FIELDGATE BUILD_DIR MODELS_DIR
+# FIELDGATE_RTU_TIMEOUT: the RTU response timeout in seconds, in the daemon and in mbpoll
+# (default 1; canopen under QEMU's TCG needs more).
 set -euo pipefail
 family=$1 fieldgate=$2 build=$3 models=$4
+timeout=${FIELDGATE_RTU_TIMEOUT:-1}
 here=$(cd "$(dirname "$0")" && pwd)
 source "$here/lib.sh"
 source "$here/axis_family.sh"
@@ -35,13 +38,13 @@ one_bus_config "$dir/gw.yaml" "$family" "modbus_rtu:
   device: $dir/gw-rtu
   baud: $baud
   parity: even
-  response_timeout: 1s"
+  response_timeout: ${timeout}s"
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log" "modbus rtu: serving on"
 
 check() {  # check NAME DETAIL COMMAND...: the check passes when COMMAND succeeds
   if "${@:3}"; then echo "ok: $1"; else echo "FAIL: $1 ($2)"; fail=1; fi
 }
-mbpoll_args=(-m rtu -b "$baud" -P even -o 1 -a "$unit") mbpoll_target=$dir/master
+mbpoll_args=(-m rtu -b "$baud" -P even -o "$timeout" -a "$unit") mbpoll_target=$dir/master
 write32() { mb -t 4:int -B -r "$1" -- "$2" >/dev/null; }  # write32 ADDRESS VALUE
 # page: reads input registers 0-11 of the profile into the array in[] (false if no answer).
 page() {
@@ -88,7 +91,12 @@ check "mbpoll rtu reads profile unit $unit online" "$(tail -n 5 "$dir/daemon.log
 seq=${in[7]}
 echo "info: start $(status)"
 if [ "${in[5]}" -eq 6 ]; then command 10 reset; fi
-if supports 1; then command 1 power_on; fi
+if supports 1; then
+  command 1 power_on
+  # PLCopen's MC_Power: done means the axis is enabled; the next command must not find it Disabled.
+  check "power_on done leaves the axis enabled, not Disabled ($(status))" "" \
+    test $((in[4] & 1)) -eq 1 -a "${in[5]}" -ne 0
+fi
 if supports 3; then
   if [ -n "$home_velocity" ]; then
     check "mbpoll rtu writes home velocity $home_velocity" "" write32 2 "$home_velocity"

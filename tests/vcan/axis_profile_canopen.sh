@@ -3,8 +3,8 @@
 # searches the switch, moves, stop and halt of a running move, power off, a move refused while
 # Disabled, reset), then axis_cia402_checks.py: a stop during a home, and a device fault (EMCY,
 # statusword Fault) injected by the simulator: ErrorStop with the drive's error code, reset,
-# power on. The daemon and fieldgate-sim-canopen on a kernel vcan0; runs
-# inside scripts/vcan-run.
+# power on. Then mbpoll -m rtu moves the axis through the RTU port (tests/integration/rtu_axis.sh).
+# The daemon and fieldgate-sim-canopen on a kernel vcan0; runs inside scripts/vcan-run.
 #   axis_profile_canopen.sh FIELDGATE SIM_CANOPEN MODELS_DIR AXIS_PY
 set -u
 fieldgate=$1 sim=$2 models=$3 axis_py=$4
@@ -63,5 +63,15 @@ if [ "$rc" -ne 0 ]; then
   cat "$dir/daemon.log"
   echo "--- simulator log ---"
   cat "$dir/sim.log"
+  exit "$rc"
 fi
-exit "$rc"
+
+# Issue #18 in the same guest: mbpoll -m rtu moves the CANopen axis through the daemon's RTU port
+# (tests/integration/rtu_axis.sh, a PTY pair paced at 19200 baud), with a fresh daemon and
+# simulator. Its response timeout is longer than on the host: SDO answers under TCG are slow.
+kill $(jobs -p) 2>/dev/null
+wait 2>/dev/null
+exec 3>&-
+echo "--- mbpoll -m rtu on the CANopen axis ---"
+build=$(cd "$(dirname "$sim")/../.." && pwd)
+FIELDGATE_RTU_TIMEOUT=5 "$here/../integration/rtu_axis.sh" canopen "$fieldgate" "$build" "$models"
