@@ -33,14 +33,24 @@ NodeContextPtr ProtocolFamily::bind_node(const NodeAddress& node, const Model&) 
   return std::make_shared<NodeContext>(node);
 }
 
+namespace {
+
+// The whole address: a family may canonicalise two addresses of one node to one text and tell
+// them apart by the rest (Whedco's echo mode).
+std::string address_key(const NodeAddress& node) {
+  return node.text + '\0' + std::to_string(node.number) + '\0' + node.axis;
+}
+
+}  // namespace
+
 NodeContext& ProtocolFamily::configure_node(const NodeAddress& node, const Model& model) {
-  auto& slot = by_address_[node.text];
+  auto& slot = by_address_[address_key(node)];
   slot = bind_node(node, model);
   return *slot;
 }
 
 NodeContext& ProtocolFamily::context_of(const NodeAddress& node) {
-  auto& slot = by_address_[node.text];
+  auto& slot = by_address_[address_key(node)];
   if (!slot) {
     Model unconfigured;
     unconfigured.name = "(none)";
