@@ -65,11 +65,11 @@ Profile read_profile(const Model& model, Diagnostics& diagnostics);
 
 // Checks every read, write and action step of a model against the grammar and the profile:
 // value counts for the defined axes, speed/distance/mask ranges of literals and of the
-// setpoints or point limits behind placeholders, C142-only commands, raw bytes.
+// setpoints or point limits behind placeholders, arc commands, raw bytes.
 void check_model(const Model& model, const Profile& profile, Diagnostics& diagnostics);
 
-// The family is not told which node runs which model; when one bus carries several techno
-// models it times motions for the slowest of them and converts units only if they agree.
+// What reaches every controller on a line at once (the stop and reset bytes, the ramp after
+// them) follows the line's models merged: the slowest of them, units only if they agree.
 Profile merge_profiles(const std::vector<Profile>& profiles);
 
 }  // namespace fieldgate::techno
