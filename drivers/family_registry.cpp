@@ -1,28 +1,10 @@
 #include "drivers/protocol_family.hpp"
 
-// The explicit list of families (a static registrar would be dropped by the static linker).
-// Each family folder defines FIELDGATE_FAMILY_<NAME> and a make_<name>_family() function.
+// The families are listed in family_list.inc, which drivers/CMakeLists.txt generates from the
+// family folders (README.md "Adding a family"): an explicit table, because a static registrar
+// would be dropped by the static linker.
 
 namespace fieldgate {
-
-#ifdef FIELDGATE_FAMILY_COPLEY_ASCII
-FamilyPtr make_copley_ascii_family();
-#endif
-#ifdef FIELDGATE_FAMILY_IMS_PARTY_LINE
-FamilyPtr make_ims_party_line_family();
-#endif
-#ifdef FIELDGATE_FAMILY_CENTENT_CN0170
-FamilyPtr make_centent_cn0170_family();
-#endif
-#ifdef FIELDGATE_FAMILY_TECHNO_C
-FamilyPtr make_techno_c_family();
-#endif
-#ifdef FIELDGATE_FAMILY_WHEDCO_CMC
-FamilyPtr make_whedco_cmc_family();
-#endif
-#ifdef FIELDGATE_FAMILY_CANOPEN
-FamilyPtr make_canopen_family();
-#endif
 
 namespace {
 
@@ -31,28 +13,9 @@ struct FamilyEntry {
   FamilyPtr (*make)();
 };
 
-constexpr FamilyEntry kFamilies[] = {
-#ifdef FIELDGATE_FAMILY_COPLEY_ASCII
-    {"copley-ascii", make_copley_ascii_family},
-#endif
-#ifdef FIELDGATE_FAMILY_IMS_PARTY_LINE
-    {"ims-party-line", make_ims_party_line_family},
-#endif
-#ifdef FIELDGATE_FAMILY_CENTENT_CN0170
-    {"centent-cn0170", make_centent_cn0170_family},
-#endif
-#ifdef FIELDGATE_FAMILY_TECHNO_C
-    {"techno-c", make_techno_c_family},
-#endif
-#ifdef FIELDGATE_FAMILY_WHEDCO_CMC
-    {"whedco-cmc", make_whedco_cmc_family},
-#endif
-#ifdef FIELDGATE_FAMILY_CANOPEN
-    {"canopen", make_canopen_family},
-#endif
-};
-
 }  // namespace
+
+#include "family_list.inc"
 
 FamilyPtr make_family(std::string_view name) {
   for (const auto& f : kFamilies)

@@ -29,7 +29,47 @@ void ProtocolFamily::validate_model(const Model& model, Diagnostics& diagnostics
   check_model_options(model, name(), model_options(), diagnostics);
 }
 
-void ProtocolFamily::configure_node(const NodeAddress&, const Model&) {}
+NodeContextPtr ProtocolFamily::bind_node(const NodeAddress& node, const Model&) {
+  return std::make_shared<NodeContext>(node);
+}
+
+namespace {
+
+// The whole address: a family may canonicalise two addresses of one node to one text and tell
+// them apart by the rest (Whedco's echo mode).
+std::string address_key(const NodeAddress& node) {
+  return node.text + '\0' + std::to_string(node.number) + '\0' + node.axis;
+}
+
+}  // namespace
+
+NodeContext& ProtocolFamily::configure_node(const NodeAddress& node, const Model& model) {
+  auto& slot = by_address_[address_key(node)];
+  slot = bind_node(node, model);
+  return *slot;
+}
+
+NodeContext& ProtocolFamily::context_of(const NodeAddress& node) {
+  auto& slot = by_address_[address_key(node)];
+  if (!slot) {
+    Model unconfigured;
+    unconfigured.name = "(none)";
+    unconfigured.family = std::string(name());
+    slot = bind_node(node, unconfigured);
+  }
+  return *slot;
+}
+
+asio::awaitable<Reply> ProtocolFamily::transact_node(Link& link, NodeContext& node,
+                                                     const Request& request,
+                                                     const LinkTiming& timing) {
+  co_return co_await transact(link, node.address(), request, timing);
+}
+
+asio::awaitable<Reply> ProtocolFamily::transact(Link& link, const NodeAddress& node,
+                                                const Request& request, const LinkTiming& timing) {
+  co_return co_await transact_node(link, context_of(node), request, timing);
+}
 
 asio::awaitable<void> ProtocolFamily::on_link_open(Link&, const LinkTiming&) {
   co_return;

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -51,6 +52,22 @@ struct Reply {
 
 std::string_view to_string(Reply::Status status);
 
+// One configured node as its family sees it: the address, and whatever the family derived from
+// the node's model when the bus was built (ProtocolFamily::bind_node). A family with per-node
+// settings or state derives its own; the context is opaque to the bus, which hands it back to
+// transact().
+class NodeContext {
+ public:
+  explicit NodeContext(NodeAddress address) : address_(std::move(address)) {}
+  virtual ~NodeContext() = default;
+  const NodeAddress& address() const { return address_; }
+
+ private:
+  NodeAddress address_;
+};
+
+using NodeContextPtr = std::shared_ptr<NodeContext>;
+
 // A protocol family: addressing, framing and reply grammar of one controller family. The codec
 // parts are pure functions tested against the manuals' transcripts; transact() glues them to a
 // Link for one request/reply exchange.
@@ -69,13 +86,26 @@ class ProtocolFamily {
   // Family-specific checks of a model once its family is known. The default checks the model's
   // options against model_options().
   virtual void validate_model(const Model& model, Diagnostics& diagnostics) const;
-  // Called for every configured node when its bus is built, with the node's model: model options
-  // that change the exchange with that node (a pinned reply layout) reach the family here.
-  virtual void configure_node(const NodeAddress& node, const Model& model);
+  // Called once for every configured node when its bus is built, with the node's model (which
+  // validate_model accepted): the family reads what changes the exchange with that node (its
+  // model options) and returns the node's context, which transact() then receives. The default
+  // context holds the address only.
+  virtual NodeContextPtr bind_node(const NodeAddress& node, const Model& model);
   // Runs every time the transport (re)opens, before the first transaction.
   virtual asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing);
+  // One request/reply exchange with a bound node (the bus calls this one). A family overrides
+  // either transact_node(), where it keeps per-node settings in its context, or transact() by
+  // address, where it has none; each default calls the other.
+  virtual asio::awaitable<Reply> transact_node(Link& link, NodeContext& node,
+                                               const Request& request, const LinkTiming& timing);
+  // By address, for callers that hold no context (tests, tools): the context configure_node()
+  // kept for the address, or else one bound to a model without options (the options' defaults).
   virtual asio::awaitable<Reply> transact(Link& link, const NodeAddress& node,
-                                          const Request& request, const LinkTiming& timing) = 0;
+                                          const Request& request, const LinkTiming& timing);
+  // Binds a node for callers that address it by address (see transact() by address) and keeps
+  // the context.
+  NodeContext& configure_node(const NodeAddress& node, const Model& model);
+  NodeContext& context_of(const NodeAddress& node);
   // Called by the bus after a timeout, a garbled or a partial reply (and after a reply that left
   // unexplained bytes behind), before the link carries anything else: replies carry no tag, so
   // a late one would answer the next request. The default drains the line until it has been
@@ -101,6 +131,9 @@ class ProtocolFamily {
   // carry the bus's name. The default: the family does not log.
   using LogRoute = std::function<void(int level, std::string_view text)>;
   virtual void route_log(LogRoute) {}
+
+ private:
+  std::map<std::string, NodeContextPtr, std::less<>> by_address_;
 };
 
 using FamilyPtr = std::shared_ptr<ProtocolFamily>;

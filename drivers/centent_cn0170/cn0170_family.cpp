@@ -186,13 +186,15 @@ void CententFamily::validate_model(const Model& model, Diagnostics& diagnostics)
   }
 }
 
-void CententFamily::configure_node(const NodeAddress&, const Model& model) {
-  // Options apply to the whole chain: its first node's model sets them (validate_model refuses
-  // models whose options differ). Errors were reported by validate_model.
-  if (options_bound_) return;
-  Diagnostics reported;
-  options_ = cn0170::parse_options(model, reported);
-  options_bound_ = true;
+NodeContextPtr CententFamily::bind_node(const NodeAddress& node, const Model& model) {
+  // Options apply to the whole chain: its first node's model sets them. Errors were reported by
+  // validate_model.
+  if (!options_bound_) {
+    Diagnostics reported;
+    options_ = cn0170::parse_options(model, reported);
+    options_bound_ = true;
+  }
+  return ProtocolFamily::bind_node(node, model);
 }
 
 void CententFamily::flush_log(Link& link) {

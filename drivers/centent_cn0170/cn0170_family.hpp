@@ -27,7 +27,9 @@ class CententFamily final : public ProtocolFamily {
   const ModelOptionSpecs& model_options() const override { return cn0170::option_specs(); }
   bool model_options_apply_to_bus() const override { return true; }
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
-  void configure_node(const NodeAddress& node, const Model& model) override;
+  // The chain's settings come from the first bound node's model (the configuration loader
+  // refuses buses whose models' options differ).
+  NodeContextPtr bind_node(const NodeAddress& node, const Model& model) override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   // The bus's resync (quiet for a guard time); late replies among what it drained pay their
   // units' debts (README "Late replies").

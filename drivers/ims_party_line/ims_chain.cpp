@@ -49,13 +49,15 @@ std::optional<RefusalReply> ChainShadow::check(char name, std::string_view comma
                                     "starts",
                                     name, command)};
   }
-  if (command.front() == 'S' && unit && unit->last_save && now - *unit->last_save < kSaveInterval) {
+  if (command.front() == 'S' && unit && unit->last_save &&
+      now - *unit->last_save < limits(name).save_interval) {
     const auto ago = std::chrono::duration_cast<std::chrono::seconds>(now - *unit->last_save);
     return RefusalReply{
         Refusal::eeprom_rate,
         fmt::format("unit {}: parameters were saved to EEPROM {} s ago; saves are limited to one "
-                    "per {} s to spare the EEPROM's write cycles",
-                    name, ago.count(), kSaveInterval.count())};
+                    "per {} s to spare the EEPROM's write cycles (option save_interval)",
+                    name, ago.count(),
+                    std::chrono::duration<double>(limits(name).save_interval).count())};
   }
   return std::nullopt;
 }
@@ -144,9 +146,15 @@ void ChainShadow::global(std::string_view command, Clock::time_point now) {
   }
 }
 
+const ChainShadow::Limits& ChainShadow::limits(char name) const {
+  static const Limits defaults;
+  const auto it = limits_.find(name);
+  return it == limits_.end() ? defaults : it->second;
+}
+
 bool ChainShadow::fast() const {
   for (const auto& [name, unit] : units_)
-    if (unit.step_rate > kFastStepRate) return true;
+    if (unit.step_rate > limits(name).fast_step_rate) return true;
   return false;
 }
 

@@ -43,6 +43,15 @@ class ChainShadow {
   static constexpr double kFastStepRate = 10'000.0;  // steps/s, manual p.14
   static constexpr std::chrono::seconds kSaveInterval{60};
 
+  // A unit's thresholds: its model's options pacing_step_rate and save_interval.
+  struct Limits {
+    double fast_step_rate = kFastStepRate;
+    std::chrono::microseconds save_interval = kSaveInterval;
+  };
+  // The unit's limits from now on (a unit never limited has the defaults).
+  void limit(char name, Limits limits) { limits_[name] = limits; }
+  const Limits& limits(char name) const;
+
   // nullopt if `command` may go to `name` now.
   std::optional<RefusalReply> check(char name, std::string_view command,
                                     Clock::time_point now) const;
@@ -52,7 +61,7 @@ class ChainShadow {
   // A global command went to every unit (ESC, ^C, @, or `*<command>`).
   void global(std::string_view command, Clock::time_point now);
 
-  // True while any unit may be stepping faster than kFastStepRate.
+  // True while any unit may be stepping faster than its fast_step_rate.
   bool fast() const;
   // The step rate the shadow assumes for a unit (0 when it is known to stand still).
   double step_rate(char name) const;
@@ -74,6 +83,7 @@ class ChainShadow {
   void motion_started(Unit& unit, std::string_view command);
 
   std::map<char, Unit> units_;
+  std::map<char, Limits> limits_;
 };
 
 }  // namespace fieldgate::ims

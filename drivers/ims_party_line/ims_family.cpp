@@ -267,16 +267,15 @@ Reply interpret_ims_reply(const NodeAddress& node, const Request& request,
   return interpret_ims_result(node, request, *result);
 }
 
-void ImsPartyLineFamily::configure_node(const NodeAddress& node, const Model& model) {
+NodeContextPtr ImsPartyLineFamily::bind_node(const NodeAddress& node, const Model& model) {
+  Diagnostics reported;  // validate_model reported them; a model with errors never runs
+  const auto v = check_model_options(model, name(), model_options(), reported);
   ims::ReadingPins pins;
-  for (const auto& [key, value] : model.options) {
-    // validate_model reports bad values; here they count as auto.
-    if (key == "result_placement")
-      ims::parse_result_placement(value, pins.placement);
-    else if (key == "echo_linefeed")
-      ims::parse_echo_linefeed(value, pins.linefeed);
-  }
+  ims::parse_result_placement(v.text("result_placement"), pins.placement);
+  ims::parse_echo_linefeed(v.text("echo_linefeed"), pins.linefeed);
   readings_.pin(name_of(node), pins);
+  shadow_.limit(name_of(node), {v.number("pacing_step_rate"), v.duration("save_interval")});
+  return ProtocolFamily::bind_node(node, model);
 }
 
 asio::awaitable<void> ImsPartyLineFamily::flush(Link& link) {
@@ -642,6 +641,13 @@ const ModelOptionSpecs& ims_model_options() {
       choice_option("echo_linefeed", "auto", {"auto", "at_once", "at_execution"},
                     "when a non-query's echoed LF comes: detected per unit (auto), at once, or "
                     "when the command has run"),
+      number_option("pacing_step_rate", "10000", 1, 1e6,
+                    "steps/s above which the unit's serial handling slows (manual p.14): while "
+                    "a unit may step faster, every line on the chain is paced by its echo and "
+                    "the reply timeout doubles"),
+      duration_option("save_interval", "60s", std::chrono::seconds(0), std::chrono::hours(24 * 7),
+                      "the least time between two `S` (save to EEPROM, ~400,000 write cycles) "
+                      "to the unit; an earlier `S` is refused with code 3"),
   };
   return specs;
 }

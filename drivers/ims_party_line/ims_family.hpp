@@ -28,8 +28,10 @@ class ImsPartyLineFamily final : public ProtocolFamily {
                                            std::string& error) const override;
   const ModelOptionSpecs& model_options() const override;
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
-  // Takes the node's pinned readings (options result_placement, echo_linefeed).
-  void configure_node(const NodeAddress& node, const Model& model) override;
+  // The unit's pinned readings (options result_placement, echo_linefeed) and its limits
+  // (pacing_step_rate, save_interval) go to the chain's readings and shadow: one fast unit paces
+  // the whole chain, so they are the chain's to keep.
+  NodeContextPtr bind_node(const NodeAddress& node, const Model& model) override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   // The bus's resync (quiet for a guard time), with what it drained accounted as late replies.
   asio::awaitable<LinkResync> resync_after_failure(Link& link, const LinkTiming& timing) override;

@@ -87,23 +87,41 @@ void TechnoFamily::validate_model(const Model& model, Diagnostics& diagnostics) 
   techno::check_model(model, p, diagnostics);
 }
 
-void TechnoFamily::configure_node(const NodeAddress&, const Model& model) {
+NodeContextPtr TechnoFamily::bind_node(const NodeAddress& node, const Model& model) {
   // Errors were reported by validate_model; a model with errors never runs.
   Diagnostics reported;
-  techno::Profile p = techno::read_profile(model, reported);
-  for (const auto& bound : bound_)
-    if (bound.model == p.model) return;
-  bound_.push_back(std::move(p));
+  auto bound = std::make_shared<BoundNode>(node, techno::read_profile(model, reported));
+  std::erase_if(bound_, [](const auto& b) { return b.expired(); });
+  bound_.push_back(bound);
   profile_.reset();
+  return bound;
 }
 
 const techno::Profile& TechnoFamily::profile() {
-  if (!profile_) profile_ = techno::merge_profiles(bound_);
+  if (!profile_) {
+    std::vector<techno::Profile> profiles;
+    for (const auto& weak : bound_) {
+      const auto b = weak.lock();
+      if (!b) continue;
+      const bool seen = std::any_of(profiles.begin(), profiles.end(),
+                                    [&](const auto& p) { return p.model == b->profile.model; });
+      if (!seen) profiles.push_back(b->profile);
+    }
+    profile_ = techno::merge_profiles(profiles);
+  }
   return *profile_;
 }
 
-techno::MotionContext TechnoFamily::motion_context(const NodeState& state) {
-  const auto& p = profile();
+TechnoFamily::BoundNode& TechnoFamily::active(NodeContext& node) {
+  // Every context this family's transact_node() receives is one its bind_node() made.
+  auto& bound = static_cast<BoundNode&>(node);
+  bound.active = true;
+  return bound;
+}
+
+techno::MotionContext TechnoFamily::motion_context(const BoundNode& node) {
+  const auto& p = node.profile;
+  const auto& state = node.state;
   techno::MotionContext c;
   c.axes = p.axes;
   c.plane = state.plane;
@@ -116,15 +134,24 @@ techno::MotionContext TechnoFamily::motion_context(const NodeState& state) {
 
 asio::awaitable<void> TechnoFamily::on_link_open(Link&, const LinkTiming&) {
   // The controller may have been power-cycled or moved by hand while the port was closed.
-  nodes_.clear();
-  defined_by_us_.clear();
+  for (const auto& weak : bound_)
+    if (const auto b = weak.lock()) {
+      b->state = NodeState{};
+      b->active = false;
+      b->defined_by_us = false;
+    }
   co_return;
 }
 
 microseconds TechnoFamily::reply_budget(const NodeAddress& node, std::string_view command,
                                         const LinkTiming& timing) {
-  const auto& p = profile();
-  auto& state = nodes_[node.number];
+  return reply_budget(active(context_of(node)), command, timing);
+}
+
+microseconds TechnoFamily::reply_budget(BoundNode& node, std::string_view command,
+                                        const LinkTiming& timing) {
+  const auto& p = node.profile;
+  auto& state = node.state;
   const Command c = techno::classify(command);
   microseconds budget = timing.reply_timeout;
   const auto now = Clock::now();
@@ -135,7 +162,7 @@ microseconds TechnoFamily::reply_budget(const NodeAddress& node, std::string_vie
   if (c.handshake != Handshake::at_end) return budget;
   if (c.kind == CommandKind::start_program) return budget + p.program_timeout;
   const auto values = techno::parse_values(c.values).value_or(std::vector<int64_t>{});
-  const auto estimate = techno::estimate_motion(c, values, motion_context(state));
+  const auto estimate = techno::estimate_motion(c, values, motion_context(node));
   if (!estimate) return budget + p.program_timeout;
   return budget + seconds_to_us(estimate->seconds * p.timeout_factor) + p.timeout_margin;
 }
@@ -179,7 +206,10 @@ void TechnoFamily::after_interrupt(CommandKind kind) {
   const auto ramp = kind == CommandKind::stop
                         ? seconds_to_us(static_cast<double>(techno::kMaxSpeed) / p.acceleration)
                         : microseconds(0);
-  for (auto& [_, state] : nodes_) {
+  for (const auto& weak : bound_) {
+    const auto b = weak.lock();
+    if (!b || !b->active) continue;
+    auto& state = b->state;
     state.position = {};
     state.motion_pending = true;
     state.motion_estimated_end = now + ramp;
@@ -221,8 +251,9 @@ asio::awaitable<Reply> TechnoFamily::send_urgent(Link& link, const NodeAddress&,
   co_return co_await send_raw(link, c.kind);
 }
 
-asio::awaitable<Reply> TechnoFamily::transact(Link& link, const NodeAddress& node,
-                                              const Request& request, const LinkTiming& timing) {
+asio::awaitable<Reply> TechnoFamily::transact_node(Link& link, NodeContext& context,
+                                                   const Request& request,
+                                                   const LinkTiming& timing) {
   const Command c = techno::classify(request.command);
   if (c.kind == CommandKind::stop || c.kind == CommandKind::reset)
     co_return co_await send_raw(link, c.kind);
@@ -232,26 +263,28 @@ asio::awaitable<Reply> TechnoFamily::transact(Link& link, const NodeAddress& nod
     r.text = "techno-c has no broadcast address for '" + request.command + "'";
     co_return r;
   }
-  const auto& p = profile();
-  auto& state = nodes_[node.number];
+  BoundNode& bound = active(context);
+  const NodeAddress& node = bound.address();
+  const auto& p = bound.profile;
+  auto& state = bound.state;
   if (p.init_on_connect && !state.initialised && c.kind != CommandKind::specify_axes) {
     const Request init{std::to_string(p.axes), Request::Expect::ack, NumberFormat::decimal};
-    Reply r = co_await exchange(link, node, init, timing);
+    Reply r = co_await exchange(link, bound, init, timing);
     if (r.status != Reply::Status::ok) {
       r.text = fmt::format("initialising with '{}' (init_on_connect): {}", init.command, r.text);
       co_return r;
     }
   }
-  Reply reply = co_await exchange(link, node, request, timing);
+  Reply reply = co_await exchange(link, bound, request, timing);
   if (!(p.init_when_undefined && reply.status == Reply::Status::device_error &&
         reply.device_code == '4' && c.kind != CommandKind::specify_axes)) {
-    co_await await_motion_position(link, node, request, reply, timing);
+    co_await await_motion_position(link, bound, request, reply, timing);
     co_return reply;
   }
   // The controller powered up (p.69: the axes definition comes before any other operation).
-  const bool lost_definition = defined_by_us_[node.number];
+  const bool lost_definition = bound.defined_by_us;
   const Request init{std::to_string(p.axes), Request::Expect::ack, NumberFormat::decimal};
-  const Reply defined = co_await exchange(link, node, init, timing);
+  const Reply defined = co_await exchange(link, bound, init, timing);
   if (defined.status != Reply::Status::ok) {
     reply.text += fmt::format("; sending the axes definition '{}' failed: {}", init.command,
                               defined.text.empty() ? to_string(defined.status) : defined.text);
@@ -268,8 +301,8 @@ asio::awaitable<Reply> TechnoFamily::transact(Link& link, const NodeAddress& nod
     reply.text += "; the axes are defined again, but positions were lost: home before moving";
     co_return reply;
   }
-  Reply again = co_await exchange(link, node, request, timing);
-  co_await await_motion_position(link, node, request, again, timing);
+  Reply again = co_await exchange(link, bound, request, timing);
+  co_await await_motion_position(link, bound, request, again, timing);
   co_return again;
 }
 
@@ -280,9 +313,10 @@ asio::awaitable<Reply> TechnoFamily::transact(Link& link, const NodeAddress& nod
 // with the model's confirm_after the action's held line, busy for as long as the axis runs under
 // the second reading: the axis reads as moving from the acknowledge on (the polls queue behind
 // it and could not tell), and STOP still goes out past it.
-asio::awaitable<void> TechnoFamily::await_motion_position(Link& link, const NodeAddress& node,
+asio::awaitable<void> TechnoFamily::await_motion_position(Link& link, BoundNode& bound,
                                                           const Request& request, Reply& reply,
                                                           const LinkTiming& timing) {
+  const NodeAddress& node = bound.address();
   const Command c = techno::classify(request.command);
   const bool move_or_home = c.kind == CommandKind::move_absolute ||
                             c.kind == CommandKind::move_relative || c.kind == CommandKind::home;
@@ -290,7 +324,7 @@ asio::awaitable<void> TechnoFamily::await_motion_position(Link& link, const Node
     co_return;
   const uint64_t interrupts_at_start = interrupts_;
   const Request query{"P", Request::Expect::values, NumberFormat::hex24};
-  const Reply position = co_await exchange(link, node, query, timing);
+  const Reply position = co_await exchange(link, bound, query, timing);
   if (interrupts_ != interrupts_at_start) {
     // It was acknowledged, but a stop or reset ended it before the axes came to rest.
     reply = device_error(last_interrupt_);
@@ -352,14 +386,14 @@ asio::awaitable<LinkResync> TechnoFamily::resync_after_failure(Link& link,
   co_return done;
 }
 
-asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& node,
-                                              const Request& request, const LinkTiming& timing) {
+asio::awaitable<Reply> TechnoFamily::exchange(Link& link, BoundNode& bound, const Request& request,
+                                              const LinkTiming& timing) {
+  const NodeAddress& node = bound.address();
   const Command c = techno::classify(request.command);
   const auto values = techno::parse_values(c.values).value_or(std::vector<int64_t>{});
-  const microseconds budget = reply_budget(node, request.command, timing);
+  const microseconds budget = reply_budget(bound, request.command, timing);
   if (resync_) co_await resync(link, timing);
-  if (nodes_[node.number].motion_pending)
-    co_await collect_motion_error(link, nodes_[node.number], timing);
+  if (bound.state.motion_pending) co_await collect_motion_error(link, bound.state, timing);
   // Replies carry no address: anything left from an earlier exchange would be taken for this one.
   link.discard_input();
   for (int i = 0; urgent_writing_ && i < 2000; ++i) co_await link.pause(microseconds(100));
@@ -369,7 +403,7 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
   if (ec) co_return link_down(ec);
   const auto sent_at = Clock::now();
 
-  const auto mode = profile().position_reply;
+  const auto mode = bound.profile.position_reply;
   FrameSplitter splitter = techno::handshake_frame;
   if (c.kind == CommandKind::position)
     splitter = [mode](std::string_view buf) { return techno::position_frame(buf, mode); };
@@ -382,7 +416,7 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
     case LinkRead::Status::frame:
       reply = interpret_techno_reply(request, waited.read.frame);
       if (reply.status == Reply::Status::garbled && c.kind == CommandKind::position)
-        take_leading_motion_error(nodes_[node.number], request, waited.read.frame, reply);
+        take_leading_motion_error(bound.state, request, waited.read.frame, reply);
       if (c.kind != CommandKind::position && c.kind != CommandKind::peek)
         co_await check_single_handshake(link, c, reply, timing);
       break;
@@ -398,7 +432,7 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
                                  static_cast<double>(budget.count()) / 1e6);
         if (c.kind == CommandKind::home)
           reply.text += " (a homing run without mechanics never answers)";
-        if (c.handshake == Handshake::at_end && profile().stop_on_timeout) {
+        if (c.handshake == Handshake::at_end && bound.profile.stop_on_timeout) {
           // Free the controller from whatever holds it; the manual asks for STOP twice.
           const Reply stopped = co_await send_raw(link, CommandKind::stop);
           reply.text += stopped.status == Reply::Status::ok ? "; sent stop" : "; stop failed";
@@ -425,7 +459,7 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
                                  : "reset (0xFE)");
   if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled)
     resync_ = true;
-  auto& state = nodes_[node.number];
+  auto& state = bound.state;
   // No reply takes longer than the reply timeout but one the controller held back until the
   // running motion (or a stop's ramp) ended.
   const bool answered_after_motion = c.kind == CommandKind::position &&
@@ -457,9 +491,9 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, const NodeAddress& nod
         link.note(fmt::format("techno-c device {}: 'P' is answered during a motion", node.number));
     }
   }
-  after_reply(state, c, values, reply, answered_after_motion);
+  after_reply(bound, c, values, reply, answered_after_motion);
   if (c.kind == CommandKind::specify_axes && reply.status == Reply::Status::ok)
-    defined_by_us_[node.number] = true;
+    bound.defined_by_us = true;
   co_return reply;
 }
 
@@ -504,10 +538,11 @@ asio::awaitable<void> TechnoFamily::check_single_handshake(Link& link, const Com
       extra.size() + 1);
 }
 
-void TechnoFamily::after_reply(NodeState& state, const Command& c,
+void TechnoFamily::after_reply(BoundNode& node, const Command& c,
                                const std::vector<int64_t>& values, Reply& reply,
                                bool answered_after_motion) {
-  const auto& p = profile();
+  const auto& p = node.profile;
+  auto& state = node.state;
   const auto now = Clock::now();
   if (reply.status == Reply::Status::device_error && reply.device_code == '4') {
     // "Axis not defined": the controller was power-cycled; its settings are back to defaults.
@@ -522,7 +557,7 @@ void TechnoFamily::after_reply(NodeState& state, const Command& c,
       return;
     case CommandKind::position: {
       const std::array<int64_t, 3> xyz{reply.values[0], reply.values[1], reply.values[2]};
-      const int64_t moving = in_motion(state, xyz, answered_after_motion);
+      const int64_t moving = in_motion(node, xyz, answered_after_motion);
       state.last_reported = xyz;
       for (std::size_t i = 0; i < 3; ++i) state.position[i] = xyz[i];
       reply.values.resize(3);
@@ -556,7 +591,7 @@ void TechnoFamily::after_reply(NodeState& state, const Command& c,
   if (!techno::is_motion(c.kind)) return;
   // A new motion: an error reported with its acknowledge (check_single_handshake) is its own.
   state.motion_error = std::exchange(pending_error_, 0);
-  const auto estimate = techno::estimate_motion(c, values, motion_context(state));
+  const auto estimate = techno::estimate_motion(c, values, motion_context(node));
   state.position = estimate ? estimate->end_position : std::array<std::optional<int64_t>, 3>{};
   if (c.handshake == Handshake::at_end) {
     // The handshake came at the end: the axes are at rest where the command put them.
@@ -585,7 +620,8 @@ void TechnoFamily::after_reply(NodeState& state, const Command& c,
 // time is up), or anywhere after moving for motion_settle. The estimate is only an upper bound,
 // so a motion is not reported running for the worst case of an unknown start or a full travel.
 // at_rest: the controller answered only once the motion had ended.
-int64_t TechnoFamily::in_motion(NodeState& state, const std::array<int64_t, 3>& xyz, bool at_rest) {
+int64_t TechnoFamily::in_motion(BoundNode& node, const std::array<int64_t, 3>& xyz, bool at_rest) {
+  auto& state = node.state;
   if (!state.motion_pending) return 0;
   const auto now = Clock::now();
   const bool changed = state.last_reported && *state.last_reported != xyz;
@@ -600,7 +636,7 @@ int64_t TechnoFamily::in_motion(NodeState& state, const std::array<int64_t, 3>& 
     if (state.expected_end[i] && *state.expected_end[i] != xyz[i]) at_end = false;
   const bool still = at_rest || (state.last_reported && !changed);
   const bool estimate_passed = at_rest || now >= state.motion_estimated_end;
-  const bool settled = state.moved && now - state.last_change >= profile().motion_settle;
+  const bool settled = state.moved && now - state.last_change >= node.profile.motion_settle;
   bool over = state.motion_error != 0 || now >= state.motion_deadline;
   if (still && at_end && (state.moved || estimate_passed)) over = true;
   if (still && (settled || estimate_passed)) {

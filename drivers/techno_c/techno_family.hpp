@@ -24,10 +24,11 @@ class TechnoFamily final : public ProtocolFamily {
                                            std::string& error) const override;
   const ModelOptionSpecs& model_options() const override { return techno::option_specs(); }
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
-  void configure_node(const NodeAddress& node, const Model& model) override;
+  // The node's context carries its model's profile and what the family knows of the controller.
+  NodeContextPtr bind_node(const NodeAddress& node, const Model& model) override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
-  asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
-                                  const LinkTiming& timing) override;
+  asio::awaitable<Reply> transact_node(Link& link, NodeContext& node, const Request& request,
+                                       const LinkTiming& timing) override;
   asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,
                                      const Request& request) override;
   // The bus's guard after a failure is the family's own resync: it is not waited twice.
@@ -65,14 +66,31 @@ class TechnoFamily final : public ProtocolFamily {
     std::optional<bool> queries_deferred;
   };
 
+  // A controller on the line: its model's profile and its state.
+  struct BoundNode : NodeContext {
+    BoundNode(const NodeAddress& address, techno::Profile bound_profile)
+        : NodeContext(address), profile(std::move(bound_profile)) {}
+    techno::Profile profile;
+    NodeState state;
+    bool active = false;  // addressed since the link opened (a stop's ramp concerns it)
+    // The family sent it the axes definition since the link opened: a later `4` means the
+    // controller lost it (power cycle) and its positions with it.
+    bool defined_by_us = false;
+  };
+
   struct Waited {
     LinkRead read;
     bool interrupted = false;  // a stop or reset went out while waiting
   };
 
+  // The profile of the whole line (stop bytes and ramps reach every controller): the bound
+  // nodes' profiles merged conservatively.
   const techno::Profile& profile();
-  techno::MotionContext motion_context(const NodeState& state);
-  asio::awaitable<Reply> exchange(Link& link, const NodeAddress& node, const Request& request,
+  BoundNode& active(NodeContext& node);
+  std::chrono::microseconds reply_budget(BoundNode& node, std::string_view command,
+                                         const LinkTiming& timing);
+  techno::MotionContext motion_context(const BoundNode& node);
+  asio::awaitable<Reply> exchange(Link& link, BoundNode& node, const Request& request,
                                   const LinkTiming& timing);
   asio::awaitable<Waited> wait_reply(Link& link, const FrameSplitter& splitter,
                                      std::chrono::microseconds budget, const LinkTiming& timing);
@@ -80,30 +98,25 @@ class TechnoFamily final : public ProtocolFamily {
   void after_interrupt(techno::CommandKind kind);
   // answered_after_motion: a `P` answered later than any reply takes, so the controller held it
   // until the running motion had ended.
-  void after_reply(NodeState& state, const techno::Command& command,
+  void after_reply(BoundNode& node, const techno::Command& command,
                    const std::vector<int64_t>& values, Reply& reply, bool answered_after_motion);
-  asio::awaitable<void> await_motion_position(Link& link, const NodeAddress& node,
-                                              const Request& request, Reply& reply,
-                                              const LinkTiming& timing);
+  asio::awaitable<void> await_motion_position(Link& link, BoundNode& node, const Request& request,
+                                              Reply& reply, const LinkTiming& timing);
   // An error character the controller sent on its own after acknowledging a lower-case motion
   // (`2`: limit or E-stop): read before the next request so it is neither lost nor taken for
   // that request's answer.
   asio::awaitable<void> collect_motion_error(Link& link, NodeState& state,
                                              const LinkTiming& timing);
-  int64_t in_motion(NodeState& state, const std::array<int64_t, 3>& xyz, bool at_rest);
+  int64_t in_motion(BoundNode& node, const std::array<int64_t, 3>& xyz, bool at_rest);
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
   void take_leading_motion_error(NodeState& state, const Request& request, std::string_view frame,
                                  Reply& reply);
   asio::awaitable<void> check_single_handshake(Link& link, const techno::Command& c, Reply& reply,
                                                const LinkTiming& timing);
 
-  // The profiles of the models this bus's nodes run (configure_node), merged by profile().
-  std::vector<techno::Profile> bound_;
+  // The controllers on this line (bind_node), and their profiles merged by profile().
+  std::vector<std::weak_ptr<BoundNode>> bound_;
   std::optional<techno::Profile> profile_;
-  std::map<int, NodeState> nodes_;
-  // Devices this family sent the axes definition to since the link opened: a later `4` means the
-  // controller lost it (power cycle) and its positions with it.
-  std::map<int, bool> defined_by_us_;
   uint64_t interrupts_ = 0;  // stop and reset bytes sent on this line
   char last_interrupt_ = 0;
   int64_t pending_error_ = 0;    // an error character that followed a motion's acknowledge

@@ -232,7 +232,7 @@ class ModelChecker {
       error(mark, fmt::format("{}: '{}' is no C-series command", what, source));
       return;
     }
-    const bool c142 = profile_.variant == Variant::c142;
+    const bool c142 = profile_.arc_commands;
     const auto values = values_of(
         c.kind == CommandKind::specify_axes ? std::string_view{} : c.values, mark, what, range_of);
     const auto count = [&](std::size_t n, std::string_view form) {
@@ -305,9 +305,10 @@ class ModelChecker {
       case CommandKind::circle_direction:
       case CommandKind::circle:
         if (!c142) {
-          error(mark, fmt::format("{}: '{}' exists only on the C142 (interface card 5.0); the "
-                                  "model's variant is not c142",
-                                  what, source));
+          error(mark, fmt::format("{}: '{}' exists only on the C142 (interface card 5.0) and "
+                                  "controllers like it; the model's variant {} has "
+                                  "arc_commands: false",
+                                  what, source, profile_.variant));
           return;
         }
         if (c.kind == CommandKind::interpolation_3d) {
@@ -370,14 +371,22 @@ const ModelOptionSpecs& option_specs() {
   using std::chrono::microseconds;
   const microseconds zero{0}, hour = std::chrono::hours(1);
   static const ModelOptionSpecs specs{
-      required(choice_option("variant", "", {"it116g", "c10", "c116", "c142"},
-                             "the controller: IT116G (one axis), C10, C116 or C142")),
+      required(text_option("variant", "",
+                           "the controller: it116g (one axis), c10, c116, c142, or the name of "
+                           "another C-series controller, which then gives fitted_axes and "
+                           "arc_commands")),
+      integer_option("fitted_axes", "", 1, 3,
+                     "the axes the controller has: 1 X, 2 XY, 3 XYZ (default: 1 on the it116g, "
+                     "3 on the c10, c116 and c142)"),
+      flag_option("arc_commands", "",
+                  "the controller knows 3D interpolation and circles (z, f, Y; default: true on "
+                  "the c142, whose interface card 5.0 added them, else false)"),
       integer_option("axes", "", {"1", "3", "5", "7"},
-                     "the axes definition sent at initialisation: 1 X, 3 XY, 5 XZ, 7 XYZ "
-                     "(default 1 on the IT116G, else 7)"),
+                     "the axes definition sent at initialisation: 1 X, 3 XY, 5 XZ, 7 XYZ, within "
+                     "fitted_axes (default: every fitted axis)"),
       integer_option("acceleration", "", {"25", "50", "75", "100"},
-                     "the card's acceleration jumper in Hz/ms (default 25 on the IT116G, else "
-                     "75; p.4.5)"),
+                     "the card's acceleration jumper in Hz/ms (default 25 with one fitted axis "
+                     "(the IT116G), else 75; p.4.5)"),
       integer_option("home_speed", "2000", static_cast<double>(kMinSpeed),
                      static_cast<double>(kMaxSpeed),
                      "reference run speed in steps/s, sent with `d` (p.63)"),
@@ -423,18 +432,46 @@ Profile read_profile(const Model& model, Diagnostics& diagnostics) {
     diagnostics.error(v.mark(key), fmt::format("model {}: option {}: '{}' is not {}", model.name,
                                                key, v.text(key), expect));
   };
-  const std::string& variant = v.text("variant");
-  p.variant = variant == "it116g" ? Variant::it116g
-              : variant == "c10"  ? Variant::c10
-              : variant == "c116" ? Variant::c116
-                                  : Variant::c142;
-  p.acceleration = p.variant == Variant::it116g ? 25'000 : 75'000;  // jumper defaults (p.4.5)
-  p.axes = p.variant == Variant::it116g ? 1 : 7;
+  // The manual's four controllers; another one is named by the model, which then says how it
+  // differs (fitted_axes, arc_commands).
+  struct Known {
+    const char* name;
+    int fitted_axes;
+    bool arc_commands;
+  };
+  static constexpr Known kKnown[] = {
+      {"it116g", 1, false}, {"c10", 3, false}, {"c116", 3, false}, {"c142", 3, true}};
+  p.variant = v.text("variant");
+  const Known* known = nullptr;
+  for (const auto& k : kKnown)
+    if (p.variant == k.name) known = &k;
+  if (known) {
+    p.fitted_axes = known->fitted_axes;
+    p.arc_commands = known->arc_commands;
+  } else if (v.given("variant") && !(v.given("fitted_axes") && v.given("arc_commands"))) {
+    diagnostics.error(v.mark("variant"),
+                      fmt::format("model {}: option variant: expected it116g, c10, c116 or c142, "
+                                  "found '{}' (another controller gives fitted_axes and "
+                                  "arc_commands)",
+                                  model.name, p.variant));
+  }
+  if (v.given("fitted_axes")) p.fitted_axes = static_cast<int>(v.integer("fitted_axes"));
+  if (v.given("arc_commands")) p.arc_commands = v.flag("arc_commands");
+  const int fitted_mask = p.fitted_axes == 1 ? 1 : p.fitted_axes == 2 ? 3 : 7;
+  p.acceleration = p.fitted_axes == 1 ? 25'000 : 75'000;  // jumper defaults (p.4.5)
+  p.axes = fitted_mask;
   if (v.given("axes")) {
-    if (p.variant == Variant::it116g && v.integer("axes") != 1)
-      fail("axes", "1: the IT116G is a single-axis controller");
+    const int axes = static_cast<int>(v.integer("axes"));
+    if ((axes & ~fitted_mask) != 0)
+      fail("axes", fmt::format("within the {} fitted axes: the {} is a {} controller",
+                               fitted_mask == 1   ? "X"
+                               : fitted_mask == 3 ? "XY"
+                                                  : "XYZ",
+                               p.variant,
+                               p.fitted_axes == 1 ? "single-axis"
+                                                  : std::to_string(p.fitted_axes) + "-axis"));
     else
-      p.axes = static_cast<int>(v.integer("axes"));
+      p.axes = axes;
   }
   if (v.given("acceleration"))
     p.acceleration = static_cast<double>(v.integer("acceleration")) * 1000;

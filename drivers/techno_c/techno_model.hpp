@@ -15,8 +15,6 @@
 // from reaching the controller with a value count or range it would refuse.
 namespace fieldgate::techno {
 
-enum class Variant { it116g, c10, c116, c142 };
-
 // Fields of the `P` read (`read: {request: P, field: N, format: hex24}`). 0..2 come from the
 // controller; the family adds the others.
 inline constexpr int kFieldX = 0;
@@ -32,7 +30,11 @@ inline constexpr int64_t kShortOfTarget = 1;
 
 struct Profile {
   std::string model;
-  Variant variant = Variant::c142;
+  // The controller, as the model names it, and what sets it apart: a new variant is a model file
+  // that gives these (README "Variants").
+  std::string variant = "c142";
+  int fitted_axes = 3;           // X, XY or XYZ: the axes the controller has
+  bool arc_commands = true;      // 3D interpolation and circles (z, f, Y: the C142's card 5.0)
   int axes = 7;                  // the axes definition the controller is initialised with
   double acceleration = 75'000;  // steps/s², from the card's jumper (Hz/ms x 1000)
   double home_speed = 2000;      // the controller's default until `d` is sent (p.63)
@@ -63,11 +65,11 @@ Profile read_profile(const Model& model, Diagnostics& diagnostics);
 
 // Checks every read, write and action step of a model against the grammar and the profile:
 // value counts for the defined axes, speed/distance/mask ranges of literals and of the
-// setpoints or point limits behind placeholders, C142-only commands, raw bytes.
+// setpoints or point limits behind placeholders, arc commands, raw bytes.
 void check_model(const Model& model, const Profile& profile, Diagnostics& diagnostics);
 
-// The family is not told which node runs which model; when one bus carries several techno
-// models it times motions for the slowest of them and converts units only if they agree.
+// What reaches every controller on a line at once (the stop and reset bytes, the ramp after
+// them) follows the line's models merged: the slowest of them, units only if they agree.
 Profile merge_profiles(const std::vector<Profile>& profiles);
 
 }  // namespace fieldgate::techno

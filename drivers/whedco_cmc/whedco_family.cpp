@@ -298,14 +298,15 @@ const ModelOptionSpecs& WhedcoFamily::model_options() const {
   return specs;
 }
 
-void WhedcoFamily::configure_node(const NodeAddress& node, const Model& model) {
+NodeContextPtr WhedcoFamily::bind_node(const NodeAddress& node, const Model& model) {
   Diagnostics reported;  // validate_model reported them; a model with errors never runs
   const std::string layout =
       check_model_options(model, name(), model_options(), reported).text("status_layout");
-  pinned_layouts_.erase(node.number);
-  if (layout == "auto") return;
-  pinned_layouts_[node.number] =
-      layout == "outputs" ? whedco::StatusLayout::outputs : whedco::StatusLayout::busy_first;
+  auto bound = std::make_shared<BoundNode>(node);
+  if (layout != "auto")
+    bound->pinned_layout =
+        layout == "outputs" ? whedco::StatusLayout::outputs : whedco::StatusLayout::busy_first;
+  return bound;
 }
 
 asio::awaitable<void> WhedcoFamily::on_link_open(Link& link, const LinkTiming& timing) {
@@ -319,10 +320,11 @@ asio::awaitable<void> WhedcoFamily::on_link_open(Link& link, const LinkTiming& t
   co_await resync(link, timing);
 }
 
-asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const NodeAddress& node,
+asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const BoundNode& bound,
                                               const std::string& command, Request::Expect expect,
                                               NumberFormat format, QueryKind kind, int unit_ratio,
                                               const LinkTiming& timing) {
+  const NodeAddress& node = bound.address();
   if (resync_ != Resync::none) co_await resync(link, timing);
   // Replies carry no address: anything left over from an earlier exchange would pass for this
   // one's reply.
@@ -366,7 +368,7 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const NodeAddress& nod
                               node.number, whedco::to_string(*findings_.status_form), x.line));
       }
       if (kind == QueryKind::status_word && r.status == Reply::Status::ok && !r.values.empty())
-        r.values[0] = model_layout(link, node, x.line, r.values[0]);
+        r.values[0] = model_layout(link, bound, x.line, r.values[0]);
       co_return r;
     case LinkRead::Status::timeout:
       if (read.partial.empty()) {
@@ -397,11 +399,12 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const NodeAddress& nod
 // like its hardware outputs (busy at bit 2) is found by the first word with bit 2 and without
 // bit 0 - under busy_first bit 2 (a profile or an equation running) never comes without busy -
 // and its words are rearranged from then on; a model's status_layout pins either layout.
-int64_t WhedcoFamily::model_layout(Link& link, const NodeAddress& node, const std::string& line,
+int64_t WhedcoFamily::model_layout(Link& link, const BoundNode& bound, const std::string& line,
                                    int64_t word) {
+  const NodeAddress& node = bound.address();
   whedco::StatusLayout layout = whedco::StatusLayout::busy_first;
-  if (const auto pinned = pinned_layouts_.find(node.number); pinned != pinned_layouts_.end()) {
-    layout = pinned->second;
+  if (bound.pinned_layout) {
+    layout = *bound.pinned_layout;
   } else if (const auto found = found_layouts_.find(node.number); found != found_layouts_.end()) {
     layout = found->second;
   } else if (whedco::shows_outputs_layout(word)) {
@@ -416,8 +419,12 @@ int64_t WhedcoFamily::model_layout(Link& link, const NodeAddress& node, const st
   return whedco::to_model_layout(word, layout);
 }
 
-asio::awaitable<Reply> WhedcoFamily::transact(Link& link, const NodeAddress& node,
-                                              const Request& request, const LinkTiming& timing) {
+asio::awaitable<Reply> WhedcoFamily::transact_node(Link& link, NodeContext& context,
+                                                   const Request& request,
+                                                   const LinkTiming& timing) {
+  // Every context this family's transact() receives is one its bind_node() made.
+  const auto& bound = static_cast<const BoundNode&>(context);
+  const NodeAddress& node = bound.address();
   if (request.bus_wide)
     co_return refused(
         fmt::format("'{}' for every unit: Whedco CMC units have no broadcast "
@@ -426,7 +433,7 @@ asio::awaitable<Reply> WhedcoFamily::transact(Link& link, const NodeAddress& nod
   std::string error;
   const auto prepared = whedco::prepare_command(request.command, error);
   if (!prepared) co_return refused(error);
-  if (!contacted_[node.number]) co_await first_contact(link, node, timing);
+  if (!contacted_[node.number]) co_await first_contact(link, bound, timing);
 
   int ratio = 1;
   if (prepared->quantity != whedco::Quantity::none) {
@@ -434,7 +441,7 @@ asio::awaitable<Reply> WhedcoFamily::transact(Link& link, const NodeAddress& nod
     auto it = unit_ratios_.find(key);
     if (it == unit_ratios_.end()) {
       const std::string query = std::string("UR") + prepared->axis + "?";
-      Reply ur = co_await exchange(link, node, query, Request::Expect::values,
+      Reply ur = co_await exchange(link, bound, query, Request::Expect::values,
                                    NumberFormat::decimal, QueryKind::plain, 1, timing);
       if (ur.status != Reply::Status::ok) {
         ur.text = fmt::format("reading the unit ratio of axis {} ({}): {}", prepared->axis, query,
@@ -450,7 +457,7 @@ asio::awaitable<Reply> WhedcoFamily::transact(Link& link, const NodeAddress& nod
     ratio = it->second;
   }
   const std::string wire = whedco::wire_command(*prepared, ratio);
-  Reply r = co_await exchange(link, node, wire, request.expect, request.format, prepared->kind,
+  Reply r = co_await exchange(link, bound, wire, request.expect, request.format, prepared->kind,
                               prepared->scaled_reply ? ratio : 1, timing);
   if (r.status == Reply::Status::ok && prepared->unit_ratio_axis) {
     const auto key = std::make_pair(node.number, *prepared->unit_ratio_axis);
@@ -464,13 +471,14 @@ asio::awaitable<Reply> WhedcoFamily::transact(Link& link, const NodeAddress& nod
   co_return r;
 }
 
-asio::awaitable<void> WhedcoFamily::first_contact(Link& link, const NodeAddress& node,
+asio::awaitable<void> WhedcoFamily::first_contact(Link& link, const BoundNode& bound,
                                                   const LinkTiming& timing) {
+  const NodeAddress& node = bound.address();
   // Named commands: exchange() keeps a reference to its command across suspensions.
   const std::string fc_command = "FC";
   const std::string wb_command = "WB";
   const auto read_fc = [&]() {
-    return exchange(link, node, fc_command, Request::Expect::values, NumberFormat::decimal,
+    return exchange(link, bound, fc_command, Request::Expect::values, NumberFormat::decimal,
                     QueryKind::unit_fault, 1, timing);
   };
   const Reply fc = co_await read_fc();
@@ -490,7 +498,7 @@ asio::awaitable<void> WhedcoFamily::first_contact(Link& link, const NodeAddress&
     for (std::size_t i = 0; i < kByteAxes.size() && power_up; ++i) {
       if (!(code & (int64_t{0x11} << i))) continue;
       const std::string axis_command = std::string("FC") + kByteAxes[i];
-      const Reply axis = co_await exchange(link, node, axis_command, Request::Expect::values,
+      const Reply axis = co_await exchange(link, bound, axis_command, Request::Expect::values,
                                            NumberFormat::decimal, QueryKind::axis_fault, 1, timing);
       power_up = axis.status == Reply::Status::ok && !axis.values.empty() && axis.values[0] == 0;
     }
@@ -502,7 +510,7 @@ asio::awaitable<void> WhedcoFamily::first_contact(Link& link, const NodeAddress&
                     node.number, code));
     co_return;
   }
-  const Reply wb = co_await exchange(link, node, wb_command, Request::Expect::ack,
+  const Reply wb = co_await exchange(link, bound, wb_command, Request::Expect::ack,
                                      NumberFormat::decimal, QueryKind::plain, 1, timing);
   if (wb.status != Reply::Status::ok) {
     link.note(fmt::format("whedco-cmc unit {}: power-up state (FC {}); WB failed: {}", node.number,

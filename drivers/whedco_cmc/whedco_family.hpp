@@ -29,10 +29,11 @@ class WhedcoFamily final : public ProtocolFamily {
                                            std::string& error) const override;
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
-  asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
-                                  const LinkTiming& timing) override;
+  asio::awaitable<Reply> transact_node(Link& link, NodeContext& node, const Request& request,
+                                       const LinkTiming& timing) override;
   const ModelOptionSpecs& model_options() const override;
-  void configure_node(const NodeAddress& node, const Model& model) override;
+  // The node's context carries its model's status_layout.
+  NodeContextPtr bind_node(const NodeAddress& node, const Model& model) override;
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
 
   // The communication format a node was configured with (NodeAddress::axis carries it: the
@@ -41,24 +42,26 @@ class WhedcoFamily final : public ProtocolFamily {
 
  private:
   enum class Resync { none, void_line, void_and_drain };
+  struct BoundNode : NodeContext {
+    using NodeContext::NodeContext;
+    std::optional<whedco::StatusLayout> pinned_layout;  // model option status_layout; nullopt: auto
+  };
 
-  asio::awaitable<Reply> exchange(Link& link, const NodeAddress& node, const std::string& command,
+  asio::awaitable<Reply> exchange(Link& link, const BoundNode& node, const std::string& command,
                                   Request::Expect expect, NumberFormat format,
                                   whedco::QueryKind kind, int unit_ratio, const LinkTiming& timing);
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
   // A status word as the models read it (busy at bit 0), whatever the unit's layout.
-  int64_t model_layout(Link& link, const NodeAddress& node, const std::string& line, int64_t word);
+  int64_t model_layout(Link& link, const BoundNode& node, const std::string& line, int64_t word);
   // The first exchange with a unit since the port opened: reads FC, and clears the power-up
   // state (Power Failure, every axis faulted) with WB, as the manual asks after power-up.
-  asio::awaitable<void> first_contact(Link& link, const NodeAddress& node,
-                                      const LinkTiming& timing);
+  asio::awaitable<void> first_contact(Link& link, const BoundNode& node, const LinkTiming& timing);
 
   std::map<std::pair<int, char>, int> unit_ratios_;  // (unit, axis) -> pulses per user unit
   std::map<int, bool> contacted_;
   std::map<int, whedco::StatusForm> status_forms_;
   std::map<int, int64_t> unit_functional_;
-  // How each unit lays out its status words (model option status_layout; auto: found per unit).
-  std::map<int, whedco::StatusLayout> pinned_layouts_;
+  // How each unit lays out its status words where no status_layout pins it: found per unit.
   std::map<int, whedco::StatusLayout> found_layouts_;
   WhedcoFindings findings_;  // of the last exchange
   Resync resync_ = Resync::none;

@@ -63,6 +63,7 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
     rt.index = index;
     rt.config = &n;
     rt.timing = node_link_timing(config, n);
+    rt.family_context = config_.family->bind_node(n.address, *n.model);
     rt.image = std::make_shared<NodeImage>();
     nodes_.push_back(rt);
     auto& img = *rt.image;
@@ -268,7 +269,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     }
     const auto started = Clock::now();
     trace_collecting_ = trace_.enabled();
-    reply = co_await config_.family->transact(link_, n.config->address, request, n.timing);
+    reply = co_await config_.family->transact_node(link_, *n.family_context, request, n.timing);
     trace_collecting_ = false;
     // The trace's outcome names (README "Wire trace"), as CAN buses give them.
     trace_transaction(n,

@@ -54,6 +54,7 @@ class SerialBus final : public Bus {
   struct NodeRuntime {
     int index = 0;  // position on this bus
     const NodeConfig* config = nullptr;
+    NodeContextPtr family_context;  // the family's, from bind_node
     std::shared_ptr<NodeImage> image;
     SteadyTime next_probe{};
     LinkTiming timing;      // the bus's, with the node's reply timeout

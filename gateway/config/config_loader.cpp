@@ -611,8 +611,6 @@ class ConfigParser {
         } else if (bus.family && validated_.insert(n.model.get()).second) {
           bus.family->validate_model(*n.model, r_.diagnostics());
         }
-        if (bus.family && n.model && n.model->family == bus.protocol && !n.address.text.empty())
-          bus.family->configure_node(n.address, *n.model);
         if (bus.family && n.model && bus.family->model_options_apply_to_bus())
           for (const auto& other : bus.nodes)
             if (other.model && other.model != n.model && other.model->options != n.model->options) {

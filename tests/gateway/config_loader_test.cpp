@@ -82,10 +82,10 @@ TEST_F(ConfigLoaderTest, UnknownProtocolListsFamilies) {
   const auto e = load(
       "buses:\n  - name: b\n    protocol: modbus-rtu\n    serial: {device: x}\n"
       "    nodes: []\n");
-  EXPECT_NE(e.find("gw.yaml:4:15: error: bus b: unknown protocol 'modbus-rtu' (known: "
-                   "copley-ascii"),
+  EXPECT_NE(e.find("gw.yaml:4:15: error: bus b: unknown protocol 'modbus-rtu' (known: "),
             std::string::npos)
       << e;
+  EXPECT_NE(e.find("copley-ascii"), std::string::npos) << e;
 }
 
 TEST_F(ConfigLoaderTest, UnitIdRange) {

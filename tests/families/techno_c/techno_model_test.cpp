@@ -57,7 +57,7 @@ TEST(TechnoModels, ShippedModelsReadOptions) {
   ASSERT_TRUE(m);
   const auto p = techno::read_profile(*m, d);
   EXPECT_TRUE(d.ok()) << d.to_text();
-  EXPECT_EQ(p.variant, techno::Variant::c142);
+  EXPECT_EQ(p.variant, "c142");
   EXPECT_EQ(p.axes, 7);
   EXPECT_EQ(p.acceleration, 75000);
   EXPECT_FALSE(p.init_on_connect);
