@@ -23,16 +23,10 @@ axis_family_bus() {
     copley-slow-poll)
       # Copley with its status polled once a second: power_on's confirmation comes long before
       # the poll that shows the axis enabled (the profile's power_on must wait for that poll).
-      "$build/sim/copley/fieldgate-sim-copley" --link "$dir/port" --nodes 0 <"$dir/sim.in" \
-        >"$dir/sim.log" 2>&1 &
-      bus="protocol: copley-ascii
-    serial: {device: $dir/port, baud: 115200}
-    timing: {reply_timeout: 150ms, probe_interval: 300ms}
-    nodes:
-      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21,
+      protocol=copley-ascii baud=115200 timing="reply_timeout: ${reply:-150ms}"
+      nodes="      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1, profile_unit: 21,
          poll: {fast: 1s}}"
       units=21
-      axis_args=(--distance 20000 --expect-homed)
       ;;
     ims)
       protocol=ims-party-line baud=9600
@@ -79,8 +73,6 @@ axis_family_bus() {
       ;;
     canopen)
       # Needs a kernel SocketCAN interface: run under scripts/vcan-run (tests/vcan).
-      "$build/sim/canopen/fieldgate-sim-canopen" --interface "${FIELDGATE_VCAN_IF:-vcan0}" \
-        --nodes 2 <"$dir/sim.in" >"$dir/sim.log" 2>&1 &
       bus="protocol: canopen
     can: {interface: ${FIELDGATE_VCAN_IF:-vcan0}}
     timing: {reply_timeout: 500ms, retries: 1, offline_after: 3, probe_interval: 300ms,
@@ -88,11 +80,7 @@ axis_family_bus() {
     nodes:
       - {name: drive_2, address: 2, model: canopen-cia402, unit_id: 1, profile_unit: 21}"
       units=21
-      axis_args=(--distance 4000 --no-device-error)
-      for _ in $(seq 100); do grep -q '^ready' "$dir/sim.log" && return 0; sleep 0.1; done
-      echo "the CANopen simulator did not start"
-      cat "$dir/sim.log"
-      return 1
+      return 0
       ;;
     *)
       echo "unknown family $family"
@@ -122,6 +110,19 @@ axis_family_start() {
       # Following error (0xa4 bit 9) on the amplifier of the axis under test.
       axis_args=(--distance 20000 --expect-homed --fault-command
                  'case {unit} in 21) n=0 ;; *) n=3 ;; esac; echo "fault $n 512" >'"$dir/sim.in")
+      ;;
+    copley-slow-poll)
+      sim=("$build/sim/copley/fieldgate-sim-copley" --nodes 0)
+      axis_args=(--distance 20000 --expect-homed)
+      ;;
+    canopen)
+      "$build/sim/canopen/fieldgate-sim-canopen" --interface "${FIELDGATE_VCAN_IF:-vcan0}" \
+        --nodes 2 <"$dir/sim.in" >"$dir/sim.log" 2>&1 &
+      axis_args=(--distance 4000 --no-device-error)
+      for _ in $(seq 100); do grep -q '^ready' "$dir/sim.log" && return 0; sleep 0.1; done
+      echo "the CANopen simulator did not start"
+      cat "$dir/sim.log"
+      return 1
       ;;
     ims)
       sim=("$build/sim/ims/fieldgate-sim-ims" --axes A,B)
