@@ -1,8 +1,9 @@
-// The frame shape of a protocol family. A stream family (ProtocolFamily) exchanges bytes over a
-// Link, one transaction at a time on the line. A frame family runs on a frame bus (CAN): whole
-// frames go out through a FramePort, frames come in through the bus's receive filter (the
-// identifiers the family names per node) and are handed to the node they belong to, and every
-// node runs its own transactions, so transactions of different nodes overlap on the wire.
+// The frame shape of a family (Family, drivers/protocol_family.hpp). A stream family
+// (ProtocolFamily) exchanges bytes over a Link, one transaction at a time on the line. A frame
+// family runs on a frame bus (CAN): whole frames go out through a FramePort, frames come in through
+// the bus's receive filter (the identifiers the family names per node) and are handed to the node
+// they belong to, and every node runs its own transactions, so transactions of different nodes
+// overlap on the wire.
 //
 // The bus runtime (gateway/bus/can_bus.cpp) owns the port, the per-node workers, the command
 // queues ahead of polls and the online/offline accounting; the family's protocol rules (what a
@@ -41,12 +42,8 @@ enum class FrameRole {
   other,              // the node's, but none of the above (e.g. only process data)
 };
 
-class FrameFamily : public ProtocolFamily {
+class FrameFamily : public Family {
  public:
-  // A frame family has no byte-stream exchange: a stream bus that tries one gets link_down,
-  // saying where the family runs.
-  asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
-                                  const LinkTiming& timing) final;
   // Frames are not characters on a serial line: the serial poll budget does not apply.
   std::size_t estimate_wire_chars(const NodeAddress&, const Request&) const final { return 0; }
 

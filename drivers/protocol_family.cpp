@@ -20,16 +20,16 @@ std::string_view to_string(Reply::Status status) {
   return "?";
 }
 
-const ModelOptionSpecs& ProtocolFamily::model_options() const {
+const ModelOptionSpecs& Family::model_options() const {
   static const ModelOptionSpecs none;
   return none;
 }
 
-void ProtocolFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
+void Family::validate_model(const Model& model, Diagnostics& diagnostics) const {
   check_model_options(model, name(), model_options(), diagnostics);
 }
 
-NodeContextPtr ProtocolFamily::bind_node(const NodeAddress& node, const Model&) {
+NodeContextPtr Family::bind_node(const NodeAddress& node, const Model&) {
   return std::make_shared<NodeContext>(node);
 }
 
@@ -88,12 +88,11 @@ asio::awaitable<Reply> ProtocolFamily::send_urgent(Link&, const NodeAddress&, co
   co_return reply;
 }
 
-ProtocolFamily::NodeTimingNeed ProtocolFamily::node_timing_need(const NodeAddress&,
-                                                                const LinkTiming&) const {
+Family::NodeTimingNeed Family::node_timing_need(const NodeAddress&, const LinkTiming&) const {
   return {};
 }
 
-std::size_t ProtocolFamily::estimate_wire_chars(const NodeAddress&, const Request& request) const {
+std::size_t Family::estimate_wire_chars(const NodeAddress&, const Request& request) const {
   return request.command.size() + 16;
 }
 

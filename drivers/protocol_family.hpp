@@ -53,7 +53,7 @@ struct Reply {
 std::string_view to_string(Reply::Status status);
 
 // One configured node as its family sees it: the address, and whatever the family derived from
-// the node's model when the bus was built (ProtocolFamily::bind_node). A family with per-node
+// the node's model when the bus was built (Family::bind_node). A family with per-node
 // settings or state derives its own; the context is opaque to the bus, which hands it back to
 // transact().
 class NodeContext {
@@ -68,12 +68,15 @@ class NodeContext {
 
 using NodeContextPtr = std::shared_ptr<NodeContext>;
 
-// A protocol family: addressing, framing and reply grammar of one controller family. The codec
-// parts are pure functions tested against the manuals' transcripts; transact() glues them to a
-// Link for one request/reply exchange.
-class ProtocolFamily {
+// A controller family as configuration and every bus see it: the name, node addresses, the
+// model checks and options, and a node's context. Two shapes derive from it: a stream family
+// (ProtocolFamily, below), which exchanges bytes over a Link one transaction at a time, and a
+// frame family (FrameFamily, drivers/frame_family.hpp), which runs on a CAN frame bus. The
+// registry and the configuration hand out this base; each bus runtime asks for its shape once,
+// when it is built.
+class Family {
  public:
-  virtual ~ProtocolFamily() = default;
+  virtual ~Family() = default;
   virtual std::string_view name() const = 0;
   virtual std::optional<NodeAddress> parse_address(std::string_view text,
                                                    std::string& error) const = 0;
@@ -91,6 +94,28 @@ class ProtocolFamily {
   // model options) and returns the node's context, which transact() then receives. The default
   // context holds the address only.
   virtual NodeContextPtr bind_node(const NodeAddress& node, const Model& model);
+  // The least reply timeout a node needs, and why (e.g. a node reached through a forwarding
+  // device must outwait that device's own timeout, or its "not reachable" reply arrives late).
+  // The bus uses it where no reply_timeout is configured; a configured value below it is
+  // warned about. The default: nothing beyond the bus's timing.
+  struct NodeTimingNeed {
+    std::chrono::microseconds reply_timeout{0};
+    std::string why;
+  };
+  virtual NodeTimingNeed node_timing_need(const NodeAddress& node, const LinkTiming& bus) const;
+  // Characters on the wire for a request and its typical reply (poll budget estimate).
+  virtual std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const;
+  // The bus hands families that log on their own (syslog level, text) its log, so their lines
+  // carry the bus's name. The default: the family does not log.
+  using LogRoute = std::function<void(int level, std::string_view text)>;
+  virtual void route_log(LogRoute) {}
+};
+
+// The stream shape of a family: addressing, framing and reply grammar of one controller family
+// on a byte stream. The codec parts are pure functions tested against the manuals' transcripts;
+// transact() glues them to a Link for one request/reply exchange.
+class ProtocolFamily : public Family {
+ public:
   // Runs every time the transport (re)opens, before the first transaction.
   virtual asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing);
   // One request/reply exchange with a bound node (the bus calls this one). A family overrides
@@ -116,27 +141,12 @@ class ProtocolFamily {
   // refuses: a family without such commands reports it instead of corrupting a transaction.
   virtual asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,
                                              const Request& request);
-  // The least reply timeout a node needs, and why (e.g. a node reached through a forwarding
-  // device must outwait that device's own timeout, or its "not reachable" reply arrives late).
-  // The bus uses it where no reply_timeout is configured; a configured value below it is
-  // warned about. The default: nothing beyond the bus's timing.
-  struct NodeTimingNeed {
-    std::chrono::microseconds reply_timeout{0};
-    std::string why;
-  };
-  virtual NodeTimingNeed node_timing_need(const NodeAddress& node, const LinkTiming& bus) const;
-  // Characters on the wire for a request and its typical reply (poll budget estimate).
-  virtual std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const;
-  // The bus hands families that log on their own (syslog level, text) its log, so their lines
-  // carry the bus's name. The default: the family does not log.
-  using LogRoute = std::function<void(int level, std::string_view text)>;
-  virtual void route_log(LogRoute) {}
 
  private:
   std::map<std::string, NodeContextPtr, std::less<>> by_address_;
 };
 
-using FamilyPtr = std::shared_ptr<ProtocolFamily>;
+using FamilyPtr = std::shared_ptr<Family>;
 
 FamilyPtr make_family(std::string_view name);
 std::vector<std::string> family_names();

@@ -7,7 +7,9 @@
 #include <boost/asio/use_awaitable.hpp>
 
 #include <algorithm>
+#include <stdexcept>
 
+#include "drivers/canopen/node_points.hpp"
 #include "gateway/bus/reply_accounting.hpp"
 #include "gateway/lifecycle/log.hpp"
 
@@ -22,6 +24,15 @@ using BusClock = std::chrono::steady_clock;
 constexpr auto kWaitInterval = std::chrono::milliseconds(10);
 // Error frames can flood (a bus without termination): one log line per this interval at most.
 constexpr auto kErrorLogInterval = std::chrono::seconds(10);
+// A CAN bus runs a frame family; the configuration loader pairs `can:` with them.
+const FrameFamily& frame_family(const BusConfig& config) {
+  const auto* family = dynamic_cast<const FrameFamily*>(config.family.get());
+  if (!family)
+    throw std::invalid_argument(fmt::format(
+        "bus {}: protocol {} runs on a byte stream, not on a CAN bus (can:)", config.name,
+        config.family ? config.family->name() : std::string_view("(none)")));
+  return *family;
+}
 Reply make_reply(Reply::Status status, std::string text, int64_t code = 0) {
   Reply r;
   r.status = status;
@@ -44,6 +55,11 @@ struct CanBus::NodeRuntime final : NodeHost {
       : bus(bus),
         id(static_cast<uint8_t>(nc.address.number)),
         config(&nc),
+        points(id, *nc.model,
+               [&](const PointDef& point, const std::string& error) {
+                 log::error("bus {}: node {}: point {}: {}", bus.config_.name, nc.name, point.name,
+                            error);
+               }),
         wake(ex),
         sdo(id, bus.config_.timing.link.reply_timeout, wake),
         nmt(id, nc.name, timing, *this) {}
@@ -66,9 +82,8 @@ struct CanBus::NodeRuntime final : NodeHost {
   void probe_by(SteadyTime when) override { next_probe = std::min(next_probe, when); }
   void refresh_local_points(SteadyTime now) override { bus.refresh_local_points(*this, now); }
   void nmt_state_forgotten() override {
-    for (const int p : local_points)
-      if (sources[static_cast<std::size_t>(p)]->local == LocalValue::nmt_state)
-        image->points[static_cast<std::size_t>(p)].valid = false;
+    for (const int p : points.nmt_state_points())
+      image->points[static_cast<std::size_t>(p)].valid = false;
     bus.notify(*this);
   }
   void device_error(uint16_t code, std::string text) override {
@@ -91,10 +106,8 @@ struct CanBus::NodeRuntime final : NodeHost {
   uint8_t id = 0;
   const NodeConfig* config = nullptr;
   std::shared_ptr<NodeImage> image;
-  std::vector<std::optional<PointSource>> sources;  // by model point
-  std::map<uint32_t, std::vector<int>> tpdo_points;
+  NodePoints points;
   std::map<uint32_t, SteadyTime> tpdo_seen;
-  std::vector<int> local_points;
 
   asio::steady_timer wake;
   SdoChannel sdo;
@@ -111,7 +124,7 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
     : executor_(executor),
       config_owner_(std::move(config_owner)),
       config_(config),
-      family_(dynamic_cast<const FrameFamily&>(*config.family)),
+      family_(frame_family(config)),
       first_node_index_(first_node_index),
       on_update_(std::move(on_update)),
       channel_(std::move(channel)),
@@ -138,17 +151,14 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
       const auto it = nc.setpoints.find(s.name);
       n.image->setpoints.push_back(it != nc.setpoints.end() ? it->second : s.default_value);
     }
-    n.sources.resize(model.points.size());
     for (const uint32_t cob : family_.receive_ids(nc.address, model)) by_cob_[cob] = &n;
 
     // One poll item per object and period: points that share an object share its upload.
-    const auto add_target = [&](ItemInfo info, int point, SteadyTime::duration period) {
+    const auto add_target = [&](const PollJob& job, int point, SteadyTime::duration period) {
       const auto us = std::chrono::duration_cast<std::chrono::microseconds>(period);
-      for (std::size_t i = 0; i < items_.size(); ++i) {
+      for (std::size_t i = 0; i < jobs_.size(); ++i) {
         auto& item = plan_.item(i);
-        const auto& other = items_[i];
-        if (item.node == index && item.period == us && other.kind == info.kind &&
-            other.object == info.object && other.tpdo_cob == info.tpdo_cob) {
+        if (item.node == index && item.period == us && jobs_[i] == job) {
           item.targets.push_back({point, 0});
           return;
         }
@@ -156,53 +166,17 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
       PollItem item;
       item.node = index;
       item.period = us;
-      item.request =
-          Request{info.kind == ItemInfo::Kind::local
-                      ? std::string("local")
-                      : "read " + fmt::format("0x{:04X}:{} {}", info.object.index, info.object.sub,
-                                              canopen::to_string(info.object.type)),
-                  Request::Expect::values};
+      item.request = poll_request(job);
       item.targets.push_back({point, 0});
       plan_.add(std::move(item));
-      items_.push_back(info);
+      jobs_.push_back(job);
     };
     for (std::size_t p = 0; p < model.points.size(); ++p) {
       const auto& point = model.points[p];
-      if (!point.read) continue;
-      std::string error;
-      auto src = compile_point_read(point, error);
-      if (!src) {
-        // validate_model rejects this at load; a model that skipped it loses the point only.
-        log::error("bus {}: node {}: point {}: {}", config.name, nc.name, point.name, error);
-        continue;
-      }
-      n.sources[p] = src;
-      const int pi = static_cast<int>(p);
-      if (src->kind == PointSource::Kind::local) n.local_points.push_back(pi);
-      if (src->kind == PointSource::Kind::tpdo) {
-        const uint32_t cob = src->tpdo.cob_for(n.id);
-        n.tpdo_points[cob].push_back(pi);
-      }
-      if (point.poll_class.empty()) continue;
+      if (!point.read || point.poll_class.empty()) continue;
       const auto period = nc.period_of(point.poll_class);
       if (period.count() <= 0) continue;
-      ItemInfo info;
-      switch (src->kind) {
-        case PointSource::Kind::local:
-          info.kind = ItemInfo::Kind::local;
-          break;
-        case PointSource::Kind::tpdo:
-          if (!src->object) continue;  // nothing to fall back on
-          info.kind = ItemInfo::Kind::tpdo_fallback;
-          info.object = *src->object;
-          info.tpdo_cob = src->tpdo.cob_for(n.id);
-          break;
-        case PointSource::Kind::sdo:
-          info.kind = ItemInfo::Kind::sdo;
-          info.object = *src->object;
-          break;
-      }
-      add_target(info, pi, period);
+      if (const auto job = n.points.poll_job(p)) add_target(*job, static_cast<int>(p), period);
     }
     nodes_.push_back(std::move(rt));
     ++index;
@@ -326,7 +300,7 @@ asio::awaitable<void> CanBus::run() {
     for (auto& n : nodes_) {
       n->nmt.bring_up(true);
       // TPDOs get one poll period to show up before their points are read by SDO.
-      for (const auto& [cob, points] : n->tpdo_points) n->tpdo_seen[cob] = now;
+      for (const uint32_t cob : n->points.tpdo_cobs()) n->tpdo_seen[cob] = now;
       n->next_probe = now;
     }
     wake_all();
@@ -453,7 +427,7 @@ void CanBus::dispatch(const CanFrame& frame, SteadyTime now) {
       trace_frame(frame, TraceDirection::rx, now, {});
       break;
   }
-  if (n.tpdo_points.count(frame.id)) on_tpdo(n, frame, now);
+  if (n.points.reads_tpdo(frame.id)) on_tpdo(n, frame, now);
 }
 
 void CanBus::on_error_frame(const CanFrame& frame, SteadyTime now) {
@@ -484,41 +458,20 @@ void CanBus::on_tpdo(NodeRuntime& n, const CanFrame& frame, SteadyTime now) {
   n.tpdo_seen[frame.id] = now;
   ++n.nmt.status().pdos;
   auto& img = *n.image;
-  for (const int p : n.tpdo_points[frame.id]) {
-    std::string error;
-    const auto v = decode_tpdo_value(*n.sources[static_cast<std::size_t>(p)], frame, error);
-    if (!v) {
-      ++img.counters.errors;
-      img.counters.last_error_text = error;
-      continue;
-    }
-    img.points[static_cast<std::size_t>(p)] = {*v, now, true};
+  std::vector<std::string> errors;
+  for (const auto& u : n.points.from_tpdo(frame, errors))
+    img.points[static_cast<std::size_t>(u.point)] = {u.value, now, true};
+  for (auto& error : errors) {
+    ++img.counters.errors;
+    img.counters.last_error_text = std::move(error);
   }
   notify(n);
 }
 
 void CanBus::refresh_local_points(NodeRuntime& n, SteadyTime now) {
-  if (n.local_points.empty()) return;
-  const auto& status = n.nmt.status();
-  for (const int p : n.local_points) {
-    int64_t v = 0;
-    switch (n.sources[static_cast<std::size_t>(p)]->local) {
-      case LocalValue::emcy_code:
-        v = status.emcy_code;
-        break;
-      case LocalValue::emcy_register:
-        v = status.emcy_register;
-        break;
-      case LocalValue::nmt_state:
-        if (!status.nmt_state) continue;  // no heartbeat seen yet: no value
-        v = *status.nmt_state;
-        break;
-      case LocalValue::sdo_abort:
-        v = status.last_abort;
-        break;
-    }
-    n.image->points[static_cast<std::size_t>(p)] = {v, now, true};
-  }
+  if (!n.points.has_local_points()) return;
+  for (const auto& u : n.points.local_values(n.nmt.status()))
+    n.image->points[static_cast<std::size_t>(u.point)] = {u.value, now, true};
   notify(n);
 }
 
@@ -549,7 +502,7 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
                 old == NodeState::offline ? " again" : "");
     n.nmt.went_online(old == NodeState::offline);
     resume_polls(n, now);
-    for (const auto& [cob, points] : n.tpdo_points) n.tpdo_seen[cob] = now;
+    for (const uint32_t cob : n.points.tpdo_cobs()) n.tpdo_seen[cob] = now;
     refresh_local_points(n, now);
   } else if (state == NodeState::offline) {
     log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name, n.id, why);
@@ -577,19 +530,10 @@ void CanBus::resume_polls(NodeRuntime& n, SteadyTime now) {
 
 void CanBus::store_object(NodeRuntime& n, uint16_t index, uint8_t sub,
                           std::span<const uint8_t> bytes, SteadyTime now) {
-  const auto& model = *n.config->model;
-  bool stored = false;
-  for (std::size_t p = 0; p < n.sources.size(); ++p) {
-    const auto& src = n.sources[p];
-    if (!src || src->kind == PointSource::Kind::local || !src->object ||
-        src->object->index != index || src->object->sub != sub)
-      continue;
-    std::string error;
-    const auto v = decode_point_value(*src, model.points[p].type, bytes, error);
-    if (!v) continue;  // another reading of the object (length, type): left to its own poll
-    n.image->points[p] = {*v, now, true};
-    stored = true;
-  }
+  const auto updates = n.points.from_object(index, sub, bytes);
+  for (const auto& u : updates)
+    n.image->points[static_cast<std::size_t>(u.point)] = {u.value, now, true};
+  const bool stored = !updates.empty();
   if (index == kErrorRegisterObject.index && sub == 0 && !bytes.empty())
     n.nmt.error_register_seen(bytes[0]);
   if (stored) notify(n);
@@ -780,15 +724,15 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
 // --- node worker -----------------------------------------------------------------------------
 
 asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now) {
-  const auto info = items_[item_index];
+  const auto info = jobs_[item_index];
   const auto period = plan_.item(item_index).period;
   n.finished_at = now;
-  if (info.kind == ItemInfo::Kind::local) {
+  if (info.kind == PollJob::Kind::local) {
     refresh_local_points(n, now);
     plan_.completed(item_index, now);
     co_return;
   }
-  if (info.kind == ItemInfo::Kind::tpdo_fallback) {
+  if (info.kind == PollJob::Kind::tpdo_fallback) {
     const auto seen = n.tpdo_seen.find(info.tpdo_cob);
     if (seen != n.tpdo_seen.end() && now - seen->second < period) {
       plan_.completed(item_index, now);  // the PDO keeps it fresh: no SDO traffic

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "drivers/canopen/canopen_request.hpp"
+#include "drivers/canopen/node_points.hpp"
 #include "drivers/canopen/node_supervision.hpp"
 #include "drivers/canopen/sdo_channel.hpp"
 #include "drivers/frame_family.hpp"
@@ -66,12 +67,6 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
  private:
   struct PendingCommand;
   struct NodeRuntime;
-  struct ItemInfo {
-    enum class Kind { sdo, tpdo_fallback, local };
-    Kind kind = Kind::sdo;
-    canopen::ObjectAddress object;
-    uint32_t tpdo_cob = 0;
-  };
 
   asio::awaitable<void> read_loop();
   asio::awaitable<void> node_worker(NodeRuntime& n);
@@ -130,7 +125,7 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   NodeUpdated on_update_;
   std::unique_ptr<CanChannel> channel_;
   PollPlan plan_;
-  std::vector<ItemInfo> items_;  // parallel to plan_.items()
+  std::vector<canopen::PollJob> jobs_;  // parallel to plan_.items()
   std::vector<std::unique_ptr<NodeRuntime>> nodes_;
   std::map<uint32_t, NodeRuntime*> by_cob_;  // every COB-ID a node sends on
   asio::steady_timer wake_;                  // run(): back-off, waiting for workers

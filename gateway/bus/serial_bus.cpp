@@ -4,6 +4,7 @@
 #include <boost/asio/use_awaitable.hpp>
 
 #include <algorithm>
+#include <stdexcept>
 
 #include "drivers/printable_bytes.hpp"
 #include "drivers/transport/serial_transport.hpp"
@@ -22,6 +23,16 @@ std::unique_ptr<ByteTransport> make_transport(asio::any_io_executor ex, const Tr
     return std::make_unique<TcpTransport>(ex, t.host, t.port, serial_char_time_us(t.serial));
   return std::make_unique<SerialTransport>(ex, t.serial);
 }
+// A serial bus runs a stream family; the configuration loader pairs `can:` with the frame ones.
+ProtocolFamily& stream_family(const BusConfig& config) {
+  auto* family = dynamic_cast<ProtocolFamily*>(config.family.get());
+  if (!family)
+    throw std::invalid_argument(fmt::format(
+        "bus {}: protocol {} runs on a CAN bus (can: {{interface: ...}}), not on a byte stream",
+        config.name, config.family ? config.family->name() : std::string_view("(none)")));
+  return *family;
+}
+
 }  // namespace
 
 struct SerialBus::PendingCommand {
@@ -37,6 +48,7 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
     : executor_(executor),
       config_owner_(std::move(config_owner)),
       config_(config),
+      family_(stream_family(config)),
       first_node_index_(first_node_index),
       on_update_(std::move(on_update)),
       transport_(make_transport(executor, config.transport)),
@@ -53,7 +65,7 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
     trace_.emit(Clock::now(), {}, tx ? TraceDirection::tx : TraceDirection::rx, {},
                 printable_bytes(bytes));
   });
-  config_.family->route_log([bus = config.name](int level, std::string_view text) {
+  family_.route_log([bus = config.name](int level, std::string_view text) {
     log::write(static_cast<log::Level>(std::clamp(level, 3, 7)),
                fmt::format("bus {}: {}", bus, text));
   });
@@ -63,7 +75,7 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
     rt.index = index;
     rt.config = &n;
     rt.timing = node_link_timing(config, n);
-    rt.family_context = config_.family->bind_node(n.address, *n.model);
+    rt.family_context = family_.bind_node(n.address, *n.model);
     rt.image = std::make_shared<NodeImage>();
     nodes_.push_back(rt);
     auto& img = *rt.image;
@@ -150,7 +162,7 @@ asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, Comman
     // Not queued: the line may be held by a transaction that only ends when this gets through.
     ++counters_.commands;
     if (options.on_sent) options.on_sent();
-    co_return co_await config_.family->send_urgent(link_, n.config->address, request);
+    co_return co_await family_.send_urgent(link_, n.config->address, request);
   }
   // A bus-wide command (a global stop) concerns every node: only the link must be up.
   const bool node_gone = (*n.image).state == NodeState::offline && !request.bus_wide;
@@ -269,7 +281,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     }
     const auto started = Clock::now();
     trace_collecting_ = trace_.enabled();
-    reply = co_await config_.family->transact_node(link_, *n.family_context, request, n.timing);
+    reply = co_await family_.transact_node(link_, *n.family_context, request, n.timing);
     trace_collecting_ = false;
     // The trace's outcome names (README "Wire trace"), as CAN buses give them.
     trace_transaction(n,
@@ -308,7 +320,7 @@ void SerialBus::trace_transaction(const NodeRuntime& n, std::string_view outcome
 asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
   if (!transport_->is_open()) co_return;
   trace_collecting_ = trace_.enabled();
-  const auto found = co_await config_.family->resync_after_failure(link_, n.timing);
+  const auto found = co_await family_.resync_after_failure(link_, n.timing);
   trace_collecting_ = false;
   trace_transaction(n, "resync");
   ++counters_.resyncs;
@@ -378,7 +390,7 @@ asio::awaitable<void> SerialBus::open_link() {
       ++counters_.reconnects;
       log::notice("bus {}: opened {}", config_.name, transport_->describe());
       link_error_logged_ = false;
-      co_await config_.family->on_link_open(link_, config_.timing.link);
+      co_await family_.on_link_open(link_, config_.timing.link);
       for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
       for (auto& n : nodes_)
         if ((*n.image).state == NodeState::offline) n.next_probe = Clock::now();

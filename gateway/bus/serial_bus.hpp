@@ -83,6 +83,7 @@ class SerialBus final : public Bus {
   asio::any_io_executor executor_;
   std::shared_ptr<const void> config_owner_;
   const BusConfig& config_;
+  ProtocolFamily& family_;  // the stream shape of config_.family
   int first_node_index_;
   NodeUpdated on_update_;
   std::unique_ptr<ByteTransport> transport_;

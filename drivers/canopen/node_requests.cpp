@@ -1,0 +1,158 @@
+#include "drivers/canopen/node_requests.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+
+namespace fieldgate::canopen {
+
+namespace {
+
+// Pause between the uploads of a `wait` step.
+constexpr auto kWaitInterval = std::chrono::milliseconds(10);
+
+Reply make_reply(Reply::Status status, std::string text, int64_t code = 0) {
+  Reply r;
+  r.status = status;
+  r.text = std::move(text);
+  r.device_code = code;
+  return r;
+}
+
+}  // namespace
+
+NodeRequests::NodeRequests(uint8_t id, const Model* model, SdoChannel& sdo, NodeSupervision& nmt,
+                           const NodePoints& points, RequestHost& host)
+    : id_(id), model_(model), sdo_(sdo), nmt_(nmt), points_(points), host_(host) {}
+
+void NodeRequests::note_abort(const SdoResult& result) {
+  if (result.status != SdoResult::Status::server_abort) return;
+  nmt_.status().last_abort = result.abort_code;
+  host_.refresh_local_points(Clock::now());
+}
+
+void NodeRequests::store_object(uint16_t index, uint8_t sub, std::span<const uint8_t> bytes,
+                                TimePoint at) {
+  host_.store(points_.from_object(index, sub, bytes), at);
+  if (index == kErrorRegisterObject.index && sub == 0 && !bytes.empty())
+    nmt_.error_register_seen(bytes[0]);
+}
+
+asio::awaitable<Reply> NodeRequests::upload(const ObjectAddress& object, int retries,
+                                            TimePoint now) {
+  Reply reply;
+  auto started = now;
+  for (int attempt = 0; attempt <= retries; ++attempt) {
+    if (attempt > 0) {
+      host_.retrying();
+      started = finished_at;
+    }
+    finished_at = started;
+    // A named step, not a temporary: GCC 12 destroys prvalue arguments of a coroutine twice.
+    const SdoStep first = sdo_.client().upload(object.index, object.sub, started);
+    auto result = co_await sdo_.run(first, host_.port(), finished_at);
+    if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
+    host_.transfer_done(std::chrono::duration<double>(finished_at - started).count());
+    note_abort(*result);
+    reply = upload_reply(object, *result);
+    if (reply.status == Reply::Status::ok)
+      store_object(object.index, object.sub, result->data, finished_at);
+    if (reply.status != Reply::Status::timeout && reply.status != Reply::Status::garbled) break;
+    if (attempt < retries) host_.record(reply, finished_at);
+  }
+  host_.record(reply, finished_at);
+  co_return reply;
+}
+
+asio::awaitable<Reply> NodeRequests::download(const Operation& op, TimePoint now) {
+  std::vector<uint8_t> data;
+  if (op.text)
+    data.assign(op.text->begin(), op.text->end());
+  else
+    data = encode_integer(op.object.type, op.value);
+  finished_at = now;
+  const std::vector<uint8_t> written = data;
+  const SdoStep first = sdo_.client().download(op.object.index, op.object.sub, std::move(data), now);
+  auto result = co_await sdo_.run(first, host_.port(), finished_at);
+  if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
+  host_.transfer_done(std::chrono::duration<double>(finished_at - now).count());
+  note_abort(*result);
+  Reply reply = reply_of(*result);
+  host_.record(reply, finished_at);
+  // Confirmed: the points of this object hold the written value until their next poll.
+  if (reply.status == Reply::Status::ok) {
+    store_object(op.object.index, op.object.sub, written, finished_at);
+    if (nmt_.on_downloaded(op.object, op.value, finished_at)) host_.heartbeat_rearmed();
+  }
+  co_return reply;
+}
+
+asio::awaitable<Reply> NodeRequests::wait_for(const Operation& op) {
+  const auto deadline = Clock::now() + op.within;
+  const auto masked = [&](int64_t v) { return static_cast<uint64_t>(v) & op.mask; };
+  for (;;) {
+    Reply r = co_await upload(op.object, 0, Clock::now());
+    if (r.status != Reply::Status::ok) co_return r;
+    const int64_t v = r.values.empty() ? 0 : r.values[0];
+    if (masked(v) == masked(op.value)) co_return r;
+    if (host_.urgent_pending())
+      co_return make_reply(Reply::Status::device_error,
+                           fmt::format("wait for 0x{:04X}:{} interrupted by an urgent command",
+                                       op.object.index, op.object.sub),
+                           v);
+    if (Clock::now() >= deadline)
+      co_return make_reply(
+          Reply::Status::device_error,
+          fmt::format("0x{:04X}:{} is 0x{:X}; waited {} ms for & 0x{:X} == 0x{:X}", op.object.index,
+                      op.object.sub, static_cast<uint64_t>(v),
+                      std::chrono::duration_cast<std::chrono::milliseconds>(op.within).count(),
+                      op.mask, masked(op.value)),
+          v);
+    co_await host_.pause_until(std::min(Clock::now() + kWaitInterval, deadline));
+    if (!host_.port().up()) co_return make_reply(Reply::Status::link_down, "bus link is down");
+  }
+}
+
+std::optional<CanFrame> NodeRequests::immediate_frame(const Request& request) const {
+  std::string error;
+  const auto op = parse_operation(request.command, model_, error);
+  if (!op || op->kind != Operation::Kind::nmt) return std::nullopt;
+  return nmt_frame(op->nmt, request.bus_wide ? 0 : id_);
+}
+
+asio::awaitable<Reply> NodeRequests::execute(const Request& request, bool accept_no_reply,
+                                             TimePoint now) {
+  std::string error;
+  const auto op = parse_operation(request.command, model_, error);
+  if (!op)
+    co_return make_reply(Reply::Status::device_error,
+                         fmt::format("'{}' not sent: {}", request.command, error),
+                         sdo_abort::value_range);
+  switch (op->kind) {
+    case Operation::Kind::read: {
+      Reply r = co_await upload(op->object, 0, now);
+      co_return r;
+    }
+    case Operation::Kind::write: {
+      Reply r = co_await download(*op, now);
+      if (accept_no_reply && r.status == Reply::Status::timeout) r.status = Reply::Status::ok;
+      co_return r;
+    }
+    case Operation::Kind::wait: {
+      Reply r = co_await wait_for(*op);
+      co_return r;
+    }
+    case Operation::Kind::nmt: {
+      const uint8_t target = request.bus_wide ? 0 : id_;
+      const CanFrame frame = nmt_frame(op->nmt, target);
+      const bool sent = co_await host_.port().send(frame);
+      if (!sent)
+        co_return make_reply(Reply::Status::link_down, "cannot send NMT: bus link is down");
+      if (op->nmt == NmtCommand::start) nmt_.started_by_command(Clock::now());
+      co_return make_reply(Reply::Status::ok, {});
+    }
+  }
+  co_return make_reply(Reply::Status::garbled, "unknown operation");
+}
+
+}  // namespace fieldgate::canopen

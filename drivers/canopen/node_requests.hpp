@@ -1,0 +1,75 @@
+// One CANopen node's requests as the bus runs them: a rendered request parsed (the grammar in
+// canopen_request.hpp) and carried out as SDO uploads and downloads on the node's SdoChannel, a
+// `wait` step's uploads until the value matches, NMT commands, and the values a transfer brings
+// stored into the node's points. The bus runtime hosts it behind RequestHost: it owns the port,
+// the counters, the reply accounting (online/offline) and the node's worker that waits.
+#pragma once
+
+#include <boost/asio/awaitable.hpp>
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "drivers/canopen/canopen_request.hpp"
+#include "drivers/canopen/node_points.hpp"
+#include "drivers/canopen/node_supervision.hpp"
+#include "drivers/canopen/sdo_channel.hpp"
+#include "drivers/frame_family.hpp"
+
+namespace fieldgate::canopen {
+
+// What a node's requests need of the bus runtime that hosts the node.
+class RequestHost : public NodeHost {
+ public:
+  virtual FramePort& port() = 0;
+  // A transfer ended after `seconds`: counted, with its latency.
+  virtual void transfer_done(double seconds) = 0;
+  // A poll's transfer is tried once more.
+  virtual void retrying() = 0;
+  // A transfer's reply, for the node's reply accounting (online, offline).
+  virtual void record(const Reply& reply, TimePoint at) = 0;
+  // The points take these values (from a read, a confirmed write) at `at`.
+  virtual void store(const std::vector<PointUpdate>& updates, TimePoint at) = 0;
+  // A confirmed write re-armed the heartbeat consumer.
+  virtual void heartbeat_rearmed() = 0;
+  // An urgent command waits: a running `wait` step gives way to it.
+  virtual bool urgent_pending() const = 0;
+  // Sleeps until `when`, or until the worker is woken.
+  virtual asio::awaitable<void> pause_until(TimePoint when) = 0;
+};
+
+class NodeRequests {
+ public:
+  NodeRequests(uint8_t id, const Model* model, SdoChannel& sdo, NodeSupervision& nmt,
+               const NodePoints& points, RequestHost& host);
+
+  // One request (a command); a write's timeout counts as done where the command accepts no
+  // reply.
+  asio::awaitable<Reply> execute(const Request& request, bool accept_no_reply, TimePoint now);
+  // The frame of a request that goes out at once, without a transfer (NMT), or none.
+  std::optional<CanFrame> immediate_frame(const Request& request) const;
+  // Transfers start at `now` (the caller's clock reading) and record the time their last frame
+  // arrived in finished_at: one clock reading per transfer, which matters where reading the
+  // clock is a system call (User-Mode Linux).
+  asio::awaitable<Reply> upload(const ObjectAddress& object, int retries, TimePoint now);
+  asio::awaitable<Reply> download(const Operation& op, TimePoint now);
+
+  TimePoint finished_at{};  // when the last transfer ended
+
+ private:
+  asio::awaitable<Reply> wait_for(const Operation& op);
+  // The node's last abort, for its point, where the server aborted.
+  void note_abort(const SdoResult& result);
+  // Every point read from `object` takes the value its bytes hold (a confirmed write, a read).
+  void store_object(uint16_t index, uint8_t sub, std::span<const uint8_t> bytes, TimePoint at);
+
+  uint8_t id_;
+  const Model* model_;
+  SdoChannel& sdo_;
+  NodeSupervision& nmt_;
+  const NodePoints& points_;
+  RequestHost& host_;
+};
+
+}  // namespace fieldgate::canopen
