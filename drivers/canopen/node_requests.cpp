@@ -72,7 +72,8 @@ asio::awaitable<Reply> NodeRequests::download(const Operation& op, TimePoint now
     data = encode_integer(op.object.type, op.value);
   finished_at = now;
   const std::vector<uint8_t> written = data;
-  const SdoStep first = sdo_.client().download(op.object.index, op.object.sub, std::move(data), now);
+  const SdoStep first =
+      sdo_.client().download(op.object.index, op.object.sub, std::move(data), now);
   auto result = co_await sdo_.run(first, host_.port(), finished_at);
   if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
   host_.transfer_done(std::chrono::duration<double>(finished_at - now).count());

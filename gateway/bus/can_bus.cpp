@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <stdexcept>
 
-#include "drivers/canopen/node_points.hpp"
 #include "gateway/bus/reply_accounting.hpp"
 #include "gateway/lifecycle/log.hpp"
 
@@ -20,8 +19,6 @@ using namespace canopen;
 namespace {
 constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
 using BusClock = std::chrono::steady_clock;
-// Pause between the uploads of a `wait` step.
-constexpr auto kWaitInterval = std::chrono::milliseconds(10);
 // Error frames can flood (a bus without termination): one log line per this interval at most.
 constexpr auto kErrorLogInterval = std::chrono::seconds(10);
 // A CAN bus runs a frame family; the configuration loader pairs `can:` with them.
@@ -49,7 +46,7 @@ struct CanBus::PendingCommand {
   asio::experimental::channel<void(boost::system::error_code, Reply)> done;
 };
 
-struct CanBus::NodeRuntime final : NodeHost {
+struct CanBus::NodeRuntime final : RequestHost {
   NodeRuntime(CanBus& bus, asio::any_io_executor ex, const NodeConfig& nc,
               const SupervisionTiming& timing)
       : bus(bus),
@@ -62,7 +59,8 @@ struct CanBus::NodeRuntime final : NodeHost {
                }),
         wake(ex),
         sdo(id, bus.config_.timing.link.reply_timeout, wake),
-        nmt(id, nc.name, timing, *this) {}
+        nmt(id, nc.name, timing, *this),
+        requests(id, nc.model.get(), sdo, nmt, points, *this) {}
 
   Presence presence() const override {
     switch (image->state) {
@@ -101,6 +99,28 @@ struct CanBus::NodeRuntime final : NodeHost {
   }
   SteadyTime now() const override { return BusClock::now(); }
 
+  FramePort& port() override { return bus; }
+  void transfer_done(double seconds) override {
+    bus.record_latency(seconds);
+    ++bus.counters_.transactions;
+    ++image->counters.transactions;
+  }
+  void retrying() override {
+    ++bus.counters_.retries;
+    ++image->counters.retries;
+  }
+  void record(const Reply& reply, SteadyTime at) override { bus.record(*this, reply, at); }
+  void store(const std::vector<PointUpdate>& updates, SteadyTime at) override {
+    for (const auto& u : updates)
+      image->points[static_cast<std::size_t>(u.point)] = {u.value, at, true};
+    if (!updates.empty()) bus.notify(*this);
+  }
+  void heartbeat_rearmed() override { bus.supervisor_wake_.cancel(); }
+  bool urgent_pending() const override { return urgent_waiting; }
+  asio::awaitable<void> pause_until(SteadyTime when) override {
+    co_await bus.sleep_until(wake, when);
+  }
+
   CanBus& bus;
   int index = 0;  // position on this bus
   uint8_t id = 0;
@@ -111,8 +131,8 @@ struct CanBus::NodeRuntime final : NodeHost {
 
   asio::steady_timer wake;
   SdoChannel sdo;
-  NodeSupervision nmt;       // heartbeat, NMT, EMCY
-  SteadyTime finished_at{};  // when the last transfer ended
+  NodeSupervision nmt;    // heartbeat, NMT, EMCY
+  NodeRequests requests;  // commands and polls as transfers
   std::deque<std::shared_ptr<PendingCommand>> commands;
   bool urgent_waiting = false;
   SteadyTime next_probe{};
@@ -528,17 +548,6 @@ void CanBus::resume_polls(NodeRuntime& n, SteadyTime now) {
   }
 }
 
-void CanBus::store_object(NodeRuntime& n, uint16_t index, uint8_t sub,
-                          std::span<const uint8_t> bytes, SteadyTime now) {
-  const auto updates = n.points.from_object(index, sub, bytes);
-  for (const auto& u : updates)
-    n.image->points[static_cast<std::size_t>(u.point)] = {u.value, now, true};
-  const bool stored = !updates.empty();
-  if (index == kErrorRegisterObject.index && sub == 0 && !bytes.empty())
-    n.nmt.error_register_seen(bytes[0]);
-  if (stored) notify(n);
-}
-
 void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {
   auto& c = n.image->counters;
   switch (count_reply(c, counters_, reply, at)) {
@@ -566,137 +575,14 @@ void CanBus::record_latency(double seconds) {
 
 // --- transfers -------------------------------------------------------------------------------
 
-void CanBus::note_abort(NodeRuntime& n, const SdoResult& result) {
-  if (result.status != SdoResult::Status::server_abort) return;
-  n.nmt.status().last_abort = result.abort_code;
-  refresh_local_points(n, BusClock::now());
-}
-
-asio::awaitable<Reply> CanBus::upload(NodeRuntime& n, const ObjectAddress& object, int retries,
-                                      SteadyTime now) {
-  Reply reply;
-  auto started = now;
-  for (int attempt = 0; attempt <= retries; ++attempt) {
-    if (attempt > 0) {
-      ++counters_.retries;
-      ++n.image->counters.retries;
-      started = n.finished_at;
-    }
-    n.finished_at = started;
-    // A named step, not a temporary: GCC 12 destroys prvalue arguments of a coroutine twice.
-    const SdoStep first = n.sdo.client().upload(object.index, object.sub, started);
-    auto result = co_await n.sdo.run(first, *this, n.finished_at);
-    if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
-    record_latency(std::chrono::duration<double>(n.finished_at - started).count());
-    ++counters_.transactions;
-    ++n.image->counters.transactions;
-    note_abort(n, *result);
-    reply = upload_reply(object, *result);
-    if (reply.status == Reply::Status::ok)
-      store_object(n, object.index, object.sub, result->data, n.finished_at);
-    if (reply.status != Reply::Status::timeout && reply.status != Reply::Status::garbled) break;
-    if (attempt < retries) record(n, reply, n.finished_at);
-  }
-  record(n, reply, n.finished_at);
-  co_return reply;
-}
-
-asio::awaitable<Reply> CanBus::download(NodeRuntime& n, const Operation& op, SteadyTime now) {
-  std::vector<uint8_t> data;
-  if (op.text)
-    data.assign(op.text->begin(), op.text->end());
-  else
-    data = encode_integer(op.object.type, op.value);
-  n.finished_at = now;
-  const std::vector<uint8_t> written = data;
-  const SdoStep first =
-      n.sdo.client().download(op.object.index, op.object.sub, std::move(data), now);
-  auto result = co_await n.sdo.run(first, *this, n.finished_at);
-  if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
-  record_latency(std::chrono::duration<double>(n.finished_at - now).count());
-  ++counters_.transactions;
-  ++n.image->counters.transactions;
-  note_abort(n, *result);
-  Reply reply = reply_of(*result);
-  record(n, reply, n.finished_at);
-  // Confirmed: the points of this object hold the written value until their next poll.
-  if (reply.status == Reply::Status::ok) {
-    store_object(n, op.object.index, op.object.sub, written, n.finished_at);
-    if (n.nmt.on_downloaded(op.object, op.value, n.finished_at)) supervisor_wake_.cancel();
-  }
-  co_return reply;
-}
-
-asio::awaitable<Reply> CanBus::wait_for(NodeRuntime& n, const Operation& op) {
-  const auto deadline = BusClock::now() + op.within;
-  const auto masked = [&](int64_t v) { return static_cast<uint64_t>(v) & op.mask; };
-  for (;;) {
-    Reply r = co_await upload(n, op.object, 0, BusClock::now());
-    if (r.status != Reply::Status::ok) co_return r;
-    const int64_t v = r.values.empty() ? 0 : r.values[0];
-    if (masked(v) == masked(op.value)) co_return r;
-    if (n.urgent_waiting)
-      co_return make_reply(Reply::Status::device_error,
-                           fmt::format("wait for 0x{:04X}:{} interrupted by an urgent command",
-                                       op.object.index, op.object.sub),
-                           v);
-    if (BusClock::now() >= deadline)
-      co_return make_reply(
-          Reply::Status::device_error,
-          fmt::format("0x{:04X}:{} is 0x{:X}; waited {} ms for & 0x{:X} == 0x{:X}", op.object.index,
-                      op.object.sub, static_cast<uint64_t>(v),
-                      std::chrono::duration_cast<std::chrono::milliseconds>(op.within).count(),
-                      op.mask, masked(op.value)),
-          v);
-    co_await sleep_until(n.wake, std::min(BusClock::now() + kWaitInterval, deadline));
-    if (stopping_ || !link_up_) co_return make_reply(Reply::Status::link_down, "bus link is down");
-  }
-}
-
-asio::awaitable<Reply> CanBus::execute(NodeRuntime& n, const Request& request, bool accept_no_reply,
-                                       SteadyTime now) {
-  std::string error;
-  const auto op = parse_operation(request.command, n.config->model.get(), error);
-  if (!op)
-    co_return make_reply(Reply::Status::device_error,
-                         fmt::format("'{}' not sent: {}", request.command, error),
-                         sdo_abort::value_range);
-  switch (op->kind) {
-    case Operation::Kind::read: {
-      Reply r = co_await upload(n, op->object, 0, now);
-      co_return r;
-    }
-    case Operation::Kind::write: {
-      Reply r = co_await download(n, *op, now);
-      if (accept_no_reply && r.status == Reply::Status::timeout) r.status = Reply::Status::ok;
-      co_return r;
-    }
-    case Operation::Kind::wait: {
-      Reply r = co_await wait_for(n, *op);
-      co_return r;
-    }
-    case Operation::Kind::nmt: {
-      const uint8_t target = request.bus_wide ? 0 : n.id;
-      const bool sent = co_await send(nmt_frame(op->nmt, target));
-      if (!sent)
-        co_return make_reply(Reply::Status::link_down, "cannot send NMT: bus link is down");
-      if (op->nmt == NmtCommand::start) n.nmt.started_by_command(BusClock::now());
-      co_return make_reply(Reply::Status::ok, {});
-    }
-  }
-  co_return make_reply(Reply::Status::garbled, "unknown operation");
-}
-
 asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOptions options) {
   auto& n = node(node_index);
   if (options.urgent) {
-    std::string error;
-    const auto op = parse_operation(request.command, n.config->model.get(), error);
     // NMT has no answer and no per-node transfer: it goes out at once.
-    if (op && op->kind == Operation::Kind::nmt) {
+    if (const auto frame = n.requests.immediate_frame(request)) {
       ++counters_.commands;
       if (options.on_sent) options.on_sent();
-      const bool sent = co_await send(nmt_frame(op->nmt, request.bus_wide ? 0 : n.id));
+      const bool sent = co_await send(*frame);
       co_return sent ? make_reply(Reply::Status::ok, {})
                      : make_reply(Reply::Status::link_down, "bus link is down");
     }
@@ -726,7 +612,7 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
 asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now) {
   const auto info = jobs_[item_index];
   const auto period = plan_.item(item_index).period;
-  n.finished_at = now;
+  n.requests.finished_at = now;
   if (info.kind == PollJob::Kind::local) {
     refresh_local_points(n, now);
     plan_.completed(item_index, now);
@@ -743,12 +629,12 @@ asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, S
   // takes runs straight after it.
   plan_.completed(item_index, now);
   // upload() stores the value in every point of the object, the targets among them.
-  co_await upload(n, info.object, config_.timing.retries, now);
+  co_await n.requests.upload(info.object, config_.timing.retries, now);
 }
 
 asio::awaitable<void> CanBus::probe(NodeRuntime& n, SteadyTime now) {
   n.next_probe = now + config_.timing.probe_interval;
-  co_await upload(n, kDeviceTypeObject, 0, now);
+  co_await n.requests.upload(kDeviceTypeObject, 0, now);
 }
 
 asio::awaitable<void> CanBus::configure_heartbeat(NodeRuntime& n, SteadyTime now) {
@@ -756,14 +642,14 @@ asio::awaitable<void> CanBus::configure_heartbeat(NodeRuntime& n, SteadyTime now
   op.kind = Operation::Kind::write;
   op.object = kHeartbeatObject;
   op.value = n.nmt.producer_ms();
-  const Reply r = co_await download(n, op, now);
-  n.nmt.configured(r, op.value, n.finished_at);
+  const Reply r = co_await n.requests.download(op, now);
+  n.nmt.configured(r, op.value, n.requests.finished_at);
 }
 
 asio::awaitable<void> CanBus::report_pre_operational(NodeRuntime& n, SteadyTime now) {
   n.nmt.begin_pre_operational_report();
   // upload() puts it into the error register point, so the map shows it with the NMT state.
-  const Reply r = co_await upload(n, kErrorRegisterObject, config_.timing.retries, now);
+  const Reply r = co_await n.requests.upload(kErrorRegisterObject, config_.timing.retries, now);
   n.nmt.report_pre_operational(r);
 }
 
@@ -811,7 +697,8 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
       else {
         // Commands are not retried: a lost answer may hide a command the node carried out.
         if (cmd->options.on_sent) cmd->options.on_sent();
-        reply = co_await execute(n, cmd->request, cmd->options.accept_no_reply, BusClock::now());
+        reply = co_await n.requests.execute(cmd->request, cmd->options.accept_no_reply,
+                                            BusClock::now());
       }
       cmd->done.try_send(boost::system::error_code{}, std::move(reply));
       continue;
@@ -841,7 +728,7 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
         co_await probe(n, now);
       else
         co_await run_poll(n, *due, now);
-      known_now = n.finished_at;
+      known_now = n.requests.finished_at;
       continue;
     }
     const bool expired = co_await sleep_until(n.wake, when);

@@ -13,6 +13,7 @@
 
 #include "drivers/canopen/canopen_request.hpp"
 #include "drivers/canopen/node_points.hpp"
+#include "drivers/canopen/node_requests.hpp"
 #include "drivers/canopen/node_supervision.hpp"
 #include "drivers/canopen/sdo_channel.hpp"
 #include "drivers/frame_family.hpp"
@@ -74,15 +75,6 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   // True when the time came, false when the timer was cancelled (woken).
   asio::awaitable<bool> sleep_until(asio::steady_timer& timer, SteadyTime when);
 
-  asio::awaitable<Reply> execute(NodeRuntime& n, const Request& request, bool accept_no_reply,
-                                 SteadyTime now);
-  // Transfers start at `now` (the caller's clock reading) and record the time their last frame
-  // arrived in the node's finished_at: one clock reading per transfer, which matters where
-  // reading the clock is a system call (User-Mode Linux).
-  asio::awaitable<Reply> upload(NodeRuntime& n, const canopen::ObjectAddress& object, int retries,
-                                SteadyTime now);
-  asio::awaitable<Reply> download(NodeRuntime& n, const canopen::Operation& op, SteadyTime now);
-  asio::awaitable<Reply> wait_for(NodeRuntime& n, const canopen::Operation& op);
   void trace_frame(const canopen::CanFrame& frame, TraceDirection direction, SteadyTime at,
                    std::string_view outcome);
   asio::awaitable<void> run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now);
@@ -96,15 +88,10 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   void on_error_frame(const canopen::CanFrame& frame, SteadyTime now);
   void on_tpdo(NodeRuntime& n, const canopen::CanFrame& frame, SteadyTime now);
   void refresh_local_points(NodeRuntime& n, SteadyTime now);
-  // Every point read from `object` takes the value its bytes hold (a confirmed write, a read).
-  void store_object(NodeRuntime& n, uint16_t index, uint8_t sub, std::span<const uint8_t> bytes,
-                    SteadyTime now);
   // Overdue polls of a node back online run at once, each on its own phase.
   void resume_polls(NodeRuntime& n, SteadyTime now);
   asio::awaitable<void> guard(NodeRuntime& n, SteadyTime now);
 
-  // The node's last abort, for its point, where the server aborted.
-  void note_abort(NodeRuntime& n, const canopen::SdoResult& result);
   void record(NodeRuntime& n, const Reply& reply, SteadyTime at);
   void record_latency(double seconds);
   void set_state(NodeRuntime& n, NodeState state, std::string_view why);
