@@ -163,6 +163,22 @@ const std::string kTwoDrives =
     "      - {name: axis2, address: 2, model: canopen-cia402, unit_id: 1}\n"
     "      - {name: axis3, address: 3, model: canopen-cia402, unit_id: 2}\n";
 
+// The bus takes the frame shape of its family once, when it is built: a stream family on it is
+// a precise error (the loader pairs `can:` with canopen, so only a hand-made config gets here).
+TEST_F(CanBusTest, StreamFamilyIsRefusedWhenTheBusIsBuilt) {
+  start("2,3", kTwoDrives);
+  BusConfig copy = config_->gateway.buses[0];
+  copy.family = make_family("copley-ascii");
+  try {
+    CanBus bus(io_.get_executor(), config_, copy, 0, {},
+               std::make_unique<SimChannel>(io_.get_executor(), wire_, "2", as_shipped()));
+    ADD_FAILURE() << "a CAN bus was built with a stream family";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "bus can: protocol copley-ascii runs on a byte stream, not on a CAN bus (can:)");
+  }
+}
+
 TEST_F(CanBusTest, StartsNodesAndTakesPdosWithoutSdo) {
   start("2,3", kTwoDrives);
   ASSERT_TRUE(run_until([&] { return point(0, "nmt_state") == 5 && point(1, "nmt_state") == 5; }))

@@ -41,6 +41,18 @@ TEST(CanopenFamily, Address) {
   EXPECT_TRUE(make_family("canopen"));
 }
 
+// The registry hands out the family base; canopen has the frame shape, not the stream one.
+TEST(CanopenFamily, IsAFrameFamilyNotAStreamFamily) {
+  const FamilyPtr family = make_family("canopen");
+  ASSERT_TRUE(family);
+  EXPECT_NE(dynamic_cast<FrameFamily*>(family.get()), nullptr);
+  EXPECT_EQ(dynamic_cast<ProtocolFamily*>(family.get()), nullptr);
+  const FamilyPtr stream = make_family("copley-ascii");
+  ASSERT_TRUE(stream);
+  EXPECT_EQ(dynamic_cast<FrameFamily*>(stream.get()), nullptr);
+  EXPECT_NE(dynamic_cast<ProtocolFamily*>(stream.get()), nullptr);
+}
+
 constexpr const char* kHeader = "model: m\nfamily: canopen\npoll_classes: {slow: 1s}\n";
 
 TEST(CanopenFamily, ManufacturerObjectIsYamlOnly) {
