@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "drivers/techno_c/techno_codec.hpp"
@@ -47,43 +48,33 @@ TEST(TechnoEncode, RawBytesHaveNoPrefixAndNoCr) {
   EXPECT_EQ(encode_command(0, kResetCommand), std::string("\xfe"));
 }
 
+// Each command classifies with the expected value in one field of Command; a failing row names
+// the command.
+template <class Value>
+void expect_classified(Value Command::*field,
+                       const std::vector<std::pair<const char*, Value>>& cases) {
+  for (const auto& [command, expected] : cases) {
+    SCOPED_TRACE(command);
+    EXPECT_EQ(classify(command).*field, expected);
+  }
+}
+
 TEST(TechnoClassify, CaseDecidesWhenTheHandshakeComes) {
-  struct HandshakeCase {
-    const char* command;
-    Handshake handshake;
+  const std::vector<std::pair<const char*, Handshake>> handshakes = {
+      {"A400,9000", Handshake::at_end}, {"a400,9000", Handshake::at_start},
+      {"m1,30", Handshake::at_start},   {"R7", Handshake::at_end},
+      {"r2", Handshake::at_start},      {"S", Handshake::at_end},
+      {"s", Handshake::at_start},       {"Y9599,1000,314,7360,1972,-1,1", Handshake::at_end},
+      {"P", Handshake::immediate},      {"n7", Handshake::immediate},
   };
-  for (const HandshakeCase& c : std::vector<HandshakeCase>{
-           {"A400,9000", Handshake::at_end},
-           {"a400,9000", Handshake::at_start},
-           {"m1,30", Handshake::at_start},
-           {"R7", Handshake::at_end},
-           {"r2", Handshake::at_start},
-           {"S", Handshake::at_end},
-           {"s", Handshake::at_start},
-           {"Y9599,1000,314,7360,1972,-1,1", Handshake::at_end},
-           {"P", Handshake::immediate},
-           {"n7", Handshake::immediate},
-       }) {
-    SCOPED_TRACE(c.command);
-    EXPECT_EQ(classify(c.command).handshake, c.handshake);
-  }
-  struct KindCase {
-    const char* command;
-    CommandKind kind;
+  expect_classified(&Command::handshake, handshakes);
+  const std::vector<std::pair<const char*, CommandKind>> kinds = {
+      {"M1,30", CommandKind::move_absolute}, {"7", CommandKind::specify_axes},
+      {"b65531", CommandKind::peek},         {"c2048", CommandKind::peek},
+      {"<stop>", CommandKind::stop},         {"<reset>", CommandKind::reset},
+      {"X1", CommandKind::unknown},          {"", CommandKind::unknown},
   };
-  for (const KindCase& c : std::vector<KindCase>{
-           {"M1,30", CommandKind::move_absolute},
-           {"7", CommandKind::specify_axes},
-           {"b65531", CommandKind::peek},
-           {"c2048", CommandKind::peek},
-           {"<stop>", CommandKind::stop},
-           {"<reset>", CommandKind::reset},
-           {"X1", CommandKind::unknown},
-           {"", CommandKind::unknown},
-       }) {
-    SCOPED_TRACE(c.command);
-    EXPECT_EQ(classify(c.command).kind, c.kind);
-  }
+  expect_classified(&Command::kind, kinds);
   EXPECT_EQ(classify("7").values, "7");
 }
 
