@@ -69,21 +69,25 @@ TEST(CopleyErrors, TrajectoryLimits) {
   EXPECT_EQ(amp.send("t 2"), "e 14\r") << "homing needs 21 or 31";
   amp.send("s r0x24 21");
   amp.send("s r0xca 100000");
-  amp.send("s r0xcb 0");
-  EXPECT_EQ(amp.send("t 1"), "e 19\r");
-  amp.send("s r0xcb 10000");
-  amp.send("s r0xcc 0");
-  EXPECT_EQ(amp.send("t 1"), "e 20\r");
-  amp.send("s r0xcc 10000");
-  amp.send("s r0xcd -1");
-  EXPECT_EQ(amp.send("t 1"), "e 21\r");
-  amp.send("s r0xcd 10000");
-  amp.send("s r0xc8 3");
-  EXPECT_EQ(amp.send("t 1"), "e 25\r");
-  amp.send("s r0xc8 1");
-  amp.send("s r0xce 0");
-  EXPECT_EQ(amp.send("t 1"), "e 22\r");
-  amp.send("s r0xce 1000");
+  // One bad trajectory parameter at a time refuses the move with its error, then is repaired.
+  struct BadParameter {
+    const char* variable;
+    const char* bad;
+    const char* good;
+    const char* error;
+  };
+  for (const BadParameter& p : std::vector<BadParameter>{
+           {"r0xcb", "0", "10000", "e 19\r"},
+           {"r0xcc", "0", "10000", "e 20\r"},
+           {"r0xcd", "-1", "10000", "e 21\r"},
+           {"r0xc8", "3", "1", "e 25\r"},
+           {"r0xce", "0", "1000", "e 22\r"},
+       }) {
+    SCOPED_TRACE(std::string(p.variable) + " " + p.bad);
+    amp.send("s " + std::string(p.variable) + " " + p.bad);
+    EXPECT_EQ(amp.send("t 1"), p.error);
+    amp.send("s " + std::string(p.variable) + " " + p.good);
+  }
   EXPECT_EQ(amp.send("t 1"), "ok\r") << "S-curve, run as a trapezoid";
   EXPECT_EQ(amp.send("t 1", 1), "e 18\r") << "S-curve moves cannot be updated";
   EXPECT_EQ(amp.send("t 2", 1), "e 18\r") << "no homing while moving";
