@@ -16,6 +16,17 @@
 
 namespace fieldgate::test {
 
+// An axis of the party line by its name, and the requests a model sends it.
+inline NodeAddress unit(char name) {
+  return {std::string(1, name), static_cast<unsigned char>(name), 0};
+}
+inline Request read(const char* c) {
+  return {c, Request::Expect::values, NumberFormat::decimal};
+}
+inline Request write(const char* c) {
+  return {c, Request::Expect::ack, NumberFormat::decimal};
+}
+
 // The IMS family on a Link to a simulated party line in process: attach() (re)builds the chain,
 // transact() runs one request to completion on the bench's io_context.
 class ImsChainBench {
@@ -38,8 +49,7 @@ class ImsChainBench {
   }
 
   Reply transact(char name, const Request& r) {
-    const NodeAddress node{std::string(1, name), static_cast<unsigned char>(name), 0};
-    return run(family_.transact(*link_, node, r, timing_));
+    return run(family_.transact(*link_, unit(name), r, timing_));
   }
 
   sim::ims::PartyLine& chain() { return transport_->chain(); }

@@ -22,15 +22,9 @@ namespace {
 using namespace std::chrono_literals;
 using ims::EchoMatch;
 
-NodeAddress unit(char name) {
-  return {std::string(1, name), static_cast<unsigned char>(name), 0};
-}
-Request read(const char* c) {
-  return {c, Request::Expect::values, NumberFormat::decimal};
-}
-Request write(const char* c) {
-  return {c, Request::Expect::ack, NumberFormat::decimal};
-}
+using test::read;
+using test::unit;
+using test::write;
 
 // --- codec ----------------------------------------------------------------------------------
 
