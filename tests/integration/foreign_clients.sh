@@ -24,25 +24,16 @@ check "mbpoll sees 0x0B for an absent node" "1" \
 check "mbpoll sees 0x02 for an unmapped address" "1" "$(mb -a 1 -t 3 -r 600 | grep -c 'Illegal data address')"
 
 /usr/bin/python3 - "$port" <<'PY' || fail=1
-import sys, time
+import sys
 from pymodbus.client import ModbusTcpClient
 from pymodbus.pdu import ExceptionResponse
+from pymodbus_steps import move_to_2500
 c = ModbusTcpClient("127.0.0.1", port=int(sys.argv[1]))
 assert c.connect(), "pymodbus cannot connect"
 def ok(name, cond):
     print(("ok: " if cond else "FAIL: ") + name)
     if not cond: sys.exit(1)
-r = c.write_register(100, 1, slave=2)           # enable
-ok("pymodbus: enable confirmed", not r.isError())
-r = c.write_registers(110, [0, 2500], slave=2)  # target 2500
-ok("pymodbus: target written", not r.isError())
-r = c.write_register(100, 3, slave=2)           # move_absolute
-ok("pymodbus: move confirmed", not r.isError())
-for _ in range(200):
-    if c.read_holding_registers(101, 1, slave=2).registers[0] == 2: break
-    time.sleep(0.05)
-pos = c.read_input_registers(0, 2, slave=2).registers
-ok("pymodbus: position reached 2500 (%s)" % pos, pos == [0, 2500])
+move_to_2500(c, ok, "pymodbus")
 r = c.write_register(122, 5, slave=2)           # enable_mode below its min
 ok("pymodbus: out-of-range setpoint gives 0x03", isinstance(r, ExceptionResponse) and r.exception_code == 3)
 r = c.write_register(110, 7, slave=2)           # half of the 32-bit target

@@ -3,6 +3,10 @@
 # EXIT trap, simulators and the daemon started as jobs of the calling shell (so the trap's
 # `kill $(jobs -p)` stops them), the daemon's config, and the checks and mbpoll calls they share.
 
+# The scripts' Python steps import what they share (pymodbus_steps.py) from this folder.
+PYTHONPATH="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)${PYTHONPATH:+:$PYTHONPATH}"
+export PYTHONPATH
+
 # scratch_dir [CLEANUP]: sets dir to a new scratch directory; on exit runs CLEANUP (e.g. closing
 # a FIFO's descriptor), stops the shell's jobs and removes the directory.
 scratch_dir() {

@@ -56,6 +56,7 @@ import sys, time, urllib.request
 import serial
 from pymodbus.client import ModbusSerialClient
 from pymodbus.pdu import ExceptionResponse
+from pymodbus_steps import move_to_2500
 
 device, baud, metrics_port = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 failed = False
@@ -66,18 +67,7 @@ def ok(name, cond):
 
 c = ModbusSerialClient(port=device, baudrate=baud, parity="N", stopbits=1, bytesize=8, timeout=1)
 assert c.connect(), "pymodbus cannot open " + device
-r = c.write_register(100, 1, slave=2)           # enable
-ok("pymodbus rtu: enable confirmed", not r.isError())
-r = c.write_registers(110, [0, 2500], slave=2)  # target 2500
-ok("pymodbus rtu: target written", not r.isError())
-r = c.write_register(100, 3, slave=2)           # move_absolute
-ok("pymodbus rtu: move confirmed", not r.isError())
-for _ in range(200):
-    r = c.read_holding_registers(101, 1, slave=2)
-    if not r.isError() and r.registers[0] == 2: break
-    time.sleep(0.05)
-pos = c.read_input_registers(0, 2, slave=2).registers
-ok("pymodbus rtu: position reached 2500 (%s)" % pos, pos == [0, 2500])
+move_to_2500(c, ok, "pymodbus rtu")
 r = c.write_register(110, 7, slave=2)           # half of the 32-bit target
 ok("pymodbus rtu: half a 32-bit value gives 0x03", isinstance(r, ExceptionResponse) and r.exception_code == 3)
 c.close()

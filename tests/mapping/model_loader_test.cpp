@@ -1,5 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <ostream>
+#include <string>
+#include <vector>
+
 #include "mapping/model_loader.hpp"
 
 namespace fieldgate {
@@ -35,72 +39,6 @@ TEST(ModelLoader, ShippedCopleyModelLoadsClean) {
     EXPECT_TRUE(m->find_action(a)) << a;
 }
 
-TEST(ModelLoader, UnknownKeyNamesLineColumnAndAlternatives) {
-  const auto e = first_error(std::string(kHeader) +
-                             "points:\n  p:\n    type: int32\n    red: g r0x32\n    poll: fast\n");
-  EXPECT_NE(e.find("unknown key 'red'"), std::string::npos) << e;
-  EXPECT_NE(e.find("read"), std::string::npos) << e;
-  EXPECT_NE(e.find("@7:5"), std::string::npos) << e;
-}
-
-TEST(ModelLoader, WrongTypeIsReported) {
-  const auto e =
-      first_error(std::string(kHeader) +
-                  "points:\n  p:\n    type: float64\n    read: g r0x32\n    poll: fast\n");
-  EXPECT_NE(e.find("unknown type 'float64'"), std::string::npos) << e;
-  EXPECT_NE(e.find("@6:11"), std::string::npos) << e;
-}
-
-TEST(ModelLoader, UnknownPollClass) {
-  const auto e = first_error(std::string(kHeader) +
-                             "points:\n  p:\n    type: int32\n    read: g r0x32\n    poll: slow\n");
-  EXPECT_NE(e.find("unknown poll class 'slow' (defined: fast)"), std::string::npos) << e;
-}
-
-TEST(ModelLoader, ActionPlaceholderMustBeASetpoint) {
-  const auto e =
-      first_error(std::string(kHeader) +
-                  "actions:\n  go:\n    code: 1\n    steps:\n      - s r0xca {target}\n");
-  EXPECT_NE(e.find("{target}"), std::string::npos) << e;
-  EXPECT_NE(e.find("not a setpoint"), std::string::npos) << e;
-}
-
-TEST(ModelLoader, DuplicateActionCodes) {
-  const auto e =
-      first_error(std::string(kHeader) +
-                  "actions:\n  a: {code: 1, steps: [t 1]}\n  b: {code: 1, steps: [t 0]}\n");
-  EXPECT_NE(e.find("code 1 is already used by action a"), std::string::npos) << e;
-}
-
-TEST(ModelLoader, DuplicatePointNames) {
-  const auto e = first_error(std::string(kHeader) +
-                             "points:\n  p: {type: int16, read: g r0x1, poll: fast}\n"
-                             "  p: {type: int16, read: g r0x2, poll: fast}\n");
-  EXPECT_NE(e.find("'p' is defined twice"), std::string::npos) << e;
-}
-
-TEST(ModelLoader, ConditionBitMustExist) {
-  const auto e =
-      first_error(std::string(kHeader) +
-                  "points:\n  s: {type: uint32, read: g r0xa0, poll: fast, bits: {m: 27}}\n"
-                  "actions:\n  go: {code: 1, steps: [t 1], done: {point: s, bit: moving, "
-                  "equals: 0}}\n");
-  EXPECT_NE(e.find("no bit named 'moving'"), std::string::npos) << e;
-}
-
-TEST(ModelLoader, LimitsMustFitTheType) {
-  const auto e =
-      first_error(std::string(kHeader) +
-                  "points:\n  p:\n    type: int16\n    write: s r0x1 {value}\n    max: 70000\n");
-  EXPECT_NE(e.find("max 70000 does not fit int16"), std::string::npos) << e;
-}
-
-TEST(ModelLoader, WriteTakesOnlyValue) {
-  const auto e =
-      first_error(std::string(kHeader) + "points:\n  p:\n    type: int16\n    write: s r0x1 {v}\n");
-  EXPECT_NE(e.find("only {value}"), std::string::npos) << e;
-}
-
 TEST(ModelLoader, DelayStepsLoad) {
   Diagnostics d;
   auto m = load_model_text(std::string(kHeader) +
@@ -113,10 +51,67 @@ TEST(ModelLoader, DelayStepsLoad) {
   EXPECT_EQ(m->actions[0].steps[1].duration, std::chrono::milliseconds(500));
 }
 
-TEST(ModelLoader, SyntaxErrorHasPosition) {
-  const auto e = first_error("model: m\nfamily: [unclosed\n");
-  EXPECT_NE(e.find("YAML syntax"), std::string::npos) << e;
+// A model with one mistake: the first error names it (all of `expected`, position included).
+struct BadModel {
+  const char* name;
+  std::string yaml;
+  std::vector<std::string> expected;
+};
+
+void PrintTo(const BadModel& model, std::ostream* out) {
+  *out << model.name;
 }
+
+class ModelLoaderError : public ::testing::TestWithParam<BadModel> {};
+
+TEST_P(ModelLoaderError, IsNamedPrecisely) {
+  const std::string e = first_error(GetParam().yaml);
+  for (const std::string& expected : GetParam().expected)
+    EXPECT_NE(e.find(expected), std::string::npos) << "expected " << expected << " in " << e;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    ModelLoader, ModelLoaderError,
+    ::testing::Values(
+        BadModel{"UnknownKeyNamesLineColumnAndAlternatives",
+                 std::string(kHeader) +
+                     "points:\n  p:\n    type: int32\n    red: g r0x32\n    poll: fast\n",
+                 {"unknown key 'red'", "read", "@7:5"}},
+        BadModel{"WrongTypeIsReported",
+                 std::string(kHeader) +
+                     "points:\n  p:\n    type: float64\n    read: g r0x32\n    poll: fast\n",
+                 {"unknown type 'float64'", "@6:11"}},
+        BadModel{"UnknownPollClass",
+                 std::string(kHeader) +
+                     "points:\n  p:\n    type: int32\n    read: g r0x32\n    poll: slow\n",
+                 {"unknown poll class 'slow' (defined: fast)"}},
+        BadModel{"ActionPlaceholderMustBeASetpoint",
+                 std::string(kHeader) +
+                     "actions:\n  go:\n    code: 1\n    steps:\n      - s r0xca {target}\n",
+                 {"{target}", "not a setpoint"}},
+        BadModel{"DuplicateActionCodes",
+                 std::string(kHeader) +
+                     "actions:\n  a: {code: 1, steps: [t 1]}\n  b: {code: 1, steps: [t 0]}\n",
+                 {"code 1 is already used by action a"}},
+        BadModel{"DuplicatePointNames",
+                 std::string(kHeader) + "points:\n  p: {type: int16, read: g r0x1, poll: fast}\n"
+                                        "  p: {type: int16, read: g r0x2, poll: fast}\n",
+                 {"'p' is defined twice"}},
+        BadModel{"ConditionBitMustExist",
+                 std::string(kHeader) +
+                     "points:\n  s: {type: uint32, read: g r0xa0, poll: fast, bits: {m: 27}}\n"
+                     "actions:\n  go: {code: 1, steps: [t 1], done: {point: s, bit: moving, "
+                     "equals: 0}}\n",
+                 {"no bit named 'moving'"}},
+        BadModel{"LimitsMustFitTheType",
+                 std::string(kHeader) +
+                     "points:\n  p:\n    type: int16\n    write: s r0x1 {value}\n    max: 70000\n",
+                 {"max 70000 does not fit int16"}},
+        BadModel{"WriteTakesOnlyValue",
+                 std::string(kHeader) + "points:\n  p:\n    type: int16\n    write: s r0x1 {v}\n",
+                 {"only {value}"}},
+        BadModel{"SyntaxErrorHasPosition", "model: m\nfamily: [unclosed\n", {"YAML syntax"}}),
+    [](const auto& info) { return std::string(info.param.name); });
 
 TEST(ModelLoader, CanopenObjectsParse) {
   Diagnostics d;

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tests/sim/sim_time.hpp"
@@ -38,6 +39,15 @@ struct EchoDevice {
   }
 };
 
+// The echo device, its fault switches and the exchange in front of it.
+struct EchoLine {
+  explicit EchoLine(LineDeviceOptions options = {})
+      : exchange(device.hooks(), std::move(options), faults) {}
+  EchoDevice device;
+  FaultInjection faults;
+  LineExchange exchange;
+};
+
 std::string drain(LineExchange& exchange, SimTime until) {
   std::string out;
   exchange.advance(until, out);
@@ -45,123 +55,107 @@ std::string drain(LineExchange& exchange, SimTime until) {
 }
 
 TEST(LineExchange, AnswersAtOnceWithoutWireEmulation) {
-  EchoDevice device;
-  FaultInjection faults;
-  LineExchange exchange(device.hooks(), {}, faults);
-  exchange.receive(kT0, "a\rb");
-  EXPECT_EQ(drain(exchange, kT0), "a=ok\r");
-  exchange.receive(kT0 + 1ms, "c\rd\r");
-  EXPECT_EQ(drain(exchange, kT0 + 1ms), "bc=ok\rd=ok\r");
-  EXPECT_EQ(device.executed, (std::vector<std::string>{"a\r", "bc\r", "d\r"}));
-  EXPECT_TRUE(exchange.idle());
+  EchoLine line;
+  line.exchange.receive(kT0, "a\rb");
+  EXPECT_EQ(drain(line.exchange, kT0), "a=ok\r");
+  line.exchange.receive(kT0 + 1ms, "c\rd\r");
+  EXPECT_EQ(drain(line.exchange, kT0 + 1ms), "bc=ok\rd=ok\r");
+  EXPECT_EQ(line.device.executed, (std::vector<std::string>{"a\r", "bc\r", "d\r"}));
+  EXPECT_TRUE(line.exchange.idle());
 }
 
 TEST(LineExchange, WireEmulationPacesRequestTurnaroundAndReply) {
-  EchoDevice device;
-  FaultInjection faults;
   LineDeviceOptions options;
   options.wire = {true, WireTiming(9600), 500us};
-  LineExchange exchange(device.hooks(), options, faults);
+  EchoLine line(options);
   const auto character = WireTiming(9600).character_time();
 
-  exchange.receive(kT0, "ab\r");  // 3 characters on the wire
-  EXPECT_EQ(drain(exchange, kT0 + 3 * character - 1ns), "");
-  EXPECT_TRUE(device.executed.empty()) << "executed before its bytes had arrived";
-  EXPECT_EQ(exchange.next_deadline(), kT0 + options.wire.timing.wire_time(3));
+  line.exchange.receive(kT0, "ab\r");  // 3 characters on the wire
+  EXPECT_EQ(drain(line.exchange, kT0 + 3 * character - 1ns), "");
+  EXPECT_TRUE(line.device.executed.empty()) << "executed before its bytes had arrived";
+  EXPECT_EQ(line.exchange.next_deadline(), kT0 + options.wire.timing.wire_time(3));
 
   const SimTime executed_at = kT0 + options.wire.timing.wire_time(3);
-  EXPECT_EQ(drain(exchange, executed_at), "");
-  EXPECT_EQ(device.executed.size(), 1u);
+  EXPECT_EQ(drain(line.exchange, executed_at), "");
+  EXPECT_EQ(line.device.executed.size(), 1u);
   // "ab=ok\r" starts after the turnaround; its first byte is usable one character later.
   const SimTime reply_start = executed_at + 500us;
-  EXPECT_EQ(exchange.next_deadline(), reply_start + options.wire.timing.wire_time(1));
+  EXPECT_EQ(line.exchange.next_deadline(), reply_start + options.wire.timing.wire_time(1));
   std::string out;
-  while (const auto due = exchange.next_deadline()) exchange.advance(*due, out);
+  while (const auto due = line.exchange.next_deadline()) line.exchange.advance(*due, out);
   EXPECT_EQ(out, "ab=ok\r");
-  EXPECT_TRUE(exchange.idle());
+  EXPECT_TRUE(line.exchange.idle());
 }
 
 TEST(LineExchange, ReplyAtTheNewBaud) {
-  EchoDevice device;
-  FaultInjection faults;
   LineDeviceOptions options;
   options.wire = {true, WireTiming(9600), 0us};
-  LineExchange exchange(device.hooks(), options, faults);
-  device.next_reply_extras.new_baud = 115200;
-  exchange.receive(kT0, "x\r");
+  EchoLine line(options);
+  line.device.next_reply_extras.new_baud = 115200;
+  line.exchange.receive(kT0, "x\r");
   const SimTime executed_at = kT0 + WireTiming(9600).wire_time(2);
   std::string out;
-  exchange.advance(executed_at, out);
-  EXPECT_EQ(exchange.baud(), 115200u);
-  exchange.advance(executed_at + WireTiming(115200).wire_time(5), out);
+  line.exchange.advance(executed_at, out);
+  EXPECT_EQ(line.exchange.baud(), 115200u);
+  line.exchange.advance(executed_at + WireTiming(115200).wire_time(5), out);
   EXPECT_EQ(out, "x=ok\r");
 }
 
 TEST(LineExchange, SilenceDiscardsRequestsUnexecuted) {
-  EchoDevice device;
-  FaultInjection faults;
-  faults.silence = true;
-  LineExchange exchange(device.hooks(), {}, faults);
-  exchange.receive(kT0, "a\r");
-  EXPECT_EQ(drain(exchange, kT0 + 1s), "");
-  EXPECT_TRUE(device.executed.empty());
-  faults.silence = false;
-  exchange.receive(kT0 + 2s, "b\r");
-  EXPECT_EQ(drain(exchange, kT0 + 2s), "b=ok\r");
+  EchoLine line;
+  line.faults.silence = true;
+  line.exchange.receive(kT0, "a\r");
+  EXPECT_EQ(drain(line.exchange, kT0 + 1s), "");
+  EXPECT_TRUE(line.device.executed.empty());
+  line.faults.silence = false;
+  line.exchange.receive(kT0 + 2s, "b\r");
+  EXPECT_EQ(drain(line.exchange, kT0 + 2s), "b=ok\r");
 }
 
 TEST(LineExchange, GarbageKeepsLengthAndTerminator) {
-  EchoDevice device;
-  FaultInjection faults;
-  faults.garbage_replies = 1;
   LineDeviceOptions options;
   options.terminators = "\r";
-  LineExchange exchange(device.hooks(), options, faults);
-  exchange.receive(kT0, "hello\r");
-  const std::string garbage = drain(exchange, kT0);
+  EchoLine line(options);
+  line.faults.garbage_replies = 1;
+  line.exchange.receive(kT0, "hello\r");
+  const std::string garbage = drain(line.exchange, kT0);
   ASSERT_EQ(garbage.size(), std::string("hello=ok\r").size());
   EXPECT_EQ(garbage.back(), '\r');
   EXPECT_EQ(garbage.find('\r'), garbage.size() - 1);
   EXPECT_NE(garbage, "hello=ok\r");
-  EXPECT_EQ(faults.garbage_replies, 0u);
-  exchange.receive(kT0, "hello\r");
-  EXPECT_EQ(drain(exchange, kT0), "hello=ok\r");
+  EXPECT_EQ(line.faults.garbage_replies, 0u);
+  line.exchange.receive(kT0, "hello\r");
+  EXPECT_EQ(drain(line.exchange, kT0), "hello=ok\r");
 }
 
 TEST(LineExchange, TruncateCutsTheReplyInHalfWithoutTerminator) {
-  EchoDevice device;
-  FaultInjection faults;
-  faults.truncated_replies = 2;
-  LineExchange exchange(device.hooks(), {}, faults);
-  exchange.receive(kT0, "v 1200\r");  // reply "v 1200=ok\r"
-  EXPECT_EQ(drain(exchange, kT0), "v 12");
-  exchange.receive(kT0, "ab\r");  // "ab=ok" has 5 characters
-  EXPECT_EQ(drain(exchange, kT0), "ab");
-  exchange.receive(kT0, "ab\r");
-  EXPECT_EQ(drain(exchange, kT0), "ab=ok\r");
+  EchoLine line;
+  line.faults.truncated_replies = 2;
+  line.exchange.receive(kT0, "v 1200\r");  // reply "v 1200=ok\r"
+  EXPECT_EQ(drain(line.exchange, kT0), "v 12");
+  line.exchange.receive(kT0, "ab\r");  // "ab=ok" has 5 characters
+  EXPECT_EQ(drain(line.exchange, kT0), "ab");
+  line.exchange.receive(kT0, "ab\r");
+  EXPECT_EQ(drain(line.exchange, kT0), "ab=ok\r");
 }
 
 TEST(LineExchange, DelayAndDeviceLatencyHoldTheReply) {
-  EchoDevice device;
-  FaultInjection faults;
-  faults.reply_delay = 20ms;
-  LineExchange exchange(device.hooks(), {}, faults);
-  device.next_reply_extras.extra_delay = 5ms;
-  exchange.receive(kT0, "a\r");
-  EXPECT_EQ(drain(exchange, kT0 + 24ms), "");
-  EXPECT_EQ(exchange.next_deadline(), kT0 + 25ms);
-  EXPECT_EQ(drain(exchange, kT0 + 25ms), "a=ok\r");
+  EchoLine line;
+  line.faults.reply_delay = 20ms;
+  line.device.next_reply_extras.extra_delay = 5ms;
+  line.exchange.receive(kT0, "a\r");
+  EXPECT_EQ(drain(line.exchange, kT0 + 24ms), "");
+  EXPECT_EQ(line.exchange.next_deadline(), kT0 + 25ms);
+  EXPECT_EQ(drain(line.exchange, kT0 + 25ms), "a=ok\r");
 }
 
 TEST(LineExchange, DiscardsUnframedInputBeyondTheLimit) {
-  EchoDevice device;
-  FaultInjection faults;
   LineDeviceOptions options;
   options.max_pending = 8;
-  LineExchange exchange(device.hooks(), options, faults);
-  exchange.receive(kT0, "0123456789");
-  exchange.receive(kT0, "a\r");
-  EXPECT_EQ(drain(exchange, kT0), "a=ok\r");
+  EchoLine line(options);
+  line.exchange.receive(kT0, "0123456789");
+  line.exchange.receive(kT0, "a\r");
+  EXPECT_EQ(drain(line.exchange, kT0), "a=ok\r");
 }
 
 TEST(LineExchange, EchoesCharactersAsTheyArrive) {
@@ -205,16 +199,14 @@ TEST(LineExchange, RawBytesActAloneInsideARequest) {
 }
 
 TEST(LineExchange, DropsTheByteAfterARequestOnlyRightAfterIt) {
-  EchoDevice device;
-  FaultInjection faults;
   LineDeviceOptions options;
   options.dropped_after_request = "\n";
-  LineExchange exchange(device.hooks(), options, faults);
-  exchange.receive(kT0, "a\r\nb\r");
-  exchange.receive(kT0, "\n");
-  exchange.receive(kT0, "\nc\r");
-  EXPECT_EQ(drain(exchange, kT0), "a=ok\rb=ok\r\nc=ok\r");
-  EXPECT_EQ(device.executed, (std::vector<std::string>{"a\r", "b\r", "\nc\r"}));
+  EchoLine line(options);
+  line.exchange.receive(kT0, "a\r\nb\r");
+  line.exchange.receive(kT0, "\n");
+  line.exchange.receive(kT0, "\nc\r");
+  EXPECT_EQ(drain(line.exchange, kT0), "a=ok\rb=ok\r\nc=ok\r");
+  EXPECT_EQ(line.device.executed, (std::vector<std::string>{"a\r", "b\r", "\nc\r"}));
 }
 
 // A device on its own timeline answers later through emit(); faults apply to those replies too.

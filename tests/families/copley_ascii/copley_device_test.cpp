@@ -1,9 +1,13 @@
 #include <gtest/gtest.h>
 
 #include "tests/families/copley_ascii/copley_bench.hpp"
+#include "tests/harness/exchange_table.hpp"
 
 namespace fieldgate::sim::copley::test {
 namespace {
+
+using fieldgate::test::Exchange;
+using fieldgate::test::expect_replies;
 
 using namespace std::chrono_literals;
 
@@ -11,37 +15,40 @@ constexpr std::int64_t kDisabled = bit(12) | bit(15);
 
 TEST(CopleyErrors, CommandLevel) {
   CopleyBench amp;
-  EXPECT_EQ(amp.send("x r0x30"), "e 3\r");
-  EXPECT_EQ(amp.send("s r0x30"), "e 4\r");
-  EXPECT_EQ(amp.send("s r0x6b 1 2 3"), "e 4\r") << "0x6b takes nine values";
-  EXPECT_EQ(amp.send("s r0x30 1 2"), "e 5\r");
-  EXPECT_EQ(amp.send("s r0x72 258"), "e 4\r");
-  EXPECT_EQ(amp.send("s r0x72 258 0 0"), "e 5\r");
-  EXPECT_EQ(amp.send("g r0x31"), "e 9\r");
-  EXPECT_EQ(amp.send("g r0x1000"), "e 9\r");
-  EXPECT_EQ(amp.send("s r0x30 0x100000000"), "e 10\r");
-  EXPECT_EQ(amp.send("s r0x30 -2147483649"), "e 10\r");
-  EXPECT_EQ(amp.send("s r0x90 4800"), "e 10\r");
-  EXPECT_EQ(amp.send("s r0x90 230400"), "e 10\r");
-  EXPECT_EQ(amp.send("i r0 0x100000000"), "e 10\r");
-  EXPECT_EQ(amp.send("s r0x32 5"), "e 11\r") << "monitor variable";
-  EXPECT_EQ(amp.send("s r0xa0 0"), "e 11\r") << "status register";
-  EXPECT_EQ(amp.send("s r0xc9 0"), "e 11\r");
-  EXPECT_EQ(amp.send("s r0x24 99"), "e 14\r");
-  EXPECT_EQ(amp.send("s r0x24 31"), "e 14\r") << "a servo amplifier has no microstep states";
-  EXPECT_EQ(amp.send("g f0x17"), "e 15\r");
-  EXPECT_EQ(amp.send("g f0xa0"), "e 15\r");
-  EXPECT_EQ(amp.send("s f0x90 19200"), "e 15\r") << "0x90 is RAM only";
-  EXPECT_EQ(amp.send("s f0x32 1"), "e 15\r");
-  EXPECT_EQ(amp.send("c r0x32"), "e 15\r");
-  EXPECT_EQ(amp.send("c f0x90"), "e 15\r");
-  EXPECT_EQ(amp.send("c r0x31"), "e 9\r");
-  EXPECT_EQ(amp.send("128 g r0x32"), "e 31\r");
-  EXPECT_EQ(amp.send("5 g r0x32"), "e 32\r") << "no node 5 on the CAN bus";
-  EXPECT_EQ(amp.send(".b g r0x32"), "e 33\r") << "single-axis amplifier";
-  EXPECT_EQ(amp.send("g r0x32 "), "e 33\r");
-  EXPECT_EQ(amp.send("g r0x32\n"), "e 33\r") << "LF is not part of the protocol";
-  EXPECT_EQ(amp.send(std::string(300, 'g')), "e 1\r");
+  const std::vector<Exchange> transcript = {
+      {"x r0x30", "e 3\r"},
+      {"s r0x30", "e 4\r"},
+      {"s r0x6b 1 2 3", "e 4\r", "0x6b takes nine values"},
+      {"s r0x30 1 2", "e 5\r"},
+      {"s r0x72 258", "e 4\r"},
+      {"s r0x72 258 0 0", "e 5\r"},
+      {"g r0x31", "e 9\r"},
+      {"g r0x1000", "e 9\r"},
+      {"s r0x30 0x100000000", "e 10\r"},
+      {"s r0x30 -2147483649", "e 10\r"},
+      {"s r0x90 4800", "e 10\r"},
+      {"s r0x90 230400", "e 10\r"},
+      {"i r0 0x100000000", "e 10\r"},
+      {"s r0x32 5", "e 11\r", "monitor variable"},
+      {"s r0xa0 0", "e 11\r", "status register"},
+      {"s r0xc9 0", "e 11\r"},
+      {"s r0x24 99", "e 14\r"},
+      {"s r0x24 31", "e 14\r", "a servo amplifier has no microstep states"},
+      {"g f0x17", "e 15\r"},
+      {"g f0xa0", "e 15\r"},
+      {"s f0x90 19200", "e 15\r", "0x90 is RAM only"},
+      {"s f0x32 1", "e 15\r"},
+      {"c r0x32", "e 15\r"},
+      {"c f0x90", "e 15\r"},
+      {"c r0x31", "e 9\r"},
+      {"128 g r0x32", "e 31\r"},
+      {"5 g r0x32", "e 32\r", "no node 5 on the CAN bus"},
+      {".b g r0x32", "e 33\r", "single-axis amplifier"},
+      {"g r0x32 ", "e 33\r"},
+      {"g r0x32\n", "e 33\r", "LF is not part of the protocol"},
+      {std::string(300, 'g'), "e 1\r"},
+  };
+  expect_replies(amp, transcript);
 }
 
 TEST(CopleyErrors, StepperAcceptsMicrostepStates) {
@@ -62,21 +69,25 @@ TEST(CopleyErrors, TrajectoryLimits) {
   EXPECT_EQ(amp.send("t 2"), "e 14\r") << "homing needs 21 or 31";
   amp.send("s r0x24 21");
   amp.send("s r0xca 100000");
-  amp.send("s r0xcb 0");
-  EXPECT_EQ(amp.send("t 1"), "e 19\r");
-  amp.send("s r0xcb 10000");
-  amp.send("s r0xcc 0");
-  EXPECT_EQ(amp.send("t 1"), "e 20\r");
-  amp.send("s r0xcc 10000");
-  amp.send("s r0xcd -1");
-  EXPECT_EQ(amp.send("t 1"), "e 21\r");
-  amp.send("s r0xcd 10000");
-  amp.send("s r0xc8 3");
-  EXPECT_EQ(amp.send("t 1"), "e 25\r");
-  amp.send("s r0xc8 1");
-  amp.send("s r0xce 0");
-  EXPECT_EQ(amp.send("t 1"), "e 22\r");
-  amp.send("s r0xce 1000");
+  // One bad trajectory parameter at a time refuses the move with its error, then is repaired.
+  struct BadParameter {
+    const char* variable;
+    const char* bad;
+    const char* good;
+    const char* error;
+  };
+  for (const BadParameter& p : std::vector<BadParameter>{
+           {"r0xcb", "0", "10000", "e 19\r"},
+           {"r0xcc", "0", "10000", "e 20\r"},
+           {"r0xcd", "-1", "10000", "e 21\r"},
+           {"r0xc8", "3", "1", "e 25\r"},
+           {"r0xce", "0", "1000", "e 22\r"},
+       }) {
+    SCOPED_TRACE(std::string(p.variable) + " " + p.bad);
+    amp.send("s " + std::string(p.variable) + " " + p.bad);
+    EXPECT_EQ(amp.send("t 1"), p.error);
+    amp.send("s " + std::string(p.variable) + " " + p.good);
+  }
   EXPECT_EQ(amp.send("t 1"), "ok\r") << "S-curve, run as a trapezoid";
   EXPECT_EQ(amp.send("t 1", 1), "e 18\r") << "S-curve moves cannot be updated";
   EXPECT_EQ(amp.send("t 2", 1), "e 18\r") << "no homing while moving";

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <vector>
+
 #include "sim/copley/variables.hpp"
 
 namespace fieldgate::sim::copley {
@@ -13,6 +15,20 @@ std::optional<Error> address_error(std::string_view line) {
 
 std::optional<Error> command_error(std::string_view body) {
   return parse_command(body).error;
+}
+
+// Each text must be refused with its error; a failing row names the text.
+struct ErrorCase {
+  const char* text;
+  Error error;
+};
+
+template <class Check>
+void expect_errors(Check check, const std::vector<ErrorCase>& cases) {
+  for (const ErrorCase& c : cases) {
+    SCOPED_TRACE(c.text);
+    EXPECT_EQ(check(c.text), c.error);
+  }
 }
 
 TEST(CopleyAddress, Prefixes) {
@@ -40,14 +56,13 @@ TEST(CopleyAddress, Prefixes) {
 }
 
 TEST(CopleyAddress, Errors) {
-  EXPECT_EQ(address_error("128 g r0x32"), Error::bad_node);
-  EXPECT_EQ(address_error("99999999999 g r0x32"), Error::bad_node);
-  EXPECT_EQ(address_error("3g r0x32"), Error::parse_error);
-  EXPECT_EQ(address_error("3"), Error::parse_error);
-  EXPECT_EQ(address_error(".d g r0x32"), Error::parse_error);
-  EXPECT_EQ(address_error(".B g r0x32"), Error::parse_error);
-  EXPECT_EQ(address_error("2.cg r0x32"), Error::parse_error);
-  EXPECT_EQ(address_error("."), Error::parse_error);
+  const std::vector<ErrorCase> refused = {
+      {"128 g r0x32", Error::bad_node},   {"99999999999 g r0x32", Error::bad_node},
+      {"3g r0x32", Error::parse_error},   {"3", Error::parse_error},
+      {".d g r0x32", Error::parse_error}, {".B g r0x32", Error::parse_error},
+      {"2.cg r0x32", Error::parse_error}, {".", Error::parse_error},
+  };
+  expect_errors(address_error, refused);
 }
 
 TEST(CopleyCommand, Get) {
@@ -71,39 +86,44 @@ TEST(CopleyCommand, SetValues) {
 }
 
 TEST(CopleyCommand, GrammarErrors) {
-  EXPECT_EQ(command_error("t2"), Error::parse_error);
-  EXPECT_EQ(command_error("s r 0x30 1000"), Error::parse_error);
-  EXPECT_EQ(command_error("g 0x32"), Error::parse_error);  // no memory bank (App. B)
-  EXPECT_EQ(command_error("g x0x32"), Error::parse_error);
-  EXPECT_EQ(command_error("g R0x32"), Error::parse_error);
-  EXPECT_EQ(command_error("g r0xzz"), Error::parse_error);
-  EXPECT_EQ(command_error("g r0x30 "), Error::parse_error);
-  EXPECT_EQ(command_error("s r0x30  1200"), Error::parse_error);
-  EXPECT_EQ(command_error("s r0x30 12x"), Error::parse_error);
-  EXPECT_EQ(command_error("s r0x30 +5"), Error::parse_error);
-  EXPECT_EQ(command_error("r 1"), Error::parse_error);
-  EXPECT_EQ(command_error("i 0"), Error::parse_error);
-  EXPECT_EQ(command_error(""), Error::parse_error);
-  EXPECT_EQ(command_error("x"), Error::unknown_command);
-  EXPECT_EQ(command_error("q r0x30"), Error::unknown_command);
+  const std::vector<ErrorCase> refused = {
+      {"t2", Error::parse_error},
+      {"s r 0x30 1000", Error::parse_error},
+      {"g 0x32", Error::parse_error},  // no memory bank (App. B)
+      {"g x0x32", Error::parse_error},
+      {"g R0x32", Error::parse_error},
+      {"g r0xzz", Error::parse_error},
+      {"g r0x30 ", Error::parse_error},
+      {"s r0x30  1200", Error::parse_error},
+      {"s r0x30 12x", Error::parse_error},
+      {"s r0x30 +5", Error::parse_error},
+      {"r 1", Error::parse_error},
+      {"i 0", Error::parse_error},
+      {"", Error::parse_error},
+      {"x", Error::unknown_command},
+      {"q r0x30", Error::unknown_command},
+  };
+  expect_errors(command_error, refused);
 }
 
 TEST(CopleyCommand, DataCountErrors) {
-  EXPECT_EQ(command_error("g"), Error::not_enough_data);
-  EXPECT_EQ(command_error("c"), Error::not_enough_data);
-  EXPECT_EQ(command_error("s"), Error::not_enough_data);
-  EXPECT_EQ(command_error("t"), Error::not_enough_data);
-  EXPECT_EQ(command_error("i"), Error::not_enough_data);
-  EXPECT_EQ(command_error("g r0x30 5"), Error::too_much_data);
-  EXPECT_EQ(command_error("t 1 2"), Error::too_much_data);
-  EXPECT_EQ(command_error("i r0 1 2"), Error::too_much_data);
+  const std::vector<ErrorCase> refused = {
+      {"g", Error::not_enough_data},   {"c", Error::not_enough_data},
+      {"s", Error::not_enough_data},   {"t", Error::not_enough_data},
+      {"i", Error::not_enough_data},   {"g r0x30 5", Error::too_much_data},
+      {"t 1 2", Error::too_much_data}, {"i r0 1 2", Error::too_much_data},
+  };
+  expect_errors(command_error, refused);
 }
 
 TEST(CopleyCommand, RangeErrors) {
-  EXPECT_EQ(command_error("t 3"), Error::out_of_range);
-  EXPECT_EQ(command_error("i r32"), Error::out_of_range);
-  EXPECT_EQ(command_error("s r0x30 99999999999999999999"), Error::out_of_range);
-  EXPECT_EQ(command_error("g r99999999999999999999"), Error::unknown_variable);
+  const std::vector<ErrorCase> refused = {
+      {"t 3", Error::out_of_range},
+      {"i r32", Error::out_of_range},
+      {"s r0x30 99999999999999999999", Error::out_of_range},
+      {"g r99999999999999999999", Error::unknown_variable},
+  };
+  expect_errors(command_error, refused);
 }
 
 TEST(CopleyCommand, TrajectoryAndRegisters) {

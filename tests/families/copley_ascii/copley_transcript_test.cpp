@@ -7,9 +7,13 @@
 #include <gtest/gtest.h>
 
 #include "tests/families/copley_ascii/copley_bench.hpp"
+#include "tests/harness/exchange_table.hpp"
 
 namespace fieldgate::sim::copley::test {
 namespace {
+
+using fieldgate::test::Exchange;
+using fieldgate::test::expect_replies;
 
 TEST(CopleyTranscript, Section2_2_Set) {
   CopleyBench amp;
@@ -92,37 +96,43 @@ TEST(CopleyTranscript, Section4_2_4_VelocityCommandFilter) {
 
 TEST(CopleyTranscript, Section3_2_1_ProgrammedCurrent) {
   CopleyBench amp;
-  EXPECT_EQ(amp.send("s r0x6a 4000"), "ok\r");  // 4 A/s
-  EXPECT_EQ(amp.send("s r0x02 200"), "ok\r");   // 2 A
-  EXPECT_EQ(amp.send("s r0x24 1"), "ok\r");
-  // The ramp is simulated: 0.375 s into the 4 A/s ramp the current is the manual's 1.50 A.
-  EXPECT_EQ(amp.send("g r0x0c", 0.375), "v 150\r");
-  EXPECT_EQ(amp.send("g r0x0c", 1), "v 200\r");
-  EXPECT_EQ(amp.send("s r0x6a 4000", 1), "ok\r");
-  EXPECT_EQ(amp.send("s r0x02 100", 1), "ok\r");
-  EXPECT_EQ(amp.send("g r0x0c", 1.125), "v 150\r") << "ramping down from 2 A";
-  EXPECT_EQ(amp.send("s r0x24 0", 2), "ok\r");
-  EXPECT_EQ(amp.send("g r0x0c", 2), "v 0\r");
+  const std::vector<Exchange> transcript = {
+      {"s r0x6a 4000", "ok\r"},  // 4 A/s
+      {"s r0x02 200", "ok\r"},   // 2 A
+      {"s r0x24 1", "ok\r"},
+      // The ramp is simulated: 0.375 s into the 4 A/s ramp the current is the manual's 1.50 A.
+      {"g r0x0c", "v 150\r", "", 0.375},
+      {"g r0x0c", "v 200\r", "", 1},
+      {"s r0x6a 4000", "ok\r", "", 1},
+      {"s r0x02 100", "ok\r", "", 1},
+      {"g r0x0c", "v 150\r", "ramping down from 2 A", 1.125},
+      {"s r0x24 0", "ok\r", "", 2},
+      {"g r0x0c", "v 0\r", "", 2},
+  };
+  expect_replies(amp, transcript);
+}
+
+// A mode driven by an input the simulator does not have (an analog voltage, a PWM signal): the
+// replies to setting it up and back are the manual's; its readings are checked for form only.
+void input_driven_transcript(const std::vector<Exchange>& setup,
+                             const std::vector<std::string>& readings,
+                             const std::vector<Exchange>& teardown) {
+  CopleyBench amp;
+  expect_replies(amp, setup);
+  for (const std::string& reading : readings) EXPECT_EQ(amp.values(reading).size(), 1u) << reading;
+  expect_replies(amp, teardown);
 }
 
 TEST(CopleyTranscript, Section3_2_2_AnalogCurrent) {
-  CopleyBench amp;
-  EXPECT_EQ(amp.send("s r0x19 1000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0x24 2"), "ok\r");
   // Manual: v 525 from 5.25 V on the analog input. The simulated input reads 0 V.
-  EXPECT_EQ(amp.values("g r0x0c").size(), 1u);
-  EXPECT_EQ(amp.send("s r0x19 100"), "ok\r");
-  EXPECT_EQ(amp.send("s r0x24 0"), "ok\r");
+  input_driven_transcript({{"s r0x19 1000", "ok\r"}, {"s r0x24 2", "ok\r"}}, {"g r0x0c"},
+                          {{"s r0x19 100", "ok\r"}, {"s r0x24 0", "ok\r"}});
 }
 
 TEST(CopleyTranscript, Section3_2_3_PwmCurrent) {
-  CopleyBench amp;
-  EXPECT_EQ(amp.send("s r0xa9 1000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0x24 3"), "ok\r");
   // Manual: v 500 and v 495 from a PWM input signal; the simulator has none.
-  EXPECT_EQ(amp.values("g r0x15").size(), 1u);
-  EXPECT_EQ(amp.values("g r0x0c").size(), 1u);
-  EXPECT_EQ(amp.send("s r0x24 0"), "ok\r");
+  input_driven_transcript({{"s r0xa9 1000", "ok\r"}, {"s r0x24 3", "ok\r"}}, {"g r0x15", "g r0x0c"},
+                          {{"s r0x24 0", "ok\r"}});
 }
 
 TEST(CopleyTranscript, Section3_3_1_ProgrammedVelocity) {
@@ -142,36 +152,31 @@ TEST(CopleyTranscript, Section3_3_1_ProgrammedVelocity) {
 }
 
 TEST(CopleyTranscript, Section3_3_2_AnalogVelocity) {
-  CopleyBench amp;
-  EXPECT_EQ(amp.send("s r0x19 10000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0x24 12"), "ok\r");
   // Manual: v 5000 from 5 V on the analog input; the simulated input reads 0 V.
-  EXPECT_EQ(amp.values("g r0x18").size(), 1u);
-  EXPECT_EQ(amp.send("s r0x19 7000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0x24 0"), "ok\r");
+  input_driven_transcript({{"s r0x19 10000", "ok\r"}, {"s r0x24 12", "ok\r"}}, {"g r0x18"},
+                          {{"s r0x19 7000", "ok\r"}, {"s r0x24 0", "ok\r"}});
 }
 
 TEST(CopleyTranscript, Section3_3_3_PwmVelocity) {
-  CopleyBench amp;
-  EXPECT_EQ(amp.send("s r0xa9 800000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0x24 13"), "ok\r");
   // Manual: v 49995 and v 49991 from a PWM input; the simulator has none.
-  EXPECT_EQ(amp.values("g r0x2c").size(), 1u);
-  EXPECT_EQ(amp.values("g r0x18").size(), 1u);
-  EXPECT_EQ(amp.send("s r0x24 0"), "ok\r");
+  input_driven_transcript({{"s r0xa9 800000", "ok\r"}, {"s r0x24 13", "ok\r"}},
+                          {"g r0x2c", "g r0x18"}, {{"s r0x24 0", "ok\r"}});
 }
 
 TEST(CopleyTranscript, Section3_4_2_ProgrammedPosition) {
   CopleyBench amp;
-  EXPECT_EQ(amp.send("s r0xc8 0"), "ok\r");
-  EXPECT_EQ(amp.send("s r0xca 40000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0xcb 70000"), "ok\r");   // 7000 counts/s
-  EXPECT_EQ(amp.send("s r0xcc 200000"), "ok\r");  // 2000000 counts/s^2
-  EXPECT_EQ(amp.send("s r0xcd 200000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0x24 21"), "ok\r");
-  EXPECT_EQ(amp.send("g r0x32"), "v 0\r");
-  EXPECT_EQ(amp.send("t 1"), "ok\r");
-  EXPECT_EQ(amp.send("g r0xa0", 0.1), "v 134217728\r");
+  const std::vector<Exchange> transcript = {
+      {"s r0xc8 0", "ok\r"},
+      {"s r0xca 40000", "ok\r"},
+      {"s r0xcb 70000", "ok\r"},   // 7000 counts/s
+      {"s r0xcc 200000", "ok\r"},  // 2000000 counts/s^2
+      {"s r0xcd 200000", "ok\r"},
+      {"s r0x24 21", "ok\r"},
+      {"g r0x32", "v 0\r"},
+      {"t 1", "ok\r"},
+      {"g r0xa0", "v 134217728\r", "", 0.1},
+  };
+  expect_replies(amp, transcript);
   // Manual: v 4096 (bit 12, referenced) with the comment "bit 14 clear = not aborted". This
   // amplifier has not been homed and its profile is still running (bit 15).
   const std::int64_t trajectory = amp.value("g r0xc9", 0.1);
@@ -191,15 +196,18 @@ TEST(CopleyTranscript, Section3_4_2_ProgrammedPosition) {
 
 TEST(CopleyTranscript, Section3_4_3_AnalogPosition) {
   CopleyBench amp;
-  EXPECT_EQ(amp.send("s r0x19 4000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0xcb 70000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0xcc 20000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0xcd 20000"), "ok\r");
-  EXPECT_EQ(amp.send("s r0x24 21"), "ok\r");  // needed for homing
-  EXPECT_EQ(amp.send("t 2"), "ok\r");
-  EXPECT_EQ(amp.send("g r0xc9", 0.01), "v 8192\r") << "still homing";
-  EXPECT_EQ(amp.send("s r0x24 22", 0.01), "ok\r");
-  EXPECT_EQ(amp.send("t 1", 0.01), "ok\r");  // makes the new limits effective
+  const std::vector<Exchange> transcript = {
+      {"s r0x19 4000", "ok\r"},
+      {"s r0xcb 70000", "ok\r"},
+      {"s r0xcc 20000", "ok\r"},
+      {"s r0xcd 20000", "ok\r"},
+      {"s r0x24 21", "ok\r"},  // needed for homing
+      {"t 2", "ok\r"},
+      {"g r0xc9", "v 8192\r", "still homing", 0.01},
+      {"s r0x24 22", "ok\r", "", 0.01},
+      {"t 1", "ok\r", "", 0.01},  // makes the new limits effective
+  };
+  expect_replies(amp, transcript);
   // Manual: v 2012, where the analog input put the axis; the simulated input reads 0 V.
   EXPECT_EQ(amp.values("g r0x32", 0.01).size(), 1u);
   EXPECT_EQ(amp.send("s r0xcb 20000", 0.01), "ok\r");
@@ -247,11 +255,13 @@ TEST(CopleyTranscript, Section3_4_4To6_RatioText) {
 
 TEST(CopleyTranscript, Section3_4_7_Homing) {
   CopleyBench amp;
-  EXPECT_EQ(amp.send("s r0xc2 544"), "ok\r");    // next index, positive
-  EXPECT_EQ(amp.send("s r0xc4 40000"), "ok\r");  // slow velocity 4000 counts/s
-  EXPECT_EQ(amp.send("s r0xc6 1000"), "ok\r");   // home offset
-  EXPECT_EQ(amp.send("s r0x24 21"), "ok\r");
-  EXPECT_EQ(amp.send("t 2"), "ok\r");
+  const std::vector<Exchange> transcript = {
+      {"s r0xc2 544", "ok\r"},    // next index, positive
+      {"s r0xc4 40000", "ok\r"},  // slow velocity 4000 counts/s
+      {"s r0xc6 1000", "ok\r"},   // home offset
+      {"s r0x24 21", "ok\r"},    {"t 2", "ok\r"},
+  };
+  expect_replies(amp, transcript);
   EXPECT_NE(amp.value("g r0xc9", 0.1) & bit(13), 0) << "homing in progress";
   // Manual: v 20480, bits 12 and 14; bit 14 (aborted) is unexplained there (digest §10.18).
   // The simulator reports referenced (bit 12) alone.

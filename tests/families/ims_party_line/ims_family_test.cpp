@@ -11,22 +11,16 @@
 
 #include "drivers/ims_party_line/ims_chain.hpp"
 #include "drivers/ims_party_line/ims_family.hpp"
-#include "tests/families/ims_party_line/chain_transport.hpp"
+#include "tests/families/ims_party_line/ims_chain_bench.hpp"
 
 namespace fieldgate {
 namespace {
 
 using namespace std::chrono_literals;
 
-NodeAddress unit(char name) {
-  return {std::string(1, name), static_cast<unsigned char>(name), 0};
-}
-Request read(const char* c) {
-  return {c, Request::Expect::values, NumberFormat::decimal};
-}
-Request write(const char* c) {
-  return {c, Request::Expect::ack, NumberFormat::decimal};
-}
+using test::read;
+using test::unit;
+using test::write;
 Request global(const char* c) {
   return {c, Request::Expect::ack, NumberFormat::decimal, true};
 }
@@ -119,44 +113,21 @@ TEST(ImsFamily, WireEstimate) {
 
 // --- transactions against the simulated chain -------------------------------------------------
 
-class ImsTransact : public ::testing::Test {
+class ImsTransact : public ::testing::Test, protected test::ImsChainBench {
  protected:
+  ImsTransact() : ImsChainBench(LinkTiming{20ms, 5ms}) {}
   void SetUp() override { make_chain({}); }
 
   void make_chain(sim::ims::PartyLineOptions options) {
     if (options.names.size() == 1 && options.names.front() == 'A') options.names = {'A', 'B', 'C'};
-    link_.reset();
-    transport_ = std::make_unique<test::ChainTransport>(io_, std::move(options));
-    link_ = std::make_unique<Link>(*transport_);
+    attach(std::move(options));
   }
 
-  template <typename T>
-  T run(asio::awaitable<T> work) {
-    auto future = asio::co_spawn(io_, std::move(work), asio::use_future);
-    io_.restart();
-    while (future.wait_for(0s) != std::future_status::ready) io_.run_one_for(10ms);
-    return future.get();
-  }
-
-  Reply transact(char name, const Request& r) {
-    return run(family_.transact(*link_, unit(name), r, timing_));
-  }
   // The `^` value, -1 if the read failed.
   int64_t status_of(char name) {
     const Reply r = transact(name, read("^"));
     return r.status == Reply::Status::ok && !r.values.empty() ? r.values.front() : -1;
   }
-
-  sim::ims::PartyLine& chain() { return transport_->chain(); }
-  std::string control(const std::string& verb, std::vector<std::string> args) {
-    return chain().control(verb, args, sim::SimClock::now()).value_or("?");
-  }
-
-  asio::io_context io_;
-  std::unique_ptr<test::ChainTransport> transport_;
-  std::unique_ptr<Link> link_;
-  ImsPartyLineFamily family_;
-  LinkTiming timing_{20ms, 5ms};
 };
 
 TEST_F(ImsTransact, ReadsEveryAxisOnTheChain) {

@@ -14,7 +14,7 @@
 #include "drivers/ims_party_line/ims_codec.hpp"
 #include "drivers/ims_party_line/ims_family.hpp"
 #include "drivers/ims_party_line/ims_readings.hpp"
-#include "tests/families/ims_party_line/chain_transport.hpp"
+#include "tests/families/ims_party_line/ims_chain_bench.hpp"
 
 namespace fieldgate {
 namespace {
@@ -22,15 +22,9 @@ namespace {
 using namespace std::chrono_literals;
 using ims::EchoMatch;
 
-NodeAddress unit(char name) {
-  return {std::string(1, name), static_cast<unsigned char>(name), 0};
-}
-Request read(const char* c) {
-  return {c, Request::Expect::values, NumberFormat::decimal};
-}
-Request write(const char* c) {
-  return {c, Request::Expect::ack, NumberFormat::decimal};
-}
+using test::read;
+using test::unit;
+using test::write;
 
 // --- codec ----------------------------------------------------------------------------------
 
@@ -184,8 +178,10 @@ const Reading kReadings[] = {
      false, true, false},
 };
 
-class ChainFixture {
+class ChainFixture : protected test::ImsChainBench {
  protected:
+  ChainFixture() : ImsChainBench(LinkTiming{30ms, 5ms}) {}
+
   void make_chain(const Reading& reading) {
     sim::ims::PartyLineOptions options;
     options.names = {'A', 'B', 'C'};
@@ -196,36 +192,16 @@ class ChainFixture {
     options.result_format.padding = reading.padding;
     options.result_format.end = reading.end;
     options.result_format.decimals = reading.decimals;
-    link_.reset();
-    transport_ = std::make_unique<test::ChainTransport>(io_, std::move(options));
-    link_ = std::make_unique<Link>(*transport_);
+    attach(std::move(options));
     family_.set_log_sink([this](int, const std::string& text) { log_.push_back(text); });
   }
 
-  template <typename T>
-  T run(asio::awaitable<T> work) {
-    auto future = asio::co_spawn(io_, std::move(work), asio::use_future);
-    io_.restart();
-    while (future.wait_for(0s) != std::future_status::ready) io_.run_one_for(10ms);
-    return future.get();
-  }
-  Reply transact(char name, const Request& r) {
-    return run(family_.transact(*link_, unit(name), r, timing_));
-  }
-  std::string control(const std::string& verb, std::vector<std::string> args) {
-    return transport_->chain().control(verb, args, sim::SimClock::now()).value_or("?");
-  }
   bool logged(const std::string& text) const {
     for (const auto& l : log_)
       if (l.find(text) != std::string::npos) return true;
     return false;
   }
 
-  asio::io_context io_;
-  std::unique_ptr<test::ChainTransport> transport_;
-  std::unique_ptr<Link> link_;
-  ImsPartyLineFamily family_;
-  LinkTiming timing_{30ms, 5ms};
   std::vector<std::string> log_;
 };
 

@@ -2,6 +2,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "drivers/techno_c/techno_codec.hpp"
 
@@ -10,24 +13,32 @@ namespace {
 
 // §11.1: every host line is `@0…` plus CR, in the canonical form (no spaces).
 TEST(TechnoEncode, ImmediateTranscriptLines) {
-  EXPECT_EQ(encode_command(0, "A400,9000"), "@0A400,9000\r");                    // #1
-  EXPECT_EQ(encode_command(0, "A300,1200,400,5000"), "@0A300,1200,400,5000\r");  // #2
-  EXPECT_EQ(encode_command(0, "7"), "@07\r");                                    // #4
-  EXPECT_EQ(encode_command(0, "R7"), "@0R7\r");                                  // #4, #6
-  EXPECT_EQ(encode_command(0, "M2700,3000,2000,2000,350,1000,0,1000"),
-            "@0M2700,3000,2000,2000,350,1000,0,1000\r");  // #4
-  EXPECT_EQ(encode_command(0, "Y9599,1000,314,7360,1972,-1,1"),
-            "@0Y9599,1000,314,7360,1972,-1,1\r");                        // #5
-  EXPECT_EQ(encode_command(0, "f-1"), "@0f-1\r");                        // #5
-  EXPECT_EQ(encode_command(0, "r2"), "@0r2\r");                          // #7
-  EXPECT_EQ(encode_command(0, "P"), "@0P\r");                            // #8
-  EXPECT_EQ(encode_command(0, "b4711"), "@0b4711\r");                    // #11
-  EXPECT_EQ(encode_command(0, "B33211,128"), "@0B33211,128\r");          // #12
-  EXPECT_EQ(encode_command(0, "d3000,4000,250"), "@0d3000,4000,250\r");  // #15
-  EXPECT_EQ(encode_command(0, "n3"), "@0n3\r");                          // #17
-  EXPECT_EQ(encode_command(0, "z1"), "@0z1\r");                          // #18
-  EXPECT_EQ(encode_command(0, "k"), "@0k\r");                            // #19
-  EXPECT_EQ(encode_command(3, "P"), "@3P\r");
+  struct Line {
+    const char* command;
+    const char* wire;
+    const char* vector;  // §11.1 number
+  };
+  for (const Line& line : std::vector<Line>{
+           {"A400,9000", "@0A400,9000\r", "#1"},
+           {"A300,1200,400,5000", "@0A300,1200,400,5000\r", "#2"},
+           {"7", "@07\r", "#4"},
+           {"R7", "@0R7\r", "#4, #6"},
+           {"M2700,3000,2000,2000,350,1000,0,1000", "@0M2700,3000,2000,2000,350,1000,0,1000\r",
+            "#4"},
+           {"Y9599,1000,314,7360,1972,-1,1", "@0Y9599,1000,314,7360,1972,-1,1\r", "#5"},
+           {"f-1", "@0f-1\r", "#5"},
+           {"r2", "@0r2\r", "#7"},
+           {"P", "@0P\r", "#8"},
+           {"b4711", "@0b4711\r", "#11"},
+           {"B33211,128", "@0B33211,128\r", "#12"},
+           {"d3000,4000,250", "@0d3000,4000,250\r", "#15"},
+           {"n3", "@0n3\r", "#17"},
+           {"z1", "@0z1\r", "#18"},
+           {"k", "@0k\r", "#19"},
+       }) {
+    SCOPED_TRACE(std::string(line.vector) + ": " + line.command);
+    EXPECT_EQ(encode_command(0, line.command), line.wire);
+  }
 }
 
 TEST(TechnoEncode, RawBytesHaveNoPrefixAndNoCr) {
@@ -37,26 +48,34 @@ TEST(TechnoEncode, RawBytesHaveNoPrefixAndNoCr) {
   EXPECT_EQ(encode_command(0, kResetCommand), std::string("\xfe"));
 }
 
+// Each command classifies with the expected value in one field of Command; a failing row names
+// the command.
+template <class Value>
+void expect_classified(Value Command::*field,
+                       const std::vector<std::pair<const char*, Value>>& cases) {
+  for (const auto& [command, expected] : cases) {
+    SCOPED_TRACE(command);
+    EXPECT_EQ(classify(command).*field, expected);
+  }
+}
+
 TEST(TechnoClassify, CaseDecidesWhenTheHandshakeComes) {
-  EXPECT_EQ(classify("A400,9000").handshake, Handshake::at_end);
-  EXPECT_EQ(classify("a400,9000").handshake, Handshake::at_start);
-  EXPECT_EQ(classify("M1,30").kind, CommandKind::move_absolute);
-  EXPECT_EQ(classify("m1,30").handshake, Handshake::at_start);
-  EXPECT_EQ(classify("R7").handshake, Handshake::at_end);
-  EXPECT_EQ(classify("r2").handshake, Handshake::at_start);
-  EXPECT_EQ(classify("S").handshake, Handshake::at_end);
-  EXPECT_EQ(classify("s").handshake, Handshake::at_start);
-  EXPECT_EQ(classify("Y9599,1000,314,7360,1972,-1,1").handshake, Handshake::at_end);
-  EXPECT_EQ(classify("P").handshake, Handshake::immediate);
-  EXPECT_EQ(classify("n7").handshake, Handshake::immediate);
-  EXPECT_EQ(classify("7").kind, CommandKind::specify_axes);
+  const std::vector<std::pair<const char*, Handshake>> handshakes = {
+      {"A400,9000", Handshake::at_end}, {"a400,9000", Handshake::at_start},
+      {"m1,30", Handshake::at_start},   {"R7", Handshake::at_end},
+      {"r2", Handshake::at_start},      {"S", Handshake::at_end},
+      {"s", Handshake::at_start},       {"Y9599,1000,314,7360,1972,-1,1", Handshake::at_end},
+      {"P", Handshake::immediate},      {"n7", Handshake::immediate},
+  };
+  expect_classified(&Command::handshake, handshakes);
+  const std::vector<std::pair<const char*, CommandKind>> kinds = {
+      {"M1,30", CommandKind::move_absolute}, {"7", CommandKind::specify_axes},
+      {"b65531", CommandKind::peek},         {"c2048", CommandKind::peek},
+      {"<stop>", CommandKind::stop},         {"<reset>", CommandKind::reset},
+      {"X1", CommandKind::unknown},          {"", CommandKind::unknown},
+  };
+  expect_classified(&Command::kind, kinds);
   EXPECT_EQ(classify("7").values, "7");
-  EXPECT_EQ(classify("b65531").kind, CommandKind::peek);
-  EXPECT_EQ(classify("c2048").kind, CommandKind::peek);
-  EXPECT_EQ(classify("<stop>").kind, CommandKind::stop);
-  EXPECT_EQ(classify("<reset>").kind, CommandKind::reset);
-  EXPECT_EQ(classify("X1").kind, CommandKind::unknown);
-  EXPECT_EQ(classify("").kind, CommandKind::unknown);
 }
 
 TEST(TechnoValues, ToleratesTheManualsSpacing) {
@@ -126,11 +145,9 @@ TEST(TechnoPositions, ErrorsAndGarbage) {
   EXPECT_EQ(error.kind, ParsedReply::Kind::error);
   EXPECT_EQ(error.code, '4');
   EXPECT_EQ(parse_positions("\r").kind, ParsedReply::Kind::error);  // unexpected end of command
-  EXPECT_EQ(parse_positions("0").kind, ParsedReply::Kind::malformed);
-  EXPECT_EQ(parse_positions("00001000200").kind, ParsedReply::Kind::malformed);
-  EXPECT_EQ(parse_positions("00001000200XFFFFFE").kind, ParsedReply::Kind::malformed);
-  EXPECT_EQ(parse_positions("000010002000FFFFFE000001").kind, ParsedReply::Kind::malformed);
-  EXPECT_EQ(parse_positions("").kind, ParsedReply::Kind::malformed);
+  for (const char* garbage :
+       {"0", "00001000200", "00001000200XFFFFFE", "000010002000FFFFFE000001", ""})
+    EXPECT_EQ(parse_positions(garbage).kind, ParsedReply::Kind::malformed) << garbage;
 }
 
 TEST(TechnoPeek, HandshakeThenTwoHexDigits) {

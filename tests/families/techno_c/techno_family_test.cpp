@@ -78,6 +78,18 @@ class TechnoBench : public ::testing::Test {
     return run(family_.transact(*link_, device(node), r, timing_));
   }
 
+  // Polls P every 50 ms, at most `polls` times, until the axis is at rest (field 3 is 0) or a
+  // poll fails; returns the last reply, for the caller to check.
+  Reply poll_until_at_rest(int polls) {
+    Reply p;
+    for (int i = 0; i < polls; ++i) {
+      std::this_thread::sleep_for(50ms);
+      p = transact(query("P"));
+      if (p.status != Reply::Status::ok || p.values[3] == 0) break;
+    }
+    return p;
+  }
+
   template <typename T>
   T run(asio::awaitable<T> a) {
     return test::run(io_, std::move(a));
@@ -271,13 +283,8 @@ TEST_F(TechnoBench, LimitAfterTheAcknowledgeIsReportedAsTheMotionsError) {
   // Machine coordinates: the axis starts 500 steps from its home switch, where P reads 0.
   controller_->control("limit", std::vector<std::string>{"1100"}, sim::SimClock::now());
   ASSERT_EQ(transact(ack("a1000,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
-  Reply p;
-  for (int i = 0; i < 40; ++i) {
-    std::this_thread::sleep_for(50ms);
-    p = transact(query("P"));
-    ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
-    if (p.values[3] == 0) break;
-  }
+  Reply p = poll_until_at_rest(40);
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
   EXPECT_EQ(p.values[3], 0);
   EXPECT_EQ(p.values[0], 600);
   EXPECT_EQ(p.values[7], 1);
@@ -308,13 +315,8 @@ TEST_F(TechnoBench, LowerCaseMoveEndsWhenThePollsSeeItAtRestNotAtTheEstimate) {
   ASSERT_EQ(transact(ack("7")).status, Reply::Status::ok);
   const auto t0 = Clock::now();
   ASSERT_EQ(transact(ack("m1000,5000,0,30,0,30,0,30")).status, Reply::Status::ok);
-  Reply p;
-  for (int i = 0; i < 100; ++i) {
-    std::this_thread::sleep_for(50ms);
-    p = transact(query("P"));
-    ASSERT_EQ(p.status, Reply::Status::ok);
-    if (p.values[3] == 0) break;
-  }
+  Reply p = poll_until_at_rest(100);
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
   EXPECT_EQ(p.values[3], 0);
   EXPECT_EQ(p.values[0], 1000);
   EXPECT_EQ(p.values[8], 0);
@@ -326,13 +328,8 @@ TEST_F(TechnoBench, HomeEndsWhenTheAxisRestsAtTheSwitch) {
   // Estimate: 20000 steps at the home speed 2000 = 10 s; the axis is 500 steps from its switch.
   const auto t0 = Clock::now();
   ASSERT_EQ(transact(ack("r1")).status, Reply::Status::ok);
-  Reply p;
-  for (int i = 0; i < 200; ++i) {
-    std::this_thread::sleep_for(50ms);
-    p = transact(query("P"));
-    ASSERT_EQ(p.status, Reply::Status::ok);
-    if (p.values[3] == 0) break;
-  }
+  Reply p = poll_until_at_rest(200);
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
   EXPECT_EQ(p.values[3], 0);
   EXPECT_EQ(p.values[0], 0);
   EXPECT_LT(Clock::now() - t0, 5s);
@@ -565,12 +562,8 @@ TEST_P(TechnoReadings, CoreScenario) {
   EXPECT_EQ(p.values[1], 300);
   EXPECT_EQ(p.values[3], 0);
   ASSERT_EQ(transact(ack("a200,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
-  for (int i = 0; i < 40; ++i) {
-    std::this_thread::sleep_for(50ms);
-    p = transact(query("P"));
-    ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
-    if (p.values[3] == 0) break;
-  }
+  p = poll_until_at_rest(40);
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
   EXPECT_EQ(p.values[0], 1000);
   EXPECT_EQ(p.values[3], 0);
   EXPECT_EQ(p.values[8], 0);

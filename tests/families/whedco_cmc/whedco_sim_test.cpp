@@ -6,9 +6,13 @@
 #include <sstream>
 
 #include "sim/whedco/cmc_line.hpp"
+#include "tests/harness/exchange_table.hpp"
 
 namespace fieldgate::sim::whedco {
 namespace {
+
+using fieldgate::test::Exchange;
+using fieldgate::test::expect_replies;
 
 const SimTime kT0 = SimTime{} + std::chrono::hours(1000);
 
@@ -62,26 +66,29 @@ TEST(WhedcoGrammar, RefusesWhatTheManualForbids) {
 
 TEST(WhedcoUnit, ParametersAreUserUnitsStoredAsPulses) {
   Bench b;
-  EXPECT_EQ(b.send("URX1000"), "");
-  EXPECT_EQ(b.send("URX?"), "1000");
-  EXPECT_EQ(b.send("AMX12.5"), "");
-  EXPECT_EQ(b.send("AMX?"), "12.5");
-  EXPECT_EQ(b.send("URX500"), "");
-  EXPECT_EQ(b.send("AMX?"), "25") << "internal 12500 pp stay, the user value follows UR";
-  EXPECT_EQ(b.send("ACX?"), "160") << "default 80000 pp/s2";
-  EXPECT_EQ(b.send("V3=-7"), "");
-  EXPECT_EQ(b.send("AMXV3"), "");
-  EXPECT_EQ(b.send("AMX?"), "-0.014") << "a variable loads internal units";
-  EXPECT_EQ(b.send("VX?"), "0");
-  EXPECT_EQ(b.send("VX5"), "");
-  EXPECT_EQ(b.send("VX?"), "5");
-  EXPECT_EQ(b.send("URX0"), "?");
-  EXPECT_EQ(b.send("ACX1"), "?") << "below 80000 pp/s2";
-  EXPECT_EQ(b.send("FSX0.1"), "?") << "50 pp/s is below the 200 pp/s minimum";
-  EXPECT_EQ(b.send("AMX99999"), "?") << "beyond the 24-bit register";
-  EXPECT_EQ(b.send("RPQ"), "?");
-  EXPECT_EQ(b.send("AMX5!"), "") << "a '!' makes the unit ignore the line";
-  EXPECT_EQ(b.send("AMX?"), "-0.014");
+  const std::vector<Exchange> transcript = {
+      {"URX1000", ""},
+      {"URX?", "1000"},
+      {"AMX12.5", ""},
+      {"AMX?", "12.5"},
+      {"URX500", ""},
+      {"AMX?", "25", "internal 12500 pp stay, the user value follows UR"},
+      {"ACX?", "160", "default 80000 pp/s2"},
+      {"V3=-7", ""},
+      {"AMXV3", ""},
+      {"AMX?", "-0.014", "a variable loads internal units"},
+      {"VX?", "0"},
+      {"VX5", ""},
+      {"VX?", "5"},
+      {"URX0", "?"},
+      {"ACX1", "?", "below 80000 pp/s2"},
+      {"FSX0.1", "?", "50 pp/s is below the 200 pp/s minimum"},
+      {"AMX99999", "?", "beyond the 24-bit register"},
+      {"RPQ", "?"},
+      {"AMX5!", "", "a '!' makes the unit ignore the line"},
+      {"AMX?", "-0.014"},
+  };
+  expect_replies(b, transcript);
 }
 
 TEST(WhedcoUnit, AbsentAxisIsRefused) {
@@ -234,15 +241,18 @@ TEST(WhedcoUnit, ProfileDefinitionEditingAndExecution) {
   // §5.6.1 example profile 2, address stripped.
   for (const char* line : {"DE2", "ACX100000", "VX500", "IMX1000", "RIX", "WTMX", "V9=1", "ED"})
     EXPECT_EQ(b.send(line), "") << line;
-  EXPECT_EQ(b.send("RCX"), "0") << "defined, not run";
-  EXPECT_EQ(b.send("V9=?"), "0");
-  EXPECT_EQ(b.send("RPX"), "0");
-  EXPECT_EQ(b.send("DE2"), "ACX100000") << "an existing profile opens in edit mode (§5.17)";
-  EXPECT_EQ(b.send("X"), "VX500");
-  EXPECT_EQ(b.send("DEL"), "");
-  EXPECT_EQ(b.send("VX1000"), "");
-  EXPECT_EQ(b.send("RPX"), "?") << "queries are not profile statements";
-  EXPECT_EQ(b.send("ED"), "");
+  const std::vector<Exchange> transcript = {
+      {"RCX", "0", "defined, not run"},
+      {"V9=?", "0"},
+      {"RPX", "0"},
+      {"DE2", "ACX100000", "an existing profile opens in edit mode (§5.17)"},
+      {"X", "VX500"},
+      {"DEL", ""},
+      {"VX1000", ""},
+      {"RPX", "?", "queries are not profile statements"},
+      {"ED", ""},
+  };
+  expect_replies(b, transcript);
   EXPECT_NE(b.unit.unit_status(at(0)) & status::defining, status::defining);
   EXPECT_EQ(b.send("GT2", 1), "");
   EXPECT_NE(b.unit.unit_status(at(1.1)) & status::profile_running, 0);

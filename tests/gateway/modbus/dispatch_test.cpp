@@ -7,6 +7,7 @@
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include <boost/asio/co_spawn.hpp>
 #include <boost/asio/io_context.hpp>
@@ -30,43 +31,34 @@ class RecordingHandler : public RequestHandler {
  public:
   ReadBitsResult read_bits(std::uint8_t unit, BitTable table, std::uint16_t address,
                            std::uint16_t count) override {
-    calls.push_back({table == BitTable::coils ? "read coils" : "read discrete inputs",
-                     unit,
-                     address,
-                     count,
-                     {},
-                     {}});
+    record(table == BitTable::coils ? "read coils" : "read discrete inputs", unit, address, count);
     if (on_read_bits) return on_read_bits(address, count);
     return std::vector<bool>(count, false);
   }
   ReadRegistersResult read_registers(std::uint8_t unit, RegisterTable table, std::uint16_t address,
                                      std::uint16_t count) override {
-    calls.push_back({table == RegisterTable::holding_registers ? "read holding" : "read input",
-                     unit,
-                     address,
-                     count,
-                     {},
-                     {}});
+    record(table == RegisterTable::holding_registers ? "read holding" : "read input", unit, address,
+           count);
     if (on_read_registers) return on_read_registers(address, count);
     return std::vector<std::uint16_t>(count, 0);
   }
   asio::awaitable<WriteResult> write_registers(std::uint8_t unit, std::uint16_t address,
                                                std::span<const std::uint16_t> values) override {
-    calls.push_back({"write registers",
-                     unit,
-                     address,
-                     static_cast<std::uint16_t>(values.size()),
-                     {values.begin(), values.end()},
-                     {}});
+    record("write registers", unit, address, values.size(), {values.begin(), values.end()});
     if (throw_on_write) throw std::runtime_error("bus gone");
     co_return write_result;
   }
   asio::awaitable<WriteResult> write_coils(std::uint8_t unit, std::uint16_t address,
                                            std::vector<bool> values) override {
-    calls.push_back(
-        {"write coils", unit, address, static_cast<std::uint16_t>(values.size()), {}, values});
+    record("write coils", unit, address, values.size(), {}, values);
     if (throw_on_write) throw std::runtime_error("bus gone");
     co_return write_result;
+  }
+
+  void record(std::string what, std::uint8_t unit, std::uint16_t address, std::size_t count,
+              std::vector<std::uint16_t> registers = {}, std::vector<bool> bits = {}) {
+    calls.push_back({std::move(what), unit, address, static_cast<std::uint16_t>(count),
+                     std::move(registers), std::move(bits)});
   }
 
   std::vector<Call> calls;
