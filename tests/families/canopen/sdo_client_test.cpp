@@ -31,6 +31,18 @@ std::string text(const std::vector<uint8_t>& v) {
   return {v.begin(), v.end()};
 }
 
+// The step ended the transfer with `status` and abort `code`; its text names the abort's
+// meaning, where one is given.
+void expect_ended(const SdoStep& step, SdoResult::Status status, uint32_t code,
+                  std::string_view meaning = {}) {
+  ASSERT_TRUE(step.done);
+  EXPECT_EQ(step.done->status, status);
+  EXPECT_EQ(step.done->abort_code, code);
+  if (!meaning.empty()) {
+    EXPECT_NE(step.done->text.find(meaning), std::string::npos) << step.done->text;
+  }
+}
+
 // --- expedited and segmented, both directions ----------------------------------------------
 
 TEST(SdoClient, ExpeditedUpload) {
@@ -138,11 +150,8 @@ TEST(SdoClient, ServerAbortsUploadInitiate) {
   c.upload(0x1234, 0, t0);
   auto s = c.on_frame(frame("582#8034120000000206"), t0);
   EXPECT_EQ(sent(s), "");  // nothing back to an abort
-  ASSERT_TRUE(s.done);
-  EXPECT_EQ(s.done->status, SdoResult::Status::server_abort);
-  EXPECT_EQ(s.done->abort_code, 0x06020000u);
-  EXPECT_NE(s.done->text.find("object does not exist in the object dictionary"), std::string::npos)
-      << s.done->text;
+  ASSERT_NO_FATAL_FAILURE(expect_ended(s, SdoResult::Status::server_abort, 0x06020000u,
+                                       "object does not exist in the object dictionary"));
   EXPECT_NE(s.done->text.find("0x06020000"), std::string::npos) << s.done->text;
 }
 
@@ -150,10 +159,8 @@ TEST(SdoClient, ServerAbortsDownloadInitiate) {
   SdoClient c(2);
   c.download(0x1000, 0, {1, 2, 3, 4}, t0);
   auto s = c.on_frame(frame("582#8000100002000106"), t0);
-  ASSERT_TRUE(s.done);
-  EXPECT_EQ(s.done->status, SdoResult::Status::server_abort);
-  EXPECT_EQ(s.done->abort_code, 0x06010002u);
-  EXPECT_NE(s.done->text.find("attempt to write a read only object"), std::string::npos);
+  expect_ended(s, SdoResult::Status::server_abort, 0x06010002u,
+               "attempt to write a read only object");
 }
 
 TEST(SdoClient, ServerAbortsUploadSegment) {
@@ -161,10 +168,7 @@ TEST(SdoClient, ServerAbortsUploadSegment) {
   c.upload(0x1008, 0, t0);
   c.on_frame(frame("583#410810001B000000"), t0);
   auto s = c.on_frame(frame("583#8008100000000405"), t0);  // 0x05040000 timed out
-  ASSERT_TRUE(s.done);
-  EXPECT_EQ(s.done->status, SdoResult::Status::server_abort);
-  EXPECT_EQ(s.done->abort_code, 0x05040000u);
-  EXPECT_NE(s.done->text.find("SDO protocol timed out"), std::string::npos);
+  expect_ended(s, SdoResult::Status::server_abort, 0x05040000u, "SDO protocol timed out");
 }
 
 TEST(SdoClient, ServerAbortsDownloadSegment) {
@@ -172,10 +176,8 @@ TEST(SdoClient, ServerAbortsDownloadSegment) {
   c.download(0x2000, 0, bytes("too long for the label"), t0);
   c.on_frame(frame("582#6000200000000000"), t0);
   auto s = c.on_frame(frame("582#8000200010000706"), t0);  // 0x06070010 length
-  ASSERT_TRUE(s.done);
-  EXPECT_EQ(s.done->status, SdoResult::Status::server_abort);
-  EXPECT_EQ(s.done->abort_code, 0x06070010u);
-  EXPECT_NE(s.done->text.find("length of service parameter does not match"), std::string::npos);
+  expect_ended(s, SdoResult::Status::server_abort, 0x06070010u,
+               "length of service parameter does not match");
 }
 
 TEST(SdoClient, AbortForAnotherObjectIsIgnored) {
@@ -192,9 +194,7 @@ TEST(SdoClient, UnknownCommandSpecifierIsAborted) {
   c.upload(0x6041, 0, t0);
   auto s = c.on_frame(frame("582#6041600000000000"), t0);  // a download response
   EXPECT_EQ(sent(s), "602#8041600001000405");              // abort 0x05040001
-  ASSERT_TRUE(s.done);
-  EXPECT_EQ(s.done->status, SdoResult::Status::client_abort);
-  EXPECT_EQ(s.done->abort_code, 0x05040001u);
+  ASSERT_NO_FATAL_FAILURE(expect_ended(s, SdoResult::Status::client_abort, 0x05040001u));
 
   c.download(0x6040, 0, {6, 0}, t0);
   s = c.on_frame(frame("582#4B40600006000000"), t0);  // an upload response
@@ -220,10 +220,7 @@ TEST(SdoClient, UploadToggleErrorIsAborted) {
   c.on_frame(frame("583#410810001B000000"), t0);
   auto s = c.on_frame(frame("583#106669656C646761"), t0);  // toggle 1 where 0 is due
   EXPECT_EQ(sent(s), "603#8008100000000305");              // 0x05030000
-  ASSERT_TRUE(s.done);
-  EXPECT_EQ(s.done->status, SdoResult::Status::client_abort);
-  EXPECT_EQ(s.done->abort_code, 0x05030000u);
-  EXPECT_NE(s.done->text.find("toggle bit"), std::string::npos);
+  expect_ended(s, SdoResult::Status::client_abort, 0x05030000u, "toggle bit");
 }
 
 TEST(SdoClient, DownloadToggleErrorIsAborted) {
@@ -241,8 +238,7 @@ TEST(SdoClient, UploadLongerThanAnnouncedIsAborted) {
   c.on_frame(frame("583#4108100003000000"), t0);           // 3 bytes announced
   auto s = c.on_frame(frame("583#006669656C646761"), t0);  // 7 arrive
   EXPECT_EQ(sent(s), "603#8008100012000706");              // 0x06070012 too high
-  EXPECT_EQ(s.done->status, SdoResult::Status::client_abort);
-  EXPECT_EQ(s.done->abort_code, 0x06070012u);
+  expect_ended(s, SdoResult::Status::client_abort, 0x06070012u);
 }
 
 TEST(SdoClient, UploadShorterThanAnnouncedFails) {
@@ -251,9 +247,7 @@ TEST(SdoClient, UploadShorterThanAnnouncedFails) {
   c.on_frame(frame("583#410810000A000000"), t0);           // 10 announced
   auto s = c.on_frame(frame("583#016669656C646761"), t0);  // 7 and last
   EXPECT_EQ(sent(s), "");  // the server has finished; nobody to abort
-  ASSERT_TRUE(s.done);
-  EXPECT_EQ(s.done->status, SdoResult::Status::client_abort);
-  EXPECT_EQ(s.done->abort_code, 0x06070013u);
+  expect_ended(s, SdoResult::Status::client_abort, 0x06070013u);
 }
 
 TEST(SdoClient, HugeUploadIsAborted) {
@@ -312,6 +306,7 @@ TEST(SdoClient, TimeoutInEveryState) {
        "602#8000200000000405"},
   };
   for (const auto& k : cases) {
+    SCOPED_TRACE(k.name);
     SdoClient c(2, 50ms);
     k.start(c);
     EXPECT_EQ(c.state_name(), std::string(k.name));
@@ -320,10 +315,8 @@ TEST(SdoClient, TimeoutInEveryState) {
     EXPECT_FALSE(s.send || s.done) << k.name;
     s = c.on_time(t0 + 50ms);
     EXPECT_EQ(sent(s), k.abort) << k.name;  // the server hears 0x05040000
-    ASSERT_TRUE(s.done) << k.name;
-    EXPECT_EQ(s.done->status, SdoResult::Status::timeout) << k.name;
-    EXPECT_EQ(s.done->abort_code, 0x05040000u) << k.name;
-    EXPECT_NE(s.done->text.find("within 50 ms"), std::string::npos) << s.done->text;
+    ASSERT_NO_FATAL_FAILURE(
+        expect_ended(s, SdoResult::Status::timeout, 0x05040000u, "within 50 ms"));
     EXPECT_TRUE(c.idle()) << k.name;
   }
 }

@@ -31,6 +31,11 @@ class Device {
   }
   void send(const std::string& text) { net_.receive(*parse_frame(text), now_); }
   std::vector<std::string> take() { return std::exchange(out_, {}); }
+  // Sends a frame and takes what the device sent back.
+  std::vector<std::string> answer(const std::string& text) {
+    send(text);
+    return take();
+  }
   std::size_t count(const std::string& frame) const {
     return static_cast<std::size_t>(std::count(out_.begin(), out_.end(), frame));
   }
@@ -53,10 +58,10 @@ TEST(SimAsShipped, NoHeartbeatUntilAMasterSets1017) {
   EXPECT_EQ(d.take(), std::vector<std::string>{"702#00"});  // boot-up only
   d.advance(3s);
   EXPECT_TRUE(d.take().empty());
-  d.send("602#4017100000000000");
-  EXPECT_EQ(d.take(), std::vector<std::string>{"582#4B17100000000000"});  // 0x1017 = 0
-  d.send("602#2B17100064000000");                                         // 100 ms
-  EXPECT_EQ(d.take(), std::vector<std::string>{"582#6017100000000000"});
+  EXPECT_EQ(d.answer("602#4017100000000000"),
+            std::vector<std::string>{"582#4B17100000000000"});  // 0x1017 = 0
+  EXPECT_EQ(d.answer("602#2B17100064000000"),
+            std::vector<std::string>{"582#6017100000000000"});  // 100 ms
   d.advance(1s);
   EXPECT_EQ(d.count("702#7F"), 10u);
 }
@@ -66,12 +71,10 @@ TEST(SimAsShipped, WithoutHeartbeatObjectButGuarding) {
   c.heartbeat_object = HeartbeatObject::absent;
   Device d(c);
   d.take();
-  d.send("602#2B17100064000000");
-  EXPECT_EQ(d.take(), std::vector<std::string>{"582#8017100000000206"});  // no such object
-  d.send("702#R");
-  EXPECT_EQ(d.take(), std::vector<std::string>{"702#7F"});
-  d.send("702#R");
-  EXPECT_EQ(d.take(), std::vector<std::string>{"702#FF"});  // toggle bit
+  EXPECT_EQ(d.answer("602#2B17100064000000"),
+            std::vector<std::string>{"582#8017100000000206"});  // no such object
+  EXPECT_EQ(d.answer("702#R"), std::vector<std::string>{"702#7F"});
+  EXPECT_EQ(d.answer("702#R"), std::vector<std::string>{"702#FF"});  // toggle bit
 }
 
 TEST(SimAsShipped, SilentProducerTakesTheWriteAndSendsNothing) {
@@ -79,10 +82,8 @@ TEST(SimAsShipped, SilentProducerTakesTheWriteAndSendsNothing) {
   c.heartbeat_object = HeartbeatObject::silent;
   Device d(c);
   d.take();
-  d.send("602#2B17100064000000");
-  EXPECT_EQ(d.take(), std::vector<std::string>{"582#6017100000000000"});
-  d.send("602#4017100000000000");
-  EXPECT_EQ(d.take(), std::vector<std::string>{"582#4B17100064000000"});
+  EXPECT_EQ(d.answer("602#2B17100064000000"), std::vector<std::string>{"582#6017100000000000"});
+  EXPECT_EQ(d.answer("602#4017100000000000"), std::vector<std::string>{"582#4B17100064000000"});
   d.advance(1s);
   EXPECT_TRUE(d.take().empty());
 }
@@ -97,8 +98,7 @@ TEST(SimAsShipped, StaysPreOperationalWhileItsErrorRegisterIsSet) {
   EXPECT_EQ(d.node().error_register(), 0x01);
   d.send("000#0102");
   EXPECT_EQ(d.node().nmt_state(), NmtState::pre_operational);
-  d.send("602#4001100000000000");
-  EXPECT_EQ(d.take(), std::vector<std::string>{"582#4F01100001000000"});
+  EXPECT_EQ(d.answer("602#4001100000000000"), std::vector<std::string>{"582#4F01100001000000"});
   // CiA 402 fault reset (rising edge of bit 7) clears it; then NMT start is carried out.
   d.advance(50ms);
   d.send("602#2B40600000000000");

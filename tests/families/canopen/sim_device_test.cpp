@@ -98,6 +98,20 @@ class Bus {
   std::uint16_t statusword() { return static_cast<std::uint16_t>(upload(0x6041, 0)); }
   std::int32_t position() { return static_cast<std::int32_t>(upload(0x6064, 0)); }
 
+  // Profile position: a new target through the setpoint handshake, the controlword `setpoint`
+  // (bit 4 up; bit 5 change immediately, bit 6 relative) and then 0x0F (bit 4 down).
+  void new_setpoint(std::int32_t target, std::uint16_t setpoint = 0x1F) {
+    download(0x607A, 0, static_cast<std::uint32_t>(target), 4);
+    controlword(setpoint);
+    controlword(0x0F);
+  }
+
+  // Homing mode: the method, then bit 4 up to start it.
+  void start_homing(std::uint8_t method) {
+    download(0x6098, 0, method, 1);
+    controlword(0x1F);
+  }
+
   // Up to operation enabled in the given mode of operation.
   void enable(std::int8_t mode) {
     advance(50ms);
@@ -512,12 +526,8 @@ TEST(ProfilePosition, TrapezoidalMoveWithHandshake) {
 TEST(ProfilePosition, RelativeCountsFromPrecedingTarget) {
   Bus bus;
   bus.enable(Drive402::kModeProfilePosition);
-  bus.download(0x607A, 0, 1000, 4);
-  bus.controlword(0x1F);
-  bus.controlword(0x0F);
-  bus.download(0x607A, 0, 500, 4);
-  bus.controlword(0x7F);  // relative, change immediately
-  bus.controlword(0x0F);
+  bus.new_setpoint(1000);
+  bus.new_setpoint(500, 0x7F);  // relative, change immediately
   bus.advance(2s);
   EXPECT_EQ(bus.position(), 1500);
 }
@@ -525,17 +535,11 @@ TEST(ProfilePosition, RelativeCountsFromPrecedingTarget) {
 TEST(ProfilePosition, BufferedSetpointFollowsAndFullBufferIsNotAcknowledged) {
   Bus bus;
   bus.enable(Drive402::kModeProfilePosition);
-  bus.download(0x607A, 0, 2000, 4);
-  bus.controlword(0x1F);
-  bus.controlword(0x0F);
+  bus.new_setpoint(2000);
   bus.advance(100ms);
-  bus.download(0x607A, 0, 4000, 4);
-  bus.controlword(0x1F);  // bit 5 clear: buffered behind the running move
-  bus.controlword(0x0F);
+  bus.new_setpoint(4000);  // bit 5 clear: buffered behind the running move
   EXPECT_EQ(bus.statusword() & 0x1000, 0x1000) << "acknowledge stays while the buffer is full";
-  bus.download(0x607A, 0, 9999, 4);
-  bus.controlword(0x1F);  // buffer full: ignored
-  bus.controlword(0x0F);
+  bus.new_setpoint(9999);  // buffer full: ignored
   bus.advance(3s);
   EXPECT_EQ(bus.position(), 4000);
   EXPECT_EQ(bus.statusword(), 0x0637);
@@ -544,13 +548,9 @@ TEST(ProfilePosition, BufferedSetpointFollowsAndFullBufferIsNotAcknowledged) {
 TEST(ProfilePosition, ChangeImmediatelyReverses) {
   Bus bus;
   bus.enable(Drive402::kModeProfilePosition);
-  bus.download(0x607A, 0, 10000, 4);
-  bus.controlword(0x1F);
-  bus.controlword(0x0F);
+  bus.new_setpoint(10000);
   bus.advance(600ms);
-  bus.download(0x607A, 0, 2000, 4);
-  bus.controlword(0x3F);
-  bus.controlword(0x0F);
+  bus.new_setpoint(2000, 0x3F);
   bus.advance(300ms);
   EXPECT_GT(bus.position(), 5000) << "braking past the new target first";
   bus.advance(2s);
@@ -561,9 +561,7 @@ TEST(ProfilePosition, ChangeImmediatelyReverses) {
 TEST(ProfilePosition, HaltStopsAndReleaseResumes) {
   Bus bus;
   bus.enable(Drive402::kModeProfilePosition);
-  bus.download(0x607A, 0, 10000, 4);
-  bus.controlword(0x1F);
-  bus.controlword(0x0F);
+  bus.new_setpoint(10000);
   bus.advance(500ms);
   bus.controlword(0x010F);
   bus.advance(300ms);
@@ -604,8 +602,7 @@ TEST(Homing, SwitchSearchTakesTime) {
   Bus bus;
   bus.enable(Drive402::kModeHoming);
   bus.download(0x607C, 0, 0, 4);
-  bus.download(0x6098, 0, 17, 1);
-  bus.controlword(0x1F);
+  bus.start_homing(17);
   EXPECT_EQ(bus.statusword() & 0x3400, 0x0000) << "in progress";
   bus.advance(100ms);
   EXPECT_LT(bus.position(), 0);
@@ -624,23 +621,20 @@ TEST(Homing, SwitchSearchTakesTime) {
 TEST(Homing, InterruptedAndError) {
   Bus bus;
   bus.enable(Drive402::kModeHoming);
-  bus.download(0x6098, 0, 17, 1);
-  bus.controlword(0x1F);
+  bus.start_homing(17);
   bus.advance(50ms);
   bus.controlword(0x0F);  // bit 4 falling: interrupt
   EXPECT_EQ(bus.statusword() & 0x3400, 0x0000) << "interrupted, still decelerating";
   bus.advance(500ms);
   EXPECT_EQ(bus.statusword() & 0x3400, 0x0400);
-  bus.download(0x6098, 0, 0, 1);
-  bus.controlword(0x1F);
+  bus.start_homing(0);
   EXPECT_EQ(bus.statusword() & 0x3400, 0x2400) << "homing error, velocity 0";
 }
 
 TEST(Homing, HaltStandsBeforeTargetReached) {
   Bus bus;
   bus.enable(Drive402::kModeHoming);
-  bus.download(0x6098, 0, 17, 1);
-  bus.controlword(0x1F);
+  bus.start_homing(17);
   bus.advance(100ms);
   bus.controlword(0x011F);  // halt
   EXPECT_EQ(bus.statusword() & 0x3400, 0x0000) << "interrupted, still decelerating";
@@ -675,9 +669,7 @@ TEST(Tpdo, InhibitTimeLimitsRateWhileMoving) {
   Bus bus;
   bus.enable(Drive402::kModeProfilePosition);
   bus.send("000#0102");
-  bus.download(0x607A, 0, 10000, 4);
-  bus.controlword(0x1F);
-  bus.controlword(0x0F);
+  bus.new_setpoint(10000);
   bus.take();
   bus.advance(500ms);
   const auto pdos = bus.take(0x182);

@@ -103,6 +103,13 @@ class VcanBus : public ::testing::Test {
       if (all[i].rfind(tx, 0) == 0 || all[i].rfind(rx, 0) == 0) out.push_back(all[i]);
     return out;
   }
+  // Waits until node 2's SDO frames from index `from` on hold `expected` in a row.
+  static bool sdo_sequence_seen(std::size_t from, const std::vector<std::string>& expected) {
+    return run_until([&] {
+      const auto f = sdo_frames(from);
+      return std::search(f.begin(), f.end(), expected.begin(), expected.end()) != f.end();
+    });
+  }
 
   struct Shared {
     test::ScratchDir dir;
@@ -182,10 +189,7 @@ TEST_F(VcanBus, SegmentedUploadExactFrames) {
                                           "602#7000000000000000", "582#1074652073696D20",
                                           "602#6000000000000000", "582#0043694120343032",
                                           "602#7000000000000000", "582#1320647269766500"};
-  ASSERT_TRUE(run_until([&] {
-    const auto f = sdo_frames(mark);
-    return std::search(f.begin(), f.end(), expected.begin(), expected.end()) != f.end();
-  })) << s->candump->text(mark);
+  ASSERT_TRUE(sdo_sequence_seen(mark, expected)) << s->candump->text(mark);
 }
 
 TEST_F(VcanBus, SegmentedDownloadExactFramesAndReadBack) {
@@ -197,10 +201,7 @@ TEST_F(VcanBus, SegmentedDownloadExactFramesAndReadBack) {
                                           "602#006669656C646761", "582#2000000000000000",
                                           "602#1074652061786973", "582#3000000000000000",
                                           "602#072074776F000000", "582#2000000000000000"};
-  ASSERT_TRUE(run_until([&] {
-    const auto f = sdo_frames(mark);
-    return std::search(f.begin(), f.end(), expected.begin(), expected.end()) != f.end();
-  })) << s->candump->text(mark);
+  ASSERT_TRUE(sdo_sequence_seen(mark, expected)) << s->candump->text(mark);
   r = submit(0, "read 0x2000:0 VISIBLE_STRING");
   EXPECT_EQ(r.text, "fieldgate axis two");
   // Expedited both ways.

@@ -27,6 +27,19 @@ namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 
+// Waits until fd has input or the deadline passes and appends what one read gives to `into`;
+// false on timeout, end of file or error.
+bool read_more(int fd, std::string& into, Clock::time_point deadline) {
+  const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+  pollfd ready{fd, POLLIN, 0};
+  if (left.count() <= 0 || ::poll(&ready, 1, static_cast<int>(left.count())) <= 0) return false;
+  char buffer[256];
+  const ssize_t n = ::read(fd, buffer, sizeof buffer);
+  if (n <= 0) return false;
+  into.append(buffer, static_cast<std::size_t>(n));
+  return true;
+}
+
 // The simulator as a child process with its stdin and stdout on pipes (the control channel).
 class Simulator {
  public:
@@ -73,14 +86,7 @@ class Simulator {
         stdout_.erase(0, newline + 1);
         return line;
       }
-      const auto left =
-          std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
-      pollfd fd{control_out_, POLLIN, 0};
-      if (left.count() <= 0 || ::poll(&fd, 1, static_cast<int>(left.count())) <= 0) return "";
-      char buffer[256];
-      const ssize_t n = ::read(control_out_, buffer, sizeof buffer);
-      if (n <= 0) return "";
-      stdout_.append(buffer, static_cast<std::size_t>(n));
+      if (!read_more(control_out_, stdout_, deadline)) return "";
     }
   }
 
@@ -146,14 +152,7 @@ class HostPort {
     std::string reply;
     const auto deadline = Clock::now() + timeout;
     while (reply.empty() || reply.back() != '\r') {
-      const auto left =
-          std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
-      pollfd fd{fd_, POLLIN, 0};
-      if (left.count() <= 0 || ::poll(&fd, 1, static_cast<int>(left.count())) <= 0) return "";
-      char buffer[128];
-      const ssize_t n = ::read(fd_, buffer, sizeof buffer);
-      if (n <= 0) return "";
-      reply.append(buffer, static_cast<std::size_t>(n));
+      if (!read_more(fd_, reply, deadline)) return "";
     }
     return reply;
   }

@@ -90,6 +90,16 @@ class TechnoBench : public ::testing::Test {
     return p;
   }
 
+  // Sends a motion that answers at its start (lower case, or home) and polls until the axis is
+  // at rest; the last poll, which must have found it at rest, in *rest. Call it through
+  // ASSERT_NO_FATAL_FAILURE.
+  void move_to_rest(const std::string& command, int polls, Reply* rest) {
+    ASSERT_EQ(transact(ack(command)).status, Reply::Status::ok) << command;
+    *rest = poll_until_at_rest(polls);
+    ASSERT_EQ(rest->status, Reply::Status::ok) << rest->text;
+    EXPECT_EQ(rest->values[3], 0);
+  }
+
   template <typename T>
   T run(asio::awaitable<T> a) {
     return test::run(io_, std::move(a));
@@ -282,10 +292,8 @@ TEST_F(TechnoBench, LimitAfterTheAcknowledgeIsReportedAsTheMotionsError) {
   ASSERT_EQ(transact(query("P")).status, Reply::Status::ok);
   // Machine coordinates: the axis starts 500 steps from its home switch, where P reads 0.
   controller_->control("limit", std::vector<std::string>{"1100"}, sim::SimClock::now());
-  ASSERT_EQ(transact(ack("a1000,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
-  Reply p = poll_until_at_rest(40);
-  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
-  EXPECT_EQ(p.values[3], 0);
+  Reply p;
+  ASSERT_NO_FATAL_FAILURE(move_to_rest("a1000,2500,0,30,0,30,0,30", 40, &p));
   EXPECT_EQ(p.values[0], 600);
   EXPECT_EQ(p.values[7], 1);
   EXPECT_EQ(p.values[8], '2');
@@ -314,10 +322,8 @@ TEST_F(TechnoBench, LowerCaseMoveEndsWhenThePollsSeeItAtRestNotAtTheEstimate) {
   start(o, model_text("", 20000));
   ASSERT_EQ(transact(ack("7")).status, Reply::Status::ok);
   const auto t0 = Clock::now();
-  ASSERT_EQ(transact(ack("m1000,5000,0,30,0,30,0,30")).status, Reply::Status::ok);
-  Reply p = poll_until_at_rest(100);
-  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
-  EXPECT_EQ(p.values[3], 0);
+  Reply p;
+  ASSERT_NO_FATAL_FAILURE(move_to_rest("m1000,5000,0,30,0,30,0,30", 100, &p));
   EXPECT_EQ(p.values[0], 1000);
   EXPECT_EQ(p.values[8], 0);
   EXPECT_LT(Clock::now() - t0, 2s);  // half the estimate
@@ -327,10 +333,8 @@ TEST_F(TechnoBench, HomeEndsWhenTheAxisRestsAtTheSwitch) {
   start(defined(), model_text("", 20000));
   // Estimate: 20000 steps at the home speed 2000 = 10 s; the axis is 500 steps from its switch.
   const auto t0 = Clock::now();
-  ASSERT_EQ(transact(ack("r1")).status, Reply::Status::ok);
-  Reply p = poll_until_at_rest(200);
-  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
-  EXPECT_EQ(p.values[3], 0);
+  Reply p;
+  ASSERT_NO_FATAL_FAILURE(move_to_rest("r1", 200, &p));
   EXPECT_EQ(p.values[0], 0);
   EXPECT_LT(Clock::now() - t0, 5s);
 }
@@ -561,11 +565,8 @@ TEST_P(TechnoReadings, CoreScenario) {
   EXPECT_EQ(p.values[0], 800);
   EXPECT_EQ(p.values[1], 300);
   EXPECT_EQ(p.values[3], 0);
-  ASSERT_EQ(transact(ack("a200,2500,0,30,0,30,0,30")).status, Reply::Status::ok);
-  p = poll_until_at_rest(40);
-  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+  ASSERT_NO_FATAL_FAILURE(move_to_rest("a200,2500,0,30,0,30,0,30", 40, &p));
   EXPECT_EQ(p.values[0], 1000);
-  EXPECT_EQ(p.values[3], 0);
   EXPECT_EQ(p.values[8], 0);
   // A long capital move ended by STOP: reported as stopped (255) whether or not it answers.
   std::optional<Reply> stop;

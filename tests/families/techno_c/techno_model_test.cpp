@@ -4,6 +4,7 @@
 
 #include "drivers/techno_c/techno_family.hpp"
 #include "mapping/model_loader.hpp"
+#include "tests/harness/text_checks.hpp"
 
 namespace fieldgate {
 namespace {
@@ -34,6 +35,15 @@ std::string model(const std::string& options, const std::string& points,
 std::string with_action(const std::string& step, const std::string& options = "variant: c142") {
   return errors_of(
       model(options, "", "", "  go:\n    code: 1\n    steps:\n      - " + step + "\n"));
+}
+
+// The errors of a model with the given extra points (and options) and one plain action.
+std::string with_points(const std::string& points, const std::string& options = "variant: c142") {
+  return errors_of(model(options, points, "", "  k: {code: 1, steps: [k]}\n"));
+}
+
+std::string with_options(const std::string& options) {
+  return with_points("", options);
 }
 
 TEST(TechnoModels, ShippedModelsAreValid) {
@@ -138,8 +148,7 @@ TEST(TechnoModels, InitialisationIsTheModelsAxesAndOnlyAnAction) {
   EXPECT_EQ(with_action("'7'"), "");
   EXPECT_NE(with_action("'3'").find("must be the model's axes option (7)"), std::string::npos);
   EXPECT_NE(with_action("'6'").find("axes definition"), std::string::npos);
-  const auto as_point = errors_of(model("variant: c142", "  axes: {type: uint16, write: '7'}\n", "",
-                                        "  k: {code: 1, steps: [k]}\n"));
+  const auto as_point = with_points("  axes: {type: uint16, write: '7'}\n");
   EXPECT_NE(as_point.find("clears the program memory; put it in an action"), std::string::npos)
       << as_point;
 }
@@ -164,35 +173,27 @@ TEST(TechnoModels, RawBytesAndUrgency) {
 }
 
 TEST(TechnoModels, ReadsMustBeQueriesWithTheirFormat) {
-  const auto decimal = errors_of(model("variant: c142", "  y: {type: int32, read: P, poll: fast}\n",
-                                       "", "  k: {code: 1, steps: [k]}\n"));
+  const auto decimal = with_points("  y: {type: int32, read: P, poll: fast}\n");
   EXPECT_NE(decimal.find("give format: hex24"), std::string::npos) << decimal;
-  const auto units =
-      errors_of(model("variant: c142",
-                      "  y: {type: int32, read: {request: P, field: 4, format: hex24}, "
-                      "poll: fast}\n",
-                      "", "  k: {code: 1, steps: [k]}\n"));
+  const auto units = with_points(
+      "  y: {type: int32, read: {request: P, field: 4, format: hex24}, "
+      "poll: fast}\n");
   EXPECT_NE(units.find("needs the steps_per_unit option"), std::string::npos) << units;
-  const auto no_query = errors_of(model("variant: c142",
-                                        "  y: {type: int32, read: {request: n7, format: hex}, "
-                                        "poll: fast}\n",
-                                        "", "  k: {code: 1, steps: [k]}\n"));
+  const auto no_query = with_points(
+      "  y: {type: int32, read: {request: n7, format: hex}, "
+      "poll: fast}\n");
   EXPECT_NE(no_query.find("is no query"), std::string::npos) << no_query;
 }
 
 TEST(TechnoModels, PointWritesCannotWaitForMotion) {
-  const auto e = errors_of(model("variant: it116g",
-                                 "  go: {type: int32, write: 'a{value},100', min: 0, max: 10}\n",
-                                 "", "  k: {code: 1, steps: [k]}\n"));
+  const auto e = with_points("  go: {type: int32, write: 'a{value},100', min: 0, max: 10}\n",
+                             "variant: it116g");
   EXPECT_NE(e.find("waits for or starts a motion; put it in an action"), std::string::npos) << e;
-  const auto poke = errors_of(model("variant: c142",
-                                    "  o: {type: uint16, write: 'B100,{value}', max: 255}\n"
-                                    "  p: {type: uint16, write: 'B65529,{value}'}\n",
-                                    "", "  k: {code: 1, steps: [k]}\n"));
-  EXPECT_NE(poke.find("lower addresses are EPROM"), std::string::npos) << poke;
-  EXPECT_NE(poke.find("data '{value}' can be 0..65535, the controller takes 0..255"),
-            std::string::npos)
-      << poke;
+  const auto poke = with_points(
+      "  o: {type: uint16, write: 'B100,{value}', max: 255}\n"
+      "  p: {type: uint16, write: 'B65529,{value}'}\n");
+  test::expect_contains(poke, {"lower addresses are EPROM",
+                               "data '{value}' can be 0..65535, the controller takes 0..255"});
 }
 
 TEST(TechnoModels, TextRules) {
@@ -205,26 +206,20 @@ TEST(TechnoModels, TextRules) {
 }
 
 TEST(TechnoModels, OptionsAreChecked) {
-  const auto e =
-      errors_of(model("variant: c999, axes: 6, acceleration: 60, speed_up: 1, "
-                      "position_reply: maybe, stop_bytes: 3, travel: -5, "
-                      "init_on_connect: perhaps, timeout_margin: soon",
-                      "", "", "  k: {code: 1, steps: [k]}\n"));
-  for (const char* fragment :
-       {"option variant: expected it116g, c10, c116 or c142, found 'c999'",
-        "option axes: expected 1, 3, 5 or 7, found '6'",
-        "option acceleration: expected 25, 50, 75 or 100, found '60'",
-        "unknown techno-c option 'speed_up'", "option position_reply: expected auto, bare or ack",
-        "option stop_bytes: expected 1 or 2, found '3'", "option travel: '-5'",
-        "option init_on_connect: expected true or false, found 'perhaps'",
-        "option timeout_margin: expected a duration"})
-    EXPECT_NE(e.find(fragment), std::string::npos) << fragment << "\n" << e;
-  EXPECT_NE(errors_of(model("variant: it116g, axes: 7", "", "", "  k: {code: 1, steps: [k]}\n"))
-                .find("single-axis"),
-            std::string::npos);
-  EXPECT_NE(errors_of(model("axes: 7", "", "", "  k: {code: 1, steps: [k]}\n"))
-                .find("option variant is required"),
-            std::string::npos);
+  const auto e = with_options(
+      "variant: c999, axes: 6, acceleration: 60, speed_up: 1, "
+      "position_reply: maybe, stop_bytes: 3, travel: -5, "
+      "init_on_connect: perhaps, timeout_margin: soon");
+  test::expect_contains(
+      e, {"option variant: expected it116g, c10, c116 or c142, found 'c999'",
+          "option axes: expected 1, 3, 5 or 7, found '6'",
+          "option acceleration: expected 25, 50, 75 or 100, found '60'",
+          "unknown techno-c option 'speed_up'", "option position_reply: expected auto, bare or ack",
+          "option stop_bytes: expected 1 or 2, found '3'", "option travel: '-5'",
+          "option init_on_connect: expected true or false, found 'perhaps'",
+          "option timeout_margin: expected a duration"});
+  EXPECT_NE(with_options("variant: it116g, axes: 7").find("single-axis"), std::string::npos);
+  EXPECT_NE(with_options("axes: 7").find("option variant is required"), std::string::npos);
 }
 
 TEST(TechnoModels, MergedProfilesAreConservative) {

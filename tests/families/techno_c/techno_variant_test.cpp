@@ -4,16 +4,15 @@
 // transaction against the simulator in process.
 #include <gtest/gtest.h>
 
-#include <boost/asio/co_spawn.hpp>
 #include <boost/asio/io_context.hpp>
 
 #include <filesystem>
 #include <fstream>
-#include <optional>
 
 #include "drivers/techno_c/techno_family.hpp"
 #include "mapping/model_loader.hpp"
 #include "sim_transport.hpp"
+#include "tests/harness/text_checks.hpp"
 
 namespace fieldgate {
 namespace {
@@ -58,18 +57,6 @@ class TechnoNewVariant : public ::testing::Test {
     return model;
   }
 
-  template <typename T>
-  T run(asio::awaitable<T> a) {
-    std::optional<T> result;
-    asio::co_spawn(io_, std::move(a), [&](std::exception_ptr e, T v) {
-      if (e) std::rethrow_exception(e);
-      result = std::move(v);
-    });
-    io_.restart();
-    io_.run();
-    return *result;
-  }
-
   fs::path dir_;
   asio::io_context io_;
   TechnoFamily family_;
@@ -94,9 +81,9 @@ TEST_F(TechnoNewVariant, ItsAxesAndCommandSetAreChecked) {
   Diagnostics d;
   load(text, d);
   const std::string e = d.to_text();
-  EXPECT_NE(e.find("techno-xy2.yaml:6:3: error:"), std::string::npos) << e;
-  EXPECT_NE(e.find("option axes: '5' is not within the XY fitted axes"), std::string::npos) << e;
-  EXPECT_NE(e.find("variant xy2 has arc_commands: false"), std::string::npos) << e;
+  test::expect_contains(
+      e, {"techno-xy2.yaml:6:3: error:", "option axes: '5' is not within the XY fitted axes",
+          "variant xy2 has arc_commands: false"});
 }
 
 TEST_F(TechnoNewVariant, AnUnknownVariantMustSayHowItDiffers) {
@@ -105,9 +92,8 @@ TEST_F(TechnoNewVariant, AnUnknownVariantMustSayHowItDiffers) {
   Diagnostics d;
   load(text, d);
   const std::string e = d.to_text();
-  EXPECT_NE(e.find("techno-xy2.yaml:5:3: error:"), std::string::npos) << e;
-  EXPECT_NE(e.find("another controller gives fitted_axes and arc_commands"), std::string::npos)
-      << e;
+  test::expect_contains(
+      e, {"techno-xy2.yaml:5:3: error:", "another controller gives fitted_axes and arc_commands"});
 }
 
 TEST_F(TechnoNewVariant, RunsATransactionAgainstTheSimulator) {
@@ -126,7 +112,7 @@ TEST_F(TechnoNewVariant, RunsATransactionAgainstTheSimulator) {
   family_.configure_node(device, *model);
   const Request position{"P", Request::Expect::values, NumberFormat::hex24};
   const LinkTiming timing{std::chrono::milliseconds(100), std::chrono::milliseconds(20)};
-  const Reply r = run(family_.transact(link, device, position, timing));
+  const Reply r = test::run(io_, family_.transact(link, device, position, timing));
   ASSERT_EQ(r.status, Reply::Status::ok) << r.text;
   // The `4` of the powered-up controller was answered with the variant's axes definition, XY.
   EXPECT_EQ(controller.axes(), 3);
