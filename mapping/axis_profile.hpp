@@ -134,6 +134,9 @@ struct ProfileAxisDef {
   std::map<std::string, std::string> hold;
   // Per command: the model's actions run in order, each awaited to done. Absent: unsupported.
   std::map<ProfileCommand, std::vector<std::string>> commands;
+  // The reset action acts only on a faulted axis: outside ErrorStop, MC_Reset sends nothing and
+  // is done (a CiA 402 fault reset writes the controlword and would switch an enabled drive off).
+  bool reset_only_in_error_stop = false;
   SourceMark mark;
 
   bool supports(ProfileCommand c) const { return commands.count(c) != 0; }

@@ -95,7 +95,7 @@ class ProfileParser {
     if (!r_.expect_map(n, where)) return std::nullopt;
     r_.reject_unknown_keys(n,
                            {"position", "velocity", "error_code", "status", "setpoints", "fixed",
-                            "hold", "commands", "unsupported"},
+                            "hold", "commands", "unsupported", "reset_only_in_error_stop"},
                            where);
     ProfileAxisDef a;
     a.name = name;
@@ -218,6 +218,15 @@ class ProfileParser {
           r_.error(e, fmt::format("{}: {} is both mapped and unsupported", where, e.Scalar()));
         unsupported.insert(*command);
       }
+    }
+    if (const auto only = n["reset_only_in_error_stop"]) {
+      a.reset_only_in_error_stop =
+          r_.boolean(only, where + " reset_only_in_error_stop").value_or(false);
+      const auto reset = a.commands.find(ProfileCommand::reset);
+      if (a.reset_only_in_error_stop && (reset == a.commands.end() || reset->second.empty()))
+        r_.error(only, fmt::format("{}: reset_only_in_error_stop needs a reset action under "
+                                   "'commands'",
+                                   where));
     }
     for (uint16_t c = 1; c < kProfileCommandCount; ++c) {
       const auto command = static_cast<ProfileCommand>(c);
