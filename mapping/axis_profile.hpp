@@ -55,6 +55,7 @@ enum class StatusBit : int {
 };
 inline constexpr int kStatusBitCount = 10;
 std::string_view to_string(StatusBit bit);
+std::optional<StatusBit> status_bit_named(std::string_view name);
 
 enum class PlcopenState : uint16_t {
   disabled = 0,
@@ -105,6 +106,7 @@ enum class ProfileSetpoint {
 };
 inline constexpr int kProfileSetpointCount = 7;
 std::string_view to_string(ProfileSetpoint setpoint);
+std::optional<ProfileSetpoint> profile_setpoint_named(std::string_view name);
 
 // A status bit taken from a polled point: bit `bit` (or the whole value) equals / differs from a
 // value; `constant` instead gives a fixed answer (an axis that is always enabled).

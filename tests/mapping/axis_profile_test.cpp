@@ -60,6 +60,22 @@ TEST(AxisProfileState, RefusalsFollowThePlcopenDiagram) {
   EXPECT_FALSE(refusal(PlcopenState::discrete_motion, ProfileCommand::move_absolute));
 }
 
+TEST(AxisProfileNames, EveryValueHasItsOwnNameAndIsFoundByIt) {
+  for (int i = 0; i < kStatusBitCount; ++i)
+    EXPECT_EQ(status_bit_named(to_string(static_cast<StatusBit>(i))), static_cast<StatusBit>(i));
+  for (uint16_t i = 1; i < kProfileCommandCount; ++i)
+    EXPECT_EQ(profile_command_named(to_string(static_cast<ProfileCommand>(i))),
+              static_cast<ProfileCommand>(i));
+  for (int i = 0; i < kProfileSetpointCount; ++i)
+    EXPECT_EQ(profile_setpoint_named(to_string(static_cast<ProfileSetpoint>(i))),
+              static_cast<ProfileSetpoint>(i));
+  EXPECT_FALSE(profile_command_named("none"));
+  EXPECT_FALSE(status_bit_named("Enabled"));
+  EXPECT_EQ(to_string(PlcopenState::error_stop), "ErrorStop");
+  EXPECT_EQ(to_string(CommandStatus::aborted), "aborted");
+  EXPECT_EQ(to_string(static_cast<PlcopenState>(7)), "?");
+}
+
 TEST(AxisProfileModels, EveryShippedMotionModelMapsEveryCommandOrListsIt) {
   Diagnostics d;
   ModelLibrary library;
@@ -104,6 +120,7 @@ axis_profile:
 
 constexpr const char* kResetModel = R"(model: m
 family: copley-ascii
+poll_classes: {fast: 100ms}
 points:
   pos: {type: int32, read: g r0x32, poll: fast}
 actions:
