@@ -3,102 +3,62 @@
 namespace fieldgate {
 
 namespace {
+// Names by enum value (every enum of the page counts from 0 without gaps).
+constexpr std::array<std::string_view, kStatusBitCount> kStatusBitNames = {
+    "enabled",        "homed",          "moving",  "in_position",       "error",
+    "limit_positive", "limit_negative", "warning", "velocity_reported", "online"};
+constexpr std::array<std::string_view, 7> kStateNames = {
+    "Disabled",         "Standstill", "Homing",   "DiscreteMotion",
+    "ContinuousMotion", "Stopping",   "ErrorStop"};
 constexpr std::array<std::string_view, kProfileCommandCount> kCommandNames = {
     "none",         "power_on",     "power_off", "home", "move_absolute", "move_relative",
     "jog_positive", "jog_negative", "stop",      "halt", "reset"};
+constexpr std::array<std::string_view, 5> kCommandStatusNames = {"idle", "busy", "done", "error",
+                                                                 "aborted"};
+constexpr std::array<std::string_view, kProfileSetpointCount> kSetpointNames = {
+    "target",       "distance",     "velocity",     "jog_velocity",
+    "acceleration", "deceleration", "home_velocity"};
+
+template <std::size_t N, typename Enum>
+std::string_view name_in(const std::array<std::string_view, N>& names, Enum value) {
+  const auto i = static_cast<std::size_t>(value);
+  return i < N ? names[i] : "?";
+}
+
+template <typename Enum, std::size_t N>
+std::optional<Enum> named_in(const std::array<std::string_view, N>& names, std::string_view name,
+                             std::size_t first = 0) {
+  for (std::size_t i = first; i < N; ++i)
+    if (names[i] == name) return static_cast<Enum>(i);
+  return std::nullopt;
+}
 }  // namespace
 
 std::string_view to_string(StatusBit bit) {
-  switch (bit) {
-    case StatusBit::enabled:
-      return "enabled";
-    case StatusBit::homed:
-      return "homed";
-    case StatusBit::moving:
-      return "moving";
-    case StatusBit::in_position:
-      return "in_position";
-    case StatusBit::error:
-      return "error";
-    case StatusBit::limit_positive:
-      return "limit_positive";
-    case StatusBit::limit_negative:
-      return "limit_negative";
-    case StatusBit::warning:
-      return "warning";
-    case StatusBit::velocity_reported:
-      return "velocity_reported";
-    case StatusBit::online:
-      return "online";
-  }
-  return "?";
+  return name_in(kStatusBitNames, bit);
 }
-
 std::string_view to_string(PlcopenState state) {
-  switch (state) {
-    case PlcopenState::disabled:
-      return "Disabled";
-    case PlcopenState::standstill:
-      return "Standstill";
-    case PlcopenState::homing:
-      return "Homing";
-    case PlcopenState::discrete_motion:
-      return "DiscreteMotion";
-    case PlcopenState::continuous_motion:
-      return "ContinuousMotion";
-    case PlcopenState::stopping:
-      return "Stopping";
-    case PlcopenState::error_stop:
-      return "ErrorStop";
-  }
-  return "?";
+  return name_in(kStateNames, state);
 }
-
 std::string_view to_string(ProfileCommand command) {
-  const auto i = static_cast<std::size_t>(command);
-  return i < kCommandNames.size() ? kCommandNames[i] : "?";
+  return name_in(kCommandNames, command);
 }
-
-std::optional<ProfileCommand> profile_command_named(std::string_view name) {
-  for (std::size_t i = 1; i < kCommandNames.size(); ++i)
-    if (kCommandNames[i] == name) return static_cast<ProfileCommand>(i);
-  return std::nullopt;
-}
-
 std::string_view to_string(CommandStatus status) {
-  switch (status) {
-    case CommandStatus::idle:
-      return "idle";
-    case CommandStatus::busy:
-      return "busy";
-    case CommandStatus::done:
-      return "done";
-    case CommandStatus::error:
-      return "error";
-    case CommandStatus::aborted:
-      return "aborted";
-  }
-  return "?";
+  return name_in(kCommandStatusNames, status);
+}
+std::string_view to_string(ProfileSetpoint setpoint) {
+  return name_in(kSetpointNames, setpoint);
 }
 
-std::string_view to_string(ProfileSetpoint setpoint) {
-  switch (setpoint) {
-    case ProfileSetpoint::target:
-      return "target";
-    case ProfileSetpoint::distance:
-      return "distance";
-    case ProfileSetpoint::velocity:
-      return "velocity";
-    case ProfileSetpoint::jog_velocity:
-      return "jog_velocity";
-    case ProfileSetpoint::acceleration:
-      return "acceleration";
-    case ProfileSetpoint::deceleration:
-      return "deceleration";
-    case ProfileSetpoint::home_velocity:
-      return "home_velocity";
-  }
-  return "?";
+std::optional<StatusBit> status_bit_named(std::string_view name) {
+  return named_in<StatusBit>(kStatusBitNames, name);
+}
+// "none" (0) is no command anyone names.
+std::optional<ProfileCommand> profile_command_named(std::string_view name) {
+  return named_in<ProfileCommand>(kCommandNames, name, 1);
+}
+std::optional<ProfileSetpoint> profile_setpoint_named(std::string_view name) {
+  return named_in<ProfileSetpoint>(kSetpointNames, name);
 }
 
 uint16_t ProfileAxisDef::supported_mask() const {

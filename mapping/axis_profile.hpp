@@ -55,6 +55,7 @@ enum class StatusBit : int {
 };
 inline constexpr int kStatusBitCount = 10;
 std::string_view to_string(StatusBit bit);
+std::optional<StatusBit> status_bit_named(std::string_view name);
 
 enum class PlcopenState : uint16_t {
   disabled = 0,
@@ -105,6 +106,7 @@ enum class ProfileSetpoint {
 };
 inline constexpr int kProfileSetpointCount = 7;
 std::string_view to_string(ProfileSetpoint setpoint);
+std::optional<ProfileSetpoint> profile_setpoint_named(std::string_view name);
 
 // A status bit taken from a polled point: bit `bit` (or the whole value) equals / differs from a
 // value; `constant` instead gives a fixed answer (an axis that is always enabled).
@@ -134,6 +136,9 @@ struct ProfileAxisDef {
   std::map<std::string, std::string> hold;
   // Per command: the model's actions run in order, each awaited to done. Absent: unsupported.
   std::map<ProfileCommand, std::vector<std::string>> commands;
+  // The reset action acts only on a faulted axis: outside ErrorStop, MC_Reset sends nothing and
+  // is done (a CiA 402 fault reset writes the controlword and would switch an enabled drive off).
+  bool reset_only_in_error_stop = false;
   SourceMark mark;
 
   bool supports(ProfileCommand c) const { return commands.count(c) != 0; }

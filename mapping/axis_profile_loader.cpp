@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <set>
 
 namespace fieldgate {
@@ -84,6 +85,12 @@ class ProfileParser {
     return s;
   }
 
+  bool known_setpoint(const YAML::Node& n, const std::string& name, const std::string& where) {
+    if (model_.find_setpoint(name)) return true;
+    r_.error(n, fmt::format("{}: model {} has no setpoint '{}'", where, model_.name, name));
+    return false;
+  }
+
   bool known_action(const YAML::Node& n, const std::string& name, const std::string& where) {
     if (model_.find_action(name)) return true;
     r_.error(n, fmt::format("{}: model {} has no action '{}'", where, model_.name, name));
@@ -95,7 +102,7 @@ class ProfileParser {
     if (!r_.expect_map(n, where)) return std::nullopt;
     r_.reject_unknown_keys(n,
                            {"position", "velocity", "error_code", "status", "setpoints", "fixed",
-                            "hold", "commands", "unsupported"},
+                            "hold", "commands", "unsupported", "reset_only_in_error_stop"},
                            where);
     ProfileAxisDef a;
     a.name = name;
@@ -115,10 +122,8 @@ class ProfileParser {
     if (auto status = r_.require(n, "status", where); status && r_.expect_map(*status, where)) {
       for (const auto& e : *status) {
         const std::string bit_name = e.first.Scalar();
-        std::optional<StatusBit> bit;
-        for (const auto b : kMappedBits)
-          if (to_string(b) == bit_name) bit = b;
-        if (!bit) {
+        const auto bit = status_bit_named(bit_name);
+        if (!bit || std::find(kMappedBits.begin(), kMappedBits.end(), *bit) == kMappedBits.end()) {
           r_.error(e.first, fmt::format("{} status: '{}' is no mapped status bit (enabled, homed, "
                                         "moving, error, limit_positive, limit_negative, warning)",
                                         where, bit_name));
@@ -135,10 +140,7 @@ class ProfileParser {
     if (const auto sp = n["setpoints"]; sp && r_.expect_map(sp, where + " setpoints")) {
       for (const auto& e : sp) {
         const std::string key = e.first.Scalar();
-        std::optional<ProfileSetpoint> which;
-        for (int i = 0; i < kProfileSetpointCount; ++i)
-          if (to_string(static_cast<ProfileSetpoint>(i)) == key)
-            which = static_cast<ProfileSetpoint>(i);
+        const auto which = profile_setpoint_named(key);
         if (!which) {
           r_.error(e.first, fmt::format("{} setpoints: unknown profile value '{}' (target, "
                                         "distance, velocity, jog_velocity, acceleration, "
@@ -160,11 +162,7 @@ class ProfileParser {
     if (const auto f = n["fixed"]; f && r_.expect_map(f, where + " fixed")) {
       for (const auto& e : f) {
         const std::string sp = e.first.Scalar();
-        if (!model_.find_setpoint(sp)) {
-          r_.error(e.first,
-                   fmt::format("{} fixed: model {} has no setpoint '{}'", where, model_.name, sp));
-          continue;
-        }
+        if (!known_setpoint(e.first, sp, where + " fixed")) continue;
         if (auto v = r_.integer(e.second, where + " fixed " + sp, INT64_MIN, INT64_MAX))
           a.fixed[sp] = *v;
       }
@@ -172,11 +170,7 @@ class ProfileParser {
     if (const auto h = n["hold"]; h && r_.expect_map(h, where + " hold")) {
       for (const auto& e : h) {
         const std::string sp = e.first.Scalar();
-        if (!model_.find_setpoint(sp)) {
-          r_.error(e.first,
-                   fmt::format("{} hold: model {} has no setpoint '{}'", where, model_.name, sp));
-          continue;
-        }
+        if (!known_setpoint(e.first, sp, where + " hold")) continue;
         const std::string point = r_.string(e.second, where + " hold " + sp).value_or("");
         if (polled_point(e.second, point, where + " hold " + sp)) a.hold[sp] = point;
       }
@@ -218,6 +212,15 @@ class ProfileParser {
           r_.error(e, fmt::format("{}: {} is both mapped and unsupported", where, e.Scalar()));
         unsupported.insert(*command);
       }
+    }
+    if (const auto only = n["reset_only_in_error_stop"]) {
+      a.reset_only_in_error_stop =
+          r_.boolean(only, where + " reset_only_in_error_stop").value_or(false);
+      const auto reset = a.commands.find(ProfileCommand::reset);
+      if (a.reset_only_in_error_stop && (reset == a.commands.end() || reset->second.empty()))
+        r_.error(only, fmt::format("{}: reset_only_in_error_stop needs a reset action under "
+                                   "'commands'",
+                                   where));
     }
     for (uint16_t c = 1; c < kProfileCommandCount; ++c) {
       const auto command = static_cast<ProfileCommand>(c);

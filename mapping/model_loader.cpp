@@ -64,6 +64,22 @@ class ModelParser {
     }
   }
 
+  // What every named definition (point, setpoint, action) starts with: a map of known keys, its
+  // name, its place in the file and its description.
+  template <typename Def>
+  std::optional<Def> definition(const std::string& name, const std::string& where,
+                                const YAML::Node& spec,
+                                std::initializer_list<std::string_view> keys) {
+    if (!r_.expect_map(spec, where)) return std::nullopt;
+    r_.reject_unknown_keys(spec, keys, where);
+    Def d;
+    d.name = name;
+    d.mark = r_.mark(spec);
+    if (spec["description"])
+      d.description = r_.string(spec["description"], "description").value_or("");
+    return d;
+  }
+
   std::optional<CommandTemplate> compile(const YAML::Node& node, std::string_view what) {
     auto text = r_.string(node, what);
     if (!text) return std::nullopt;
@@ -111,16 +127,11 @@ class ModelParser {
     for_each_entry(
         node, "points", [&](const std::string& name, const YAML::Node&, const YAML::Node& spec) {
           const std::string where = "point " + name;
-          if (!r_.expect_map(spec, where)) return;
-          r_.reject_unknown_keys(spec,
-                                 {"description", "type", "units", "scale", "read", "write", "poll",
-                                  "bits", "min", "max"},
-                                 where);
-          PointDef p;
-          p.name = name;
-          p.mark = r_.mark(spec);
-          if (spec["description"])
-            p.description = r_.string(spec["description"], "description").value_or("");
+          auto defined = definition<PointDef>(name, where, spec,
+                                              {"description", "type", "units", "scale", "read",
+                                               "write", "poll", "bits", "min", "max"});
+          if (!defined) return;
+          PointDef& p = *defined;
           if (auto t = r_.require(spec, "type", where)) {
             if (auto s = r_.string(*t, where + " type")) {
               if (auto vt = parse_value_type(*s))
@@ -244,45 +255,46 @@ class ModelParser {
   }
 
   void parse_setpoints(const YAML::Node& node, Model& model) {
-    for_each_entry(
-        node, "setpoints", [&](const std::string& name, const YAML::Node&, const YAML::Node& spec) {
-          const std::string where = "setpoint " + name;
-          if (!r_.expect_map(spec, where)) return;
-          r_.reject_unknown_keys(
-              spec, {"description", "type", "units", "scale", "default", "min", "max"}, where);
-          SetpointDef s;
-          s.name = name;
-          s.mark = r_.mark(spec);
-          if (model.find_point(name))
-            r_.error(spec, fmt::format("{}: a point has the same name", where));
-          if (spec["description"])
-            s.description = r_.string(spec["description"], "description").value_or("");
-          if (auto t = r_.require(spec, "type", where)) {
-            if (auto text = r_.string(*t, where + " type")) {
-              if (auto vt = parse_value_type(*text))
-                s.type = *vt;
-              else
-                r_.error(*t, fmt::format("{}: unknown type '{}'", where, *text));
-            }
-          }
-          if (spec["units"]) s.units = r_.string(spec["units"], where + " units").value_or("");
-          if (spec["scale"]) s.scale = r_.number(spec["scale"], where + " scale").value_or(1.0);
-          if (spec["min"]) s.min = r_.integer(spec["min"], where + " min", INT64_MIN, INT64_MAX);
-          if (spec["max"]) s.max = r_.integer(spec["max"], where + " max", INT64_MIN, INT64_MAX);
-          check_limits(spec, where, s.type, s.min, s.max);
-          if (spec["default"]) {
-            if (auto d = r_.integer(spec["default"], where + " default", min_value(s.type),
-                                    max_value(s.type))) {
-              s.default_value = *d;
-              if ((s.min && *d < *s.min) || (s.max && *d > *s.max))
-                r_.error(spec["default"],
-                         fmt::format("{}: default {} is outside min/max", where, *d));
-            }
-          } else if (s.min && *s.min > 0) {
-            s.default_value = *s.min;
-          }
-          model.setpoints.push_back(std::move(s));
-        });
+    for_each_entry(node, "setpoints",
+                   [&](const std::string& name, const YAML::Node&, const YAML::Node& spec) {
+                     const std::string where = "setpoint " + name;
+                     auto defined = definition<SetpointDef>(
+                         name, where, spec,
+                         {"description", "type", "units", "scale", "default", "min", "max"});
+                     if (!defined) return;
+                     SetpointDef& s = *defined;
+                     if (model.find_point(name))
+                       r_.error(spec, fmt::format("{}: a point has the same name", where));
+                     if (auto t = r_.require(spec, "type", where)) {
+                       if (auto text = r_.string(*t, where + " type")) {
+                         if (auto vt = parse_value_type(*text))
+                           s.type = *vt;
+                         else
+                           r_.error(*t, fmt::format("{}: unknown type '{}'", where, *text));
+                       }
+                     }
+                     if (spec["units"])
+                       s.units = r_.string(spec["units"], where + " units").value_or("");
+                     if (spec["scale"])
+                       s.scale = r_.number(spec["scale"], where + " scale").value_or(1.0);
+                     if (spec["min"])
+                       s.min = r_.integer(spec["min"], where + " min", INT64_MIN, INT64_MAX);
+                     if (spec["max"])
+                       s.max = r_.integer(spec["max"], where + " max", INT64_MIN, INT64_MAX);
+                     check_limits(spec, where, s.type, s.min, s.max);
+                     if (spec["default"]) {
+                       if (auto d = r_.integer(spec["default"], where + " default",
+                                               min_value(s.type), max_value(s.type))) {
+                         s.default_value = *d;
+                         if ((s.min && *d < *s.min) || (s.max && *d > *s.max))
+                           r_.error(spec["default"],
+                                    fmt::format("{}: default {} is outside min/max", where, *d));
+                       }
+                     } else if (s.min && *s.min > 0) {
+                       s.default_value = *s.min;
+                     }
+                     model.setpoints.push_back(std::move(s));
+                   });
   }
 
   std::optional<Condition> parse_condition(const YAML::Node& node, const Model& model,
@@ -335,15 +347,11 @@ class ModelParser {
     for_each_entry(
         node, "actions", [&](const std::string& name, const YAML::Node&, const YAML::Node& spec) {
           const std::string where = "action " + name;
-          if (!r_.expect_map(spec, where)) return;
-          r_.reject_unknown_keys(
-              spec, {"description", "code", "steps", "done", "failed", "timeout", "bus_wide"},
-              where);
-          ActionDef a;
-          a.name = name;
-          a.mark = r_.mark(spec);
-          if (spec["description"])
-            a.description = r_.string(spec["description"], "description").value_or("");
+          auto defined = definition<ActionDef>(
+              name, where, spec,
+              {"description", "code", "steps", "done", "failed", "timeout", "bus_wide"});
+          if (!defined) return;
+          ActionDef& a = *defined;
           if (auto c = r_.require(spec, "code", where)) {
             if (auto v = r_.integer(*c, where + " code", 1, 0xffff)) {
               a.code = static_cast<uint16_t>(*v);

@@ -81,6 +81,14 @@ ModelOptionSpec make(std::string name, ModelOptionSpec::Type type, std::string d
   return s;
 }
 
+ModelOptionSpec ranged(std::string name, ModelOptionSpec::Type type, std::string default_text,
+                       double min, double max, std::string doc) {
+  auto s = make(std::move(name), type, std::move(default_text), std::move(doc));
+  s.min = min;
+  s.max = max;
+  return s;
+}
+
 }  // namespace
 
 ModelOptionSpec flag_option(std::string name, std::string default_text, std::string doc) {
@@ -90,11 +98,8 @@ ModelOptionSpec flag_option(std::string name, std::string default_text, std::str
 
 ModelOptionSpec integer_option(std::string name, std::string default_text, double min, double max,
                                std::string doc) {
-  auto s = make(std::move(name), ModelOptionSpec::Type::integer, std::move(default_text),
+  return ranged(std::move(name), ModelOptionSpec::Type::integer, std::move(default_text), min, max,
                 std::move(doc));
-  s.min = min;
-  s.max = max;
-  return s;
 }
 
 ModelOptionSpec integer_option(std::string name, std::string default_text,
@@ -107,11 +112,8 @@ ModelOptionSpec integer_option(std::string name, std::string default_text,
 
 ModelOptionSpec number_option(std::string name, std::string default_text, double min, double max,
                               std::string doc) {
-  auto s =
-      make(std::move(name), ModelOptionSpec::Type::number, std::move(default_text), std::move(doc));
-  s.min = min;
-  s.max = max;
-  return s;
+  return ranged(std::move(name), ModelOptionSpec::Type::number, std::move(default_text), min, max,
+                std::move(doc));
 }
 
 ModelOptionSpec duration_option(std::string name, std::string default_text,

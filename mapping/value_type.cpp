@@ -1,32 +1,40 @@
 #include "mapping/value_type.hpp"
 
+#include <array>
 #include <limits>
 
 namespace fieldgate {
 
+namespace {
+// Per type, in enum order: its name in configs, its range and its register count.
+struct TypeFacts {
+  std::string_view name;
+  int64_t min;
+  int64_t max;
+  int registers;
+};
+constexpr std::array<TypeFacts, 5> kTypes = {{
+    {"bool", 0, 1, 1},
+    {"int16", std::numeric_limits<int16_t>::min(), std::numeric_limits<int16_t>::max(), 1},
+    {"uint16", 0, std::numeric_limits<uint16_t>::max(), 1},
+    {"int32", std::numeric_limits<int32_t>::min(), std::numeric_limits<int32_t>::max(), 2},
+    {"uint32", 0, std::numeric_limits<uint32_t>::max(), 2},
+}};
+
+const TypeFacts& facts(ValueType type) {
+  return kTypes.at(static_cast<std::size_t>(type));
+}
+}  // namespace
+
 std::optional<ValueType> parse_value_type(std::string_view text) {
-  if (text == "bool" || text == "boolean") return ValueType::boolean;
-  if (text == "int16") return ValueType::int16;
-  if (text == "uint16") return ValueType::uint16;
-  if (text == "int32") return ValueType::int32;
-  if (text == "uint32") return ValueType::uint32;
+  if (text == "boolean") return ValueType::boolean;
+  for (std::size_t i = 0; i < kTypes.size(); ++i)
+    if (kTypes[i].name == text) return static_cast<ValueType>(i);
   return std::nullopt;
 }
 
 std::string_view to_string(ValueType type) {
-  switch (type) {
-    case ValueType::boolean:
-      return "bool";
-    case ValueType::int16:
-      return "int16";
-    case ValueType::uint16:
-      return "uint16";
-    case ValueType::int32:
-      return "int32";
-    case ValueType::uint32:
-      return "uint32";
-  }
-  return "?";
+  return facts(type).name;
 }
 
 std::string_view to_string(WordOrder order) {
@@ -40,39 +48,13 @@ std::optional<WordOrder> parse_word_order(std::string_view text) {
 }
 
 int register_count(ValueType type) {
-  return (type == ValueType::int32 || type == ValueType::uint32) ? 2 : 1;
+  return facts(type).registers;
 }
-
 int64_t min_value(ValueType type) {
-  switch (type) {
-    case ValueType::boolean:
-      return 0;
-    case ValueType::int16:
-      return std::numeric_limits<int16_t>::min();
-    case ValueType::uint16:
-      return 0;
-    case ValueType::int32:
-      return std::numeric_limits<int32_t>::min();
-    case ValueType::uint32:
-      return 0;
-  }
-  return 0;
+  return facts(type).min;
 }
-
 int64_t max_value(ValueType type) {
-  switch (type) {
-    case ValueType::boolean:
-      return 1;
-    case ValueType::int16:
-      return std::numeric_limits<int16_t>::max();
-    case ValueType::uint16:
-      return std::numeric_limits<uint16_t>::max();
-    case ValueType::int32:
-      return std::numeric_limits<int32_t>::max();
-    case ValueType::uint32:
-      return std::numeric_limits<uint32_t>::max();
-  }
-  return 0;
+  return facts(type).max;
 }
 
 bool in_range(ValueType type, int64_t value) {

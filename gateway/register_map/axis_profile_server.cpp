@@ -295,8 +295,10 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
               to_string(state));
     co_return modbus::WriteResult::success();
   }
-  if (action_names.empty()) {
-    // A reset of a controller that has nothing to reset: it clears the profile's own latch.
+  if (action_names.empty() || (cmd == ProfileCommand::reset && axis.reset_only_in_error_stop &&
+                               state != PlcopenState::error_stop)) {
+    // A reset of a controller that has nothing to reset, or of an axis that is not in ErrorStop
+    // where the model's reset acts on faults only: it clears the profile's own latch.
     rt.status = CommandStatus::done;
     rt.error_latched = false;
     rt.error_id = 0;

@@ -78,7 +78,8 @@ axis_family_bus() {
     timing: {reply_timeout: 500ms, retries: 1, offline_after: 3, probe_interval: 300ms,
              heartbeat_timeout: 500ms, start_nodes: true}
     nodes:
-      - {name: drive_2, address: 2, model: canopen-cia402, unit_id: 1, profile_unit: 21}"
+      - {name: drive_2, address: 2, model: canopen-cia402, unit_id: 1, profile_unit: 21,
+         limits: {target: {min: -10000000, max: 10000000}}}"
       units=21
       return 0
       ;;
@@ -118,7 +119,8 @@ axis_family_start() {
     canopen)
       "$build/sim/canopen/fieldgate-sim-canopen" --interface "${FIELDGATE_VCAN_IF:-vcan0}" \
         --nodes 2 <"$dir/sim.in" >"$dir/sim.log" 2>&1 &
-      axis_args=(--distance 4000 --no-device-error)
+      # The refused target leaves the drive enabled: the reset after it must not switch it off.
+      axis_args=(--distance 4000 --refused-target 20000000 --no-device-error)
       for _ in $(seq 100); do grep -q '^ready' "$dir/sim.log" && return 0; sleep 0.1; done
       echo "the CANopen simulator did not start"
       cat "$dir/sim.log"

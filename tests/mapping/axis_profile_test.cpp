@@ -60,6 +60,22 @@ TEST(AxisProfileState, RefusalsFollowThePlcopenDiagram) {
   EXPECT_FALSE(refusal(PlcopenState::discrete_motion, ProfileCommand::move_absolute));
 }
 
+TEST(AxisProfileNames, EveryValueHasItsOwnNameAndIsFoundByIt) {
+  for (int i = 0; i < kStatusBitCount; ++i)
+    EXPECT_EQ(status_bit_named(to_string(static_cast<StatusBit>(i))), static_cast<StatusBit>(i));
+  for (uint16_t i = 1; i < kProfileCommandCount; ++i)
+    EXPECT_EQ(profile_command_named(to_string(static_cast<ProfileCommand>(i))),
+              static_cast<ProfileCommand>(i));
+  for (int i = 0; i < kProfileSetpointCount; ++i)
+    EXPECT_EQ(profile_setpoint_named(to_string(static_cast<ProfileSetpoint>(i))),
+              static_cast<ProfileSetpoint>(i));
+  EXPECT_FALSE(profile_command_named("none"));
+  EXPECT_FALSE(status_bit_named("Enabled"));
+  EXPECT_EQ(to_string(PlcopenState::error_stop), "ErrorStop");
+  EXPECT_EQ(to_string(CommandStatus::aborted), "aborted");
+  EXPECT_EQ(to_string(static_cast<PlcopenState>(7)), "?");
+}
+
 TEST(AxisProfileModels, EveryShippedMotionModelMapsEveryCommandOrListsIt) {
   Diagnostics d;
   ModelLibrary library;
@@ -100,6 +116,68 @@ axis_profile:
                   "m.yaml", d);
   EXPECT_FALSE(d.ok());
   EXPECT_NE(d.to_text().find("command home is neither mapped"), std::string::npos) << d.to_text();
+}
+
+constexpr const char* kResetModel = R"(model: m
+family: copley-ascii
+poll_classes: {fast: 100ms}
+points:
+  pos: {type: int32, read: g r0x32, poll: fast}
+actions:
+  go: {code: 1, steps: [t 1]}
+  clear: {code: 2, steps: [t 2]}
+axis_profile:
+  axis:
+    position: pos
+    status: {enabled: true, moving: {point: pos, bit: 0}}
+    commands: {move_absolute: go, reset: RESET}
+    reset_only_in_error_stop: ONLY
+    unsupported: [power_on, power_off, home, move_relative, jog_positive, jog_negative, stop, halt]
+)";
+
+std::string reset_model(const std::string& reset, const std::string& only) {
+  std::string text = kResetModel;
+  text.replace(text.find("RESET"), 5, reset);
+  text.replace(text.find("ONLY"), 4, only);
+  return text;
+}
+
+TEST(AxisProfileModels, ResetOnlyInErrorStopIsReadAndNeedsAReset) {
+  {
+    Diagnostics d;
+    const auto model = load_model_text(reset_model("clear", "true"), "m.yaml", d);
+    ASSERT_TRUE(d.ok()) << d.to_text();
+    EXPECT_TRUE(model->profile_axes.at(0).reset_only_in_error_stop);
+  }
+  {
+    Diagnostics d;
+    const auto model = load_model_text(reset_model("clear", "off"), "m.yaml", d);
+    ASSERT_TRUE(d.ok()) << d.to_text();
+    EXPECT_FALSE(model->profile_axes.at(0).reset_only_in_error_stop);
+  }
+  {
+    Diagnostics d;
+    load_model_text(reset_model("[]", "true"), "m.yaml", d);
+    EXPECT_FALSE(d.ok());
+    EXPECT_NE(d.to_text().find("reset_only_in_error_stop needs a reset action"), std::string::npos)
+        << d.to_text();
+  }
+  {
+    Diagnostics d;
+    load_model_text(reset_model("clear", "sometimes"), "m.yaml", d);
+    EXPECT_FALSE(d.ok());
+    EXPECT_NE(d.to_text().find("m.yaml:"), std::string::npos) << d.to_text();
+  }
+}
+
+// A CiA 402 fault reset rewrites the controlword, which would switch an enabled drive off.
+TEST(AxisProfileModels, Cia402ResetsOnlyInErrorStop) {
+  Diagnostics d;
+  ModelLibrary library;
+  library.load_directory(std::string(FIELDGATE_SOURCE_DIR) + "/config/models", d);
+  ASSERT_TRUE(d.ok()) << d.to_text();
+  EXPECT_TRUE(library.find("canopen-cia402")->profile_axes.at(0).reset_only_in_error_stop);
+  EXPECT_FALSE(library.find("copley-amplifier")->profile_axes.at(0).reset_only_in_error_stop);
 }
 
 }  // namespace

@@ -1,7 +1,7 @@
 #!/bin/bash
 # The axis profile of a CiA 402 drive on CANopen: tools/axis.py's full cycle (power, a home that
 # searches the switch, moves, stop and halt of a running move, power off, a move refused while
-# Disabled, reset), then axis_cia402_checks.py: a stop during a home, and a device fault (EMCY,
+# Disabled, a target beyond the node's limit and the reset of the still enabled drive), then axis_cia402_checks.py: a stop during a home, and a device fault (EMCY,
 # statusword Fault) injected by the simulator: ErrorStop with the drive's error code, reset,
 # power on. Then mbpoll -m rtu moves the axis through the RTU port (tests/integration/rtu_axis.sh).
 # The daemon and fieldgate-sim-canopen on a kernel vcan0; runs inside scripts/vcan-run.
@@ -31,7 +31,8 @@ buses:
     timing: {reply_timeout: 500ms, retries: 1, offline_after: 3, probe_interval: 300ms,
              heartbeat_timeout: 500ms, start_nodes: true}
     nodes:
-      - {name: drive_2, address: 2, model: canopen-cia402, unit_id: 1, profile_unit: 21}
+      - {name: drive_2, address: 2, model: canopen-cia402, unit_id: 1, profile_unit: 21,
+         limits: {target: {min: -10000000, max: 10000000}}}
 YAML
 source "$here/../integration/daemon.sh"
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
@@ -53,7 +54,8 @@ PY
 
 # Timing under QEMU's TCG is several times the host's: generous, bounded waits per command.
 rc=0
-/usr/bin/python3 "$axis_py" --port "$port" --unit 21 --distance 4000 --timeout 60 --no-device-error -v || rc=$?
+/usr/bin/python3 "$axis_py" --port "$port" --unit 21 --distance 4000 --timeout 60 \
+  --refused-target 20000000 --no-device-error -v || rc=$?
 if [ "$rc" -eq 0 ]; then
   /usr/bin/python3 "$here/axis_cia402_checks.py" "$axis_py" "$port" 21 0x2310 --timeout 60 -- \
     bash -c 'echo "fault 2 0x2310" >"$0"' "$dir/control" || rc=$?
