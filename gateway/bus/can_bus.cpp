@@ -30,13 +30,6 @@ const FrameFamily& frame_family(const BusConfig& config) {
         config.family ? config.family->name() : std::string_view("(none)")));
   return *family;
 }
-Reply make_reply(Reply::Status status, std::string text, int64_t code = 0) {
-  Reply r;
-  r.status = status;
-  r.text = std::move(text);
-  r.device_code = code;
-  return r;
-}
 }  // namespace
 
 struct CanBus::PendingCommand {
@@ -359,7 +352,7 @@ void CanBus::fail_commands(std::string_view why) {
   for (auto& n : nodes_) {
     while (!n->commands.empty()) {
       n->commands.front()->done.try_send(boost::system::error_code{},
-                                         make_reply(Reply::Status::unreachable, std::string(why)));
+                                         Reply::of(Reply::Status::unreachable, std::string(why)));
       n->commands.pop_front();
     }
     n->urgent_waiting = false;
@@ -583,14 +576,14 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
       ++counters_.commands;
       if (options.on_sent) options.on_sent();
       const bool sent = co_await send(*frame);
-      co_return sent ? make_reply(Reply::Status::ok, {})
-                     : make_reply(Reply::Status::link_down, "bus link is down");
+      co_return sent ? Reply::of(Reply::Status::ok)
+                     : Reply::of(Reply::Status::link_down, "bus link is down");
     }
   }
   // A bus-wide command (NMT to all nodes) concerns every node: only the link must be up.
   if ((n.image->state == NodeState::offline && !request.bus_wide) || !link_up_)
-    co_return make_reply(Reply::Status::unreachable,
-                         link_up_ ? "node is offline" : "bus link is down");
+    co_return Reply::of(Reply::Status::unreachable,
+                        link_up_ ? "node is offline" : "bus link is down");
   auto cmd = std::make_shared<PendingCommand>(executor_);
   cmd->request = std::move(request);
   cmd->options = options;
@@ -603,7 +596,7 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
   }
   n.wake.cancel();
   auto [ec, reply] = co_await cmd->done.async_receive(use_tuple);
-  if (ec) co_return make_reply(Reply::Status::link_down, "gateway stopping");
+  if (ec) co_return Reply::of(Reply::Status::link_down, "gateway stopping");
   co_return reply;
 }
 
@@ -693,7 +686,7 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
                                        [](const auto& c) { return c->options.urgent; });
       Reply reply;
       if (n.image->state == NodeState::offline && !cmd->request.bus_wide)
-        reply = make_reply(Reply::Status::unreachable, "node is offline");
+        reply = Reply::of(Reply::Status::unreachable, "node is offline");
       else {
         // Commands are not retried: a lost answer may hide a command the node carried out.
         if (cmd->options.on_sent) cmd->options.on_sent();
