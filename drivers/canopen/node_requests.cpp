@@ -106,6 +106,54 @@ asio::awaitable<Reply> NodeRequests::wait_for(const Operation& op) {
   }
 }
 
+asio::awaitable<bool> NodeRequests::run_supervision_duty(bool reachable, int retries) {
+  // The clock is read only where a duty is due (a system call on User-Mode Linux, and the
+  // node's worker asks before every transfer).
+  using Duty = NodeSupervision::Duty;
+  switch (nmt_.duty(reachable)) {
+    case Duty::configure:
+      co_await configure_heartbeat(host_.now());
+      co_return true;
+    case Duty::start: {
+      const CanFrame start = nmt_.start(host_.now());
+      co_await host_.port().send(start);
+      co_return true;
+    }
+    case Duty::report_pre_operational:
+      co_await report_pre_operational(retries, host_.now());
+      co_return true;
+    case Duty::guard: {
+      const auto now = host_.now();
+      if (nmt_.next_guard() > now) co_return false;
+      if (auto rtr = nmt_.guard(now)) co_await host_.port().send(*rtr);
+      co_return true;
+    }
+    case Duty::none:
+      break;
+  }
+  co_return false;
+}
+
+asio::awaitable<void> NodeRequests::configure_heartbeat(TimePoint now) {
+  Operation op;
+  op.kind = Operation::Kind::write;
+  op.object = kHeartbeatObject;
+  op.value = nmt_.producer_ms();
+  const Reply r = co_await download(op, now);
+  nmt_.configured(r, op.value, finished_at);
+}
+
+asio::awaitable<void> NodeRequests::report_pre_operational(int retries, TimePoint now) {
+  nmt_.begin_pre_operational_report();
+  // upload() puts it into the error register point, so the map shows it with the NMT state.
+  const Reply r = co_await upload(kErrorRegisterObject, retries, now);
+  nmt_.report_pre_operational(r);
+}
+
+asio::awaitable<void> NodeRequests::probe(TimePoint now) {
+  co_await upload(kDeviceTypeObject, 0, now);
+}
+
 std::optional<CanFrame> NodeRequests::immediate_frame(const Request& request) const {
   std::string error;
   const auto op = parse_operation(request.command, model_, error);

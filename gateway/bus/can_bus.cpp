@@ -53,7 +53,8 @@ struct CanBus::NodeRuntime final : RequestHost {
         wake(ex),
         sdo(id, bus.config_.timing.link.reply_timeout, wake),
         nmt(id, nc.name, timing, *this),
-        requests(id, nc.model.get(), sdo, nmt, points, *this) {}
+        requests(id, nc.model.get(), sdo, nmt, points, *this),
+        tpdos(points.tpdo_cobs()) {}
 
   Presence presence() const override {
     switch (image->state) {
@@ -120,12 +121,12 @@ struct CanBus::NodeRuntime final : RequestHost {
   const NodeConfig* config = nullptr;
   std::shared_ptr<NodeImage> image;
   NodePoints points;
-  std::map<uint32_t, SteadyTime> tpdo_seen;
 
   asio::steady_timer wake;
   SdoChannel sdo;
   NodeSupervision nmt;    // heartbeat, NMT, EMCY
-  NodeRequests requests;  // commands and polls as transfers
+  NodeRequests requests;  // commands, polls, probes and bring-up as transfers
+  TpdoFreshness tpdos;    // the TPDOs that spare polls their transfer
   std::deque<std::shared_ptr<PendingCommand>> commands;
   bool urgent_waiting = false;
   SteadyTime next_probe{};
@@ -312,8 +313,7 @@ asio::awaitable<void> CanBus::run() {
     const auto now = BusClock::now();
     for (auto& n : nodes_) {
       n->nmt.bring_up(true);
-      // TPDOs get one poll period to show up before their points are read by SDO.
-      for (const uint32_t cob : n->points.tpdo_cobs()) n->tpdo_seen[cob] = now;
+      n->tpdos.restart(now);
       n->next_probe = now;
     }
     wake_all();
@@ -468,7 +468,7 @@ void CanBus::on_error_frame(const CanFrame& frame, SteadyTime now) {
 }
 
 void CanBus::on_tpdo(NodeRuntime& n, const CanFrame& frame, SteadyTime now) {
-  n.tpdo_seen[frame.id] = now;
+  n.tpdos.received(frame.id, now);
   ++n.nmt.status().pdos;
   auto& img = *n.image;
   std::vector<std::string> errors;
@@ -515,7 +515,7 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
                 old == NodeState::offline ? " again" : "");
     n.nmt.went_online(old == NodeState::offline);
     resume_polls(n, now);
-    for (const uint32_t cob : n.points.tpdo_cobs()) n.tpdo_seen[cob] = now;
+    n.tpdos.restart(now);
     refresh_local_points(n, now);
   } else if (state == NodeState::offline) {
     log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name, n.id, why);
@@ -524,10 +524,6 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
     n.nmt.went_offline();
   }
   n.wake.cancel();
-}
-
-asio::awaitable<void> CanBus::guard(NodeRuntime& n, SteadyTime now) {
-  if (auto rtr = n.nmt.guard(now)) co_await send(*rtr);
 }
 
 void CanBus::resume_polls(NodeRuntime& n, SteadyTime now) {
@@ -611,39 +607,15 @@ asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, S
     plan_.completed(item_index, now);
     co_return;
   }
-  if (info.kind == PollJob::Kind::tpdo_fallback) {
-    const auto seen = n.tpdo_seen.find(info.tpdo_cob);
-    if (seen != n.tpdo_seen.end() && now - seen->second < period) {
-      plan_.completed(item_index, now);  // the PDO keeps it fresh: no SDO traffic
-      co_return;
-    }
+  if (n.tpdos.keeps_fresh(info, period, now)) {
+    plan_.completed(item_index, now);  // no SDO traffic
+    co_return;
   }
   // Due again a period after it was started, so a poll that is due sooner than its transfer
   // takes runs straight after it.
   plan_.completed(item_index, now);
   // upload() stores the value in every point of the object, the targets among them.
   co_await n.requests.upload(info.object, config_.timing.retries, now);
-}
-
-asio::awaitable<void> CanBus::probe(NodeRuntime& n, SteadyTime now) {
-  n.next_probe = now + config_.timing.probe_interval;
-  co_await n.requests.upload(kDeviceTypeObject, 0, now);
-}
-
-asio::awaitable<void> CanBus::configure_heartbeat(NodeRuntime& n, SteadyTime now) {
-  Operation op;
-  op.kind = Operation::Kind::write;
-  op.object = kHeartbeatObject;
-  op.value = n.nmt.producer_ms();
-  const Reply r = co_await n.requests.download(op, now);
-  n.nmt.configured(r, op.value, n.requests.finished_at);
-}
-
-asio::awaitable<void> CanBus::report_pre_operational(NodeRuntime& n, SteadyTime now) {
-  n.nmt.begin_pre_operational_report();
-  // upload() puts it into the error register point, so the map shows it with the NMT state.
-  const Reply r = co_await n.requests.upload(kErrorRegisterObject, config_.timing.retries, now);
-  n.nmt.report_pre_operational(r);
 }
 
 asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
@@ -655,28 +627,9 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
       co_await sleep_until(n.wake, SteadyTime::max());
       continue;
     }
-    using Duty = NodeSupervision::Duty;
-    const Duty duty = n.nmt.duty(n.image->state != NodeState::offline);
-    if (duty == Duty::configure) {
-      co_await configure_heartbeat(n, BusClock::now());
-      continue;
-    }
-    if (duty == Duty::start) {
-      const CanFrame start = n.nmt.start(BusClock::now());
-      co_await send(start);
-      continue;
-    }
-    if (duty == Duty::report_pre_operational) {
-      co_await report_pre_operational(n, BusClock::now());
-      continue;
-    }
-    if (duty == Duty::guard) {
-      const auto guard_now = BusClock::now();
-      if (n.nmt.next_guard() <= guard_now) {
-        co_await guard(n, guard_now);
-        continue;
-      }
-    }
+    // Bring-up, a report and node guarding go before commands and polls.
+    const bool reachable = n.image->state != NodeState::offline;
+    if (co_await n.requests.run_supervision_duty(reachable, config_.timing.retries)) continue;
     if (!n.commands.empty()) {
       auto cmd = n.commands.front();
       n.commands.pop_front();
@@ -717,10 +670,12 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
       when = n.next_probe;
     }
     if (when <= now) {
-      if (offline)
-        co_await probe(n, now);
-      else
+      if (offline) {
+        n.next_probe = now + config_.timing.probe_interval;
+        co_await n.requests.probe(now);
+      } else {
         co_await run_poll(n, *due, now);
+      }
       known_now = n.requests.finished_at;
       continue;
     }
