@@ -95,7 +95,7 @@ struct CanBus::NodeRuntime final : RequestHost {
 
   FramePort& port() override { return bus; }
   void transfer_done(double seconds) override {
-    bus.record_latency(seconds);
+    count_latency(bus.counters_, seconds);
     ++bus.counters_.transactions;
     ++image->counters.transactions;
   }
@@ -553,13 +553,6 @@ void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {
       }
       break;
   }
-}
-
-void CanBus::record_latency(double seconds) {
-  std::size_t bucket = 0;
-  while (bucket < std::size(kLatencyBuckets) && seconds > kLatencyBuckets[bucket]) ++bucket;
-  ++counters_.latency_counts[bucket];
-  counters_.latency_sum += seconds;
 }
 
 // --- transfers -------------------------------------------------------------------------------

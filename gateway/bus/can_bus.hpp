@@ -88,7 +88,6 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   void resume_polls(NodeRuntime& n, SteadyTime now);
 
   void record(NodeRuntime& n, const Reply& reply, SteadyTime at);
-  void record_latency(double seconds);
   void set_state(NodeRuntime& n, NodeState state, std::string_view why);
   void link_failed(std::error_code ec);
   void fail_commands(std::string_view why);

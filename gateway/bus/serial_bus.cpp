@@ -336,10 +336,7 @@ asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
 }
 
 void SerialBus::record_latency(double seconds) {
-  std::size_t bucket = 0;
-  while (bucket < std::size(kLatencyBuckets) && seconds > kLatencyBuckets[bucket]) ++bucket;
-  ++counters_.latency_counts[bucket];
-  counters_.latency_sum += seconds;
+  count_latency(counters_, seconds);
   counters_.bytes_sent = link_.stats().bytes_sent;
   counters_.bytes_received = link_.stats().bytes_received;
 }
