@@ -82,10 +82,9 @@ asio::awaitable<LinkResync> ProtocolFamily::resync_after_failure(Link& link,
 }
 
 asio::awaitable<Reply> ProtocolFamily::send_urgent(Link&, const NodeAddress&, const Request& r) {
-  Reply reply;
-  reply.status = Reply::Status::device_error;
-  reply.text = "family " + std::string(name()) + " has no urgent commands ('" + r.command + "')";
-  co_return reply;
+  co_return Reply::of(
+      Reply::Status::device_error,
+      "family " + std::string(name()) + " has no urgent commands ('" + r.command + "')");
 }
 
 Family::NodeTimingNeed Family::node_timing_need(const NodeAddress&, const LinkTiming&) const {

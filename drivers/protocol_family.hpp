@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "drivers/link.hpp"
@@ -48,6 +49,15 @@ struct Reply {
   std::vector<int64_t> values;
   int64_t device_code = 0;
   std::string text;  // error text, or the offending bytes for garbled replies
+
+  // A reply without values: how it came out, why, and the device's own code where it gave one.
+  static Reply of(Status status, std::string text = {}, int64_t device_code = 0) {
+    Reply reply;
+    reply.status = status;
+    reply.text = std::move(text);
+    reply.device_code = device_code;
+    return reply;
+  }
 };
 
 std::string_view to_string(Reply::Status status);

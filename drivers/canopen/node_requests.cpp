@@ -11,14 +11,6 @@ namespace {
 // Pause between the uploads of a `wait` step.
 constexpr auto kWaitInterval = std::chrono::milliseconds(10);
 
-Reply make_reply(Reply::Status status, std::string text, int64_t code = 0) {
-  Reply r;
-  r.status = status;
-  r.text = std::move(text);
-  r.device_code = code;
-  return r;
-}
-
 }  // namespace
 
 NodeRequests::NodeRequests(uint8_t id, const Model* model, SdoChannel& sdo, NodeSupervision& nmt,
@@ -51,7 +43,7 @@ asio::awaitable<Reply> NodeRequests::upload(const ObjectAddress& object, int ret
     // A named step, not a temporary: GCC 12 destroys prvalue arguments of a coroutine twice.
     const SdoStep first = sdo_.client().upload(object.index, object.sub, started);
     auto result = co_await sdo_.run(first, host_.port(), finished_at);
-    if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
+    if (!result) co_return Reply::of(Reply::Status::link_down, "bus link is down");
     host_.transfer_done(std::chrono::duration<double>(finished_at - started).count());
     note_abort(*result);
     reply = upload_reply(object, *result);
@@ -75,7 +67,7 @@ asio::awaitable<Reply> NodeRequests::download(const Operation& op, TimePoint now
   const SdoStep first =
       sdo_.client().download(op.object.index, op.object.sub, std::move(data), now);
   auto result = co_await sdo_.run(first, host_.port(), finished_at);
-  if (!result) co_return make_reply(Reply::Status::link_down, "bus link is down");
+  if (!result) co_return Reply::of(Reply::Status::link_down, "bus link is down");
   host_.transfer_done(std::chrono::duration<double>(finished_at - now).count());
   note_abort(*result);
   Reply reply = reply_of(*result);
@@ -97,12 +89,12 @@ asio::awaitable<Reply> NodeRequests::wait_for(const Operation& op) {
     const int64_t v = r.values.empty() ? 0 : r.values[0];
     if (masked(v) == masked(op.value)) co_return r;
     if (host_.urgent_pending())
-      co_return make_reply(Reply::Status::device_error,
-                           fmt::format("wait for 0x{:04X}:{} interrupted by an urgent command",
-                                       op.object.index, op.object.sub),
-                           v);
+      co_return Reply::of(Reply::Status::device_error,
+                          fmt::format("wait for 0x{:04X}:{} interrupted by an urgent command",
+                                      op.object.index, op.object.sub),
+                          v);
     if (Clock::now() >= deadline)
-      co_return make_reply(
+      co_return Reply::of(
           Reply::Status::device_error,
           fmt::format("0x{:04X}:{} is 0x{:X}; waited {} ms for & 0x{:X} == 0x{:X}", op.object.index,
                       op.object.sub, static_cast<uint64_t>(v),
@@ -110,8 +102,56 @@ asio::awaitable<Reply> NodeRequests::wait_for(const Operation& op) {
                       op.mask, masked(op.value)),
           v);
     co_await host_.pause_until(std::min(Clock::now() + kWaitInterval, deadline));
-    if (!host_.port().up()) co_return make_reply(Reply::Status::link_down, "bus link is down");
+    if (!host_.port().up()) co_return Reply::of(Reply::Status::link_down, "bus link is down");
   }
+}
+
+asio::awaitable<bool> NodeRequests::run_supervision_duty(bool reachable, int retries) {
+  // The clock is read only where a duty is due (a system call on User-Mode Linux, and the
+  // node's worker asks before every transfer).
+  using Duty = NodeSupervision::Duty;
+  switch (nmt_.duty(reachable)) {
+    case Duty::configure:
+      co_await configure_heartbeat(host_.now());
+      co_return true;
+    case Duty::start: {
+      const CanFrame start = nmt_.start(host_.now());
+      co_await host_.port().send(start);
+      co_return true;
+    }
+    case Duty::report_pre_operational:
+      co_await report_pre_operational(retries, host_.now());
+      co_return true;
+    case Duty::guard: {
+      const auto now = host_.now();
+      if (nmt_.next_guard() > now) co_return false;
+      if (auto rtr = nmt_.guard(now)) co_await host_.port().send(*rtr);
+      co_return true;
+    }
+    case Duty::none:
+      break;
+  }
+  co_return false;
+}
+
+asio::awaitable<void> NodeRequests::configure_heartbeat(TimePoint now) {
+  Operation op;
+  op.kind = Operation::Kind::write;
+  op.object = kHeartbeatObject;
+  op.value = nmt_.producer_ms();
+  const Reply r = co_await download(op, now);
+  nmt_.configured(r, op.value, finished_at);
+}
+
+asio::awaitable<void> NodeRequests::report_pre_operational(int retries, TimePoint now) {
+  nmt_.begin_pre_operational_report();
+  // upload() puts it into the error register point, so the map shows it with the NMT state.
+  const Reply r = co_await upload(kErrorRegisterObject, retries, now);
+  nmt_.report_pre_operational(r);
+}
+
+asio::awaitable<void> NodeRequests::probe(TimePoint now) {
+  co_await upload(kDeviceTypeObject, 0, now);
 }
 
 std::optional<CanFrame> NodeRequests::immediate_frame(const Request& request) const {
@@ -126,9 +166,9 @@ asio::awaitable<Reply> NodeRequests::execute(const Request& request, bool accept
   std::string error;
   const auto op = parse_operation(request.command, model_, error);
   if (!op)
-    co_return make_reply(Reply::Status::device_error,
-                         fmt::format("'{}' not sent: {}", request.command, error),
-                         sdo_abort::value_range);
+    co_return Reply::of(Reply::Status::device_error,
+                        fmt::format("'{}' not sent: {}", request.command, error),
+                        sdo_abort::value_range);
   switch (op->kind) {
     case Operation::Kind::read: {
       Reply r = co_await upload(op->object, 0, now);
@@ -147,13 +187,12 @@ asio::awaitable<Reply> NodeRequests::execute(const Request& request, bool accept
       const uint8_t target = request.bus_wide ? 0 : id_;
       const CanFrame frame = nmt_frame(op->nmt, target);
       const bool sent = co_await host_.port().send(frame);
-      if (!sent)
-        co_return make_reply(Reply::Status::link_down, "cannot send NMT: bus link is down");
+      if (!sent) co_return Reply::of(Reply::Status::link_down, "cannot send NMT: bus link is down");
       if (op->nmt == NmtCommand::start) nmt_.started_by_command(Clock::now());
-      co_return make_reply(Reply::Status::ok, {});
+      co_return Reply::of(Reply::Status::ok);
     }
   }
-  co_return make_reply(Reply::Status::garbled, "unknown operation");
+  co_return Reply::of(Reply::Status::garbled, "unknown operation");
 }
 
 }  // namespace fieldgate::canopen

@@ -1,8 +1,10 @@
 // One CANopen node's requests as the bus runs them: a rendered request parsed (the grammar in
 // canopen_request.hpp) and carried out as SDO uploads and downloads on the node's SdoChannel, a
 // `wait` step's uploads until the value matches, NMT commands, and the values a transfer brings
-// stored into the node's points. The bus runtime hosts it behind RequestHost: it owns the port,
-// the counters, the reply accounting (online/offline) and the node's worker that waits.
+// stored into the node's points; also the transfers the supervision asks for (bring-up, a node
+// that stays pre-operational, node guarding) and the probe of an offline node. The bus runtime
+// hosts it behind RequestHost: it owns the port, the counters, the reply accounting
+// (online/offline) and the node's worker that waits.
 #pragma once
 
 #include <boost/asio/awaitable.hpp>
@@ -49,6 +51,14 @@ class NodeRequests {
   asio::awaitable<Reply> execute(const Request& request, bool accept_no_reply, TimePoint now);
   // The frame of a request that goes out at once, without a transfer (NMT), or none.
   std::optional<CanFrame> immediate_frame(const Request& request) const;
+  // The supervision's duty (NodeSupervision::duty) carried out before commands and polls: the
+  // heartbeat producer time 0x1017 written, NMT start sent, the error register of a node that
+  // stays pre-operational read (with `retries`) and reported, a node-guarding request sent.
+  // False where none is due now. `reachable`: the node is not offline.
+  asio::awaitable<bool> run_supervision_duty(bool reachable, int retries);
+  // Is an offline node there again? Its device type 0x1000, which every CiA 301 device has,
+  // uploaded once.
+  asio::awaitable<void> probe(TimePoint now);
   // Transfers start at `now` (the caller's clock reading) and record the time their last frame
   // arrived in finished_at: one clock reading per transfer, which matters where reading the
   // clock is a system call (User-Mode Linux).
@@ -59,6 +69,10 @@ class NodeRequests {
 
  private:
   asio::awaitable<Reply> wait_for(const Operation& op);
+  // Bring-up (CiA 302): the heartbeat producer time the consumer expects, written to 0x1017.
+  asio::awaitable<void> configure_heartbeat(TimePoint now);
+  // A node that stays pre-operational after NMT start: its error register, read and reported.
+  asio::awaitable<void> report_pre_operational(int retries, TimePoint now);
   // The node's last abort, for its point, where the server aborted.
   void note_abort(const SdoResult& result);
   // Every point read from `object` takes the value its bytes hold (a confirmed write, a read).

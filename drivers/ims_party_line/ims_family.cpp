@@ -20,19 +20,8 @@ char name_of(const NodeAddress& node) {
   return static_cast<char>(node.number);
 }
 
-Reply make_reply(Reply::Status status, std::string text) {
-  Reply r;
-  r.status = status;
-  r.text = std::move(text);
-  return r;
-}
-
 Reply refused(const ims::RefusalReply& refusal) {
-  Reply r;
-  r.status = Reply::Status::device_error;
-  r.device_code = static_cast<int64_t>(refusal.code);
-  r.text = refusal.text;
-  return r;
+  return Reply::of(Reply::Status::device_error, refusal.text, static_cast<int64_t>(refusal.code));
 }
 
 bool expects_result(const Request& request) {
@@ -54,16 +43,16 @@ std::optional<Reply> failed_read(const LinkRead& read, std::string_view what, ch
       return std::nullopt;
     case LinkRead::Status::timeout:
       if (read.partial.empty())
-        return make_reply(Reply::Status::timeout,
-                          fmt::format("no {} from unit {}", what, ims::printable({&name, 1})));
-      return make_reply(Reply::Status::garbled,
-                        fmt::format("incomplete {} '{}'", what, ims::printable(read.partial)));
+        return Reply::of(Reply::Status::timeout,
+                         fmt::format("no {} from unit {}", what, ims::printable({&name, 1})));
+      return Reply::of(Reply::Status::garbled,
+                       fmt::format("incomplete {} '{}'", what, ims::printable(read.partial)));
     case LinkRead::Status::overflow:
-      return make_reply(Reply::Status::garbled,
-                        fmt::format("{} longer than any IMS line: '{}'", what,
-                                    ims::printable(read.partial.substr(0, 40))));
+      return Reply::of(Reply::Status::garbled,
+                       fmt::format("{} longer than any IMS line: '{}'", what,
+                                   ims::printable(read.partial.substr(0, 40))));
     case LinkRead::Status::error:
-      return make_reply(Reply::Status::link_down, read.error.message());
+      return Reply::of(Reply::Status::link_down, read.error.message());
   }
   return std::nullopt;
 }
@@ -114,7 +103,7 @@ asio::awaitable<std::pair<std::optional<Reply>, std::string>> send_paced(Link& l
   std::string echoed;
   for (std::size_t i = 0; i < line.size(); ++i) {
     if (auto ec = co_await link.send(with_name.substr(i, 1)))
-      co_return std::pair{make_reply(Reply::Status::link_down, ec.message()), echoed};
+      co_return std::pair{Reply::of(Reply::Status::link_down, ec.message()), echoed};
     if (i == 0 || i + 1 == line.size()) continue;  // the name's echo is optional; LF: see above
     if (failure) {
       co_await link.pause(gap);
@@ -130,12 +119,12 @@ asio::awaitable<std::pair<std::optional<Reply>, std::string>> send_paced(Link& l
     while (!failure && !complete()) {
       const LinkRead read = co_await link.read_frame(one_byte, timing);
       if (read.status == LinkRead::Status::timeout && echoed.empty()) {
-        failure = make_reply(Reply::Status::timeout,
-                             fmt::format("no echo from unit {}", ims::printable({&name, 1})));
+        failure = Reply::of(Reply::Status::timeout,
+                            fmt::format("no echo from unit {}", ims::printable({&name, 1})));
       } else if (read.status == LinkRead::Status::timeout) {
-        failure = make_reply(Reply::Status::garbled,
-                             fmt::format("paced echo stopped after '{}' of '{}'",
-                                         ims::printable(echoed), ims::printable(line)));
+        failure = Reply::of(Reply::Status::garbled,
+                            fmt::format("paced echo stopped after '{}' of '{}'",
+                                        ims::printable(echoed), ims::printable(line)));
       } else if (auto bad = failed_read(read, "echo", name)) {
         failure = bad;
       } else if (echoed.empty() && (read.frame == "\r" || read.frame == "\n")) {
@@ -143,9 +132,9 @@ asio::awaitable<std::pair<std::optional<Reply>, std::string>> send_paced(Link& l
       } else {
         echoed += read.frame;
         if (!consistent())
-          failure = make_reply(Reply::Status::garbled,
-                               fmt::format("echo '{}' does not match '{}'", ims::printable(echoed),
-                                           ims::printable(line)));
+          failure = Reply::of(Reply::Status::garbled,
+                              fmt::format("echo '{}' does not match '{}'", ims::printable(echoed),
+                                          ims::printable(line)));
       }
       if (failure && failure->status == Reply::Status::link_down)
         co_return std::pair{failure, echoed};
@@ -188,17 +177,17 @@ std::optional<Reply> check_ims_echo(const NodeAddress& node, const Request& requ
                                     std::string_view echo) {
   if (ims::parse_echo_line(name_of(node), request.command, echo).match != ims::EchoMatch::mismatch)
     return std::nullopt;
-  return make_reply(Reply::Status::garbled,
-                    fmt::format("echo '{}' does not match '{}'", ims::printable(echo),
-                                ims::printable(ims::encode_line(name_of(node), request.command))));
+  return Reply::of(Reply::Status::garbled,
+                   fmt::format("echo '{}' does not match '{}'", ims::printable(echo),
+                               ims::printable(ims::encode_line(name_of(node), request.command))));
 }
 
 Reply interpret_ims_result(const NodeAddress& node, const Request& request, std::string_view line) {
   const auto result = ims::parse_result(line);
   if (!result)
-    return make_reply(Reply::Status::garbled,
-                      fmt::format("unit {}: '{}' is no result line for '{}'", node.text,
-                                  ims::printable(line), ims::printable(request.command)));
+    return Reply::of(Reply::Status::garbled,
+                     fmt::format("unit {}: '{}' is no result line for '{}'", node.text,
+                                 ims::printable(line), ims::printable(request.command)));
   Reply r;
   r.status = Reply::Status::ok;
   r.values = result->values;
@@ -211,21 +200,20 @@ namespace {
 std::optional<Reply> interpret_echo(const NodeAddress& node, const Request& request,
                                     const ims::EchoLine& echo, std::string_view line) {
   if (echo.match == ims::EchoMatch::mismatch)
-    return make_reply(
-        Reply::Status::garbled,
-        fmt::format("echo '{}' does not match '{}'", ims::printable(line),
-                    ims::printable(ims::encode_line(name_of(node), request.command))));
+    return Reply::of(Reply::Status::garbled,
+                     fmt::format("echo '{}' does not match '{}'", ims::printable(line),
+                                 ims::printable(ims::encode_line(name_of(node), request.command))));
   if (!expects_result(request)) {
     if (echo.result)
-      return make_reply(
+      return Reply::of(
           Reply::Status::garbled,
           fmt::format("unit {}: a value '{}' after the echo of '{}', which has no "
                       "result",
                       node.text, ims::printable(echo.rest), ims::printable(request.command)));
-    return make_reply(Reply::Status::ok, {});
+    return Reply::of(Reply::Status::ok);
   }
   if (echo.result) {
-    Reply r = make_reply(Reply::Status::ok, {});
+    Reply r = Reply::of(Reply::Status::ok);
     r.values = echo.result->values;
     return r;
   }
@@ -249,20 +237,20 @@ Reply interpret_ims_reply(const NodeAddress& node, const Request& request,
   const auto echo = next_line(rest);
   if (!echo) {
     if (ims::is_blank_line(rest))
-      return make_reply(Reply::Status::timeout, "no echo from unit " + node.text);
-    return make_reply(Reply::Status::garbled,
-                      fmt::format("incomplete echo '{}'", ims::printable(rest)));
+      return Reply::of(Reply::Status::timeout, "no echo from unit " + node.text);
+    return Reply::of(Reply::Status::garbled,
+                     fmt::format("incomplete echo '{}'", ims::printable(rest)));
   }
   const auto parsed = ims::parse_echo_line(name_of(node), request.command, *echo);
   if (auto reply = interpret_echo(node, request, parsed, *echo)) return *reply;
   const auto result = next_line(rest);
   if (!result) {
     if (rest.empty())
-      return make_reply(Reply::Status::garbled,
-                        fmt::format("unit {} echoed '{}' but sent no result line", node.text,
-                                    ims::printable(request.command)));
-    return make_reply(Reply::Status::garbled,
-                      fmt::format("incomplete result line '{}'", ims::printable(rest)));
+      return Reply::of(Reply::Status::garbled,
+                       fmt::format("unit {} echoed '{}' but sent no result line", node.text,
+                                   ims::printable(request.command)));
+    return Reply::of(Reply::Status::garbled,
+                     fmt::format("incomplete result line '{}'", ims::printable(rest)));
   }
   return interpret_ims_result(node, request, *result);
 }
@@ -328,18 +316,18 @@ asio::awaitable<void> ImsPartyLineFamily::on_link_open(Link& link, const LinkTim
 asio::awaitable<Reply> ImsPartyLineFamily::transact_global(Link& link, const Request& request,
                                                            const LinkTiming& timing) {
   if (request.expect == Request::Expect::values)
-    co_return make_reply(Reply::Status::device_error,
-                         "a bus-wide request cannot read: every unit's reply would collide");
+    co_return Reply::of(Reply::Status::device_error,
+                        "a bus-wide request cannot read: every unit's reply would collide");
   if (request.command.empty() || request.command.find_first_of("\r\n") != std::string::npos)
     co_return refused({ims::Refusal::invalid_line, "empty or multi-line global command"});
   co_await flush(link);
   if (auto ec = co_await link.send(ims::encode_global(request.command)))
-    co_return make_reply(Reply::Status::link_down, ec.message());
+    co_return Reply::of(Reply::Status::link_down, ec.message());
   // ESC and ^C get no answer in party mode; after `*` every unit echoes at once. Nothing of it
   // can be attributed, so it is thrown away.
   co_await drain(link, timing);
   shadow_.global(request.command, Clock::now());
-  co_return make_reply(Reply::Status::ok, "sent to every unit on the chain");
+  co_return Reply::of(Reply::Status::ok, "sent to every unit on the chain");
 }
 
 asio::awaitable<Reply> ImsPartyLineFamily::send_urgent(Link& link, const NodeAddress&,
@@ -350,9 +338,9 @@ asio::awaitable<Reply> ImsPartyLineFamily::send_urgent(Link& link, const NodeAdd
                                    "not '{}'",
                                    ims::printable(request.command))});
   if (auto ec = co_await link.send(ims::encode_global(request.command)))
-    co_return make_reply(Reply::Status::link_down, ec.message());
+    co_return Reply::of(Reply::Status::link_down, ec.message());
   shadow_.global(request.command, Clock::now());
-  co_return make_reply(Reply::Status::ok, "sent to every unit on the chain");
+  co_return Reply::of(Reply::Status::ok, "sent to every unit on the chain");
 }
 
 // GCC 12 at -O2 inlines Asio's aligned coroutine-frame allocation into large coroutines and then
@@ -383,13 +371,13 @@ asio::awaitable<Reply> ImsPartyLineFamily::transact(Link& link, const NodeAddres
     // P, Q, q and X do not echo in party mode (§2); X answers a garbled '"32.'. Nothing to
     // verify: whatever comes back is thrown away.
     if (auto ec = co_await link.send(ims::encode_line(name, request.command)))
-      co_return make_reply(Reply::Status::link_down, ec.message());
+      co_return Reply::of(Reply::Status::link_down, ec.message());
     co_await drain(link, t);
     if (request.expect == Request::Expect::values)
-      co_return make_reply(Reply::Status::garbled,
-                           fmt::format("'{}' gives no readable reply in party mode",
-                                       ims::printable(request.command)));
-    co_return make_reply(Reply::Status::ok, "sent; no echo in party mode");
+      co_return Reply::of(Reply::Status::garbled,
+                          fmt::format("'{}' gives no readable reply in party mode",
+                                      ims::printable(request.command)));
+    co_return Reply::of(Reply::Status::ok, "sent; no echo in party mode");
   }
 
   Reply reply = co_await exchange(link, node, request, t, paced);
@@ -457,7 +445,7 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
     echo = co_await read_line(link, echo_timing, "echo", name, echoed);
   } else {
     if (auto ec = co_await link.send(ims::encode_line(name, request.command)))
-      co_return make_reply(Reply::Status::link_down, ec.message());
+      co_return Reply::of(Reply::Status::link_down, ec.message());
     echo = co_await read_line(link, echo_timing, "echo", name);
   }
   if (echo.failure) {
@@ -487,7 +475,7 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
   if (!with_name) {
     // Without the name, the echo could be another unit's late echo of the same command.
     if (readings_.echoes_name(name) == true) {
-      bad = make_reply(
+      bad = Reply::of(
           Reply::Status::garbled,
           fmt::format("unit {} echoes its name, but '{}' came without it: another unit's late "
                       "echo?",
@@ -497,7 +485,7 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
     }
     if (late_.suspicious(name, ims::normalize_command(request.command), Clock::now(),
                          late_window(t))) {
-      bad = make_reply(
+      bad = Reply::of(
           Reply::Status::garbled,
           fmt::format("echo '{}' without a name may be the late echo of a unit that went silent "
                       "on the same command",
@@ -513,7 +501,7 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
     const auto linefeed =
         parsed.carriage_return ? ims::EchoLinefeed::at_execution : ims::EchoLinefeed::at_once;
     if (pins.linefeed && *pins.linefeed != linefeed) {
-      bad = make_reply(
+      bad = Reply::of(
           Reply::Status::garbled,
           fmt::format("unit {}: echo '{}' has its LF {}", node.text, ims::printable(echo.line),
                       linefeed == ims::EchoLinefeed::at_execution ? "after a CR (held until "
@@ -530,32 +518,31 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
       const LinkTiming completion{t.byte_timeout, t.byte_timeout};
       const LinkRead done = co_await link.read_frame(ims::line_length, completion);
       if (done.status == LinkRead::Status::error)
-        co_return make_reply(Reply::Status::link_down, done.error.message());
+        co_return Reply::of(Reply::Status::link_down, done.error.message());
       if (done.status == LinkRead::Status::frame) late_.stray(done.frame, Clock::now());
     }
-    co_return make_reply(Reply::Status::ok, {});
+    co_return Reply::of(Reply::Status::ok);
   }
 
   if (parsed.result && late_.owed() > 0) {
     // The unit holds the echo's LF back: a late result of another unit can end its line.
-    bad = make_reply(Reply::Status::garbled,
-                     fmt::format("unit {}: '{}' may end with the late answer to an earlier "
-                                 "request ({} owed); not taken",
-                                 node.text, ims::printable(echo.line), late_.owed()));
+    bad = Reply::of(Reply::Status::garbled,
+                    fmt::format("unit {}: '{}' may end with the late answer to an earlier "
+                                "request ({} owed); not taken",
+                                node.text, ims::printable(echo.line), late_.owed()));
     co_await after_failure(link, t, name, request, bad);
     co_return bad;
   }
   if (parsed.result) {
     if (pins.placement == ims::ResultPlacement::next_line) {
-      bad =
-          make_reply(Reply::Status::garbled, fmt::format("unit {}: result on the echo's line '{}'",
-                                                         node.text, ims::printable(echo.line)) +
-                                                 pin_hint("result_placement", "next_line"));
+      bad = Reply::of(Reply::Status::garbled, fmt::format("unit {}: result on the echo's line '{}'",
+                                                          node.text, ims::printable(echo.line)) +
+                                                  pin_hint("result_placement", "next_line"));
       co_await after_failure(link, t, name, request, bad);
       co_return bad;
     }
     log(5, readings_.seen(name, ims::ResultPlacement::echo_line));
-    Reply r = make_reply(Reply::Status::ok, {});
+    Reply r = Reply::of(Reply::Status::ok);
     r.values = parsed.result->values;
     co_return r;
   }
@@ -584,7 +571,7 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
   if (late_.owed() > 0) {
     // One of the results still owed may be this one: ours is owed instead.
     {
-      bad = make_reply(
+      bad = Reply::of(
           Reply::Status::garbled,
           fmt::format("unit {}: result '{}' may be the late answer to an earlier request ({} "
                       "owed); not taken",
@@ -594,10 +581,9 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
     }
   }
   if (pins.placement == ims::ResultPlacement::echo_line) {
-    bad =
-        make_reply(Reply::Status::garbled, fmt::format("unit {}: result on a line of its own '{}'",
-                                                       node.text, ims::printable(result.line)) +
-                                               pin_hint("result_placement", "echo_line"));
+    bad = Reply::of(Reply::Status::garbled, fmt::format("unit {}: result on a line of its own '{}'",
+                                                        node.text, ims::printable(result.line)) +
+                                                pin_hint("result_placement", "echo_line"));
     co_await after_failure(link, t, name, request, bad);
     co_return bad;
   }

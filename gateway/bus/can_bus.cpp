@@ -30,13 +30,6 @@ const FrameFamily& frame_family(const BusConfig& config) {
         config.family ? config.family->name() : std::string_view("(none)")));
   return *family;
 }
-Reply make_reply(Reply::Status status, std::string text, int64_t code = 0) {
-  Reply r;
-  r.status = status;
-  r.text = std::move(text);
-  r.device_code = code;
-  return r;
-}
 }  // namespace
 
 struct CanBus::PendingCommand {
@@ -60,7 +53,8 @@ struct CanBus::NodeRuntime final : RequestHost {
         wake(ex),
         sdo(id, bus.config_.timing.link.reply_timeout, wake),
         nmt(id, nc.name, timing, *this),
-        requests(id, nc.model.get(), sdo, nmt, points, *this) {}
+        requests(id, nc.model.get(), sdo, nmt, points, *this),
+        tpdos(points.tpdo_cobs()) {}
 
   Presence presence() const override {
     switch (image->state) {
@@ -101,7 +95,7 @@ struct CanBus::NodeRuntime final : RequestHost {
 
   FramePort& port() override { return bus; }
   void transfer_done(double seconds) override {
-    bus.record_latency(seconds);
+    count_latency(bus.counters_, seconds);
     ++bus.counters_.transactions;
     ++image->counters.transactions;
   }
@@ -127,12 +121,12 @@ struct CanBus::NodeRuntime final : RequestHost {
   const NodeConfig* config = nullptr;
   std::shared_ptr<NodeImage> image;
   NodePoints points;
-  std::map<uint32_t, SteadyTime> tpdo_seen;
 
   asio::steady_timer wake;
   SdoChannel sdo;
   NodeSupervision nmt;    // heartbeat, NMT, EMCY
-  NodeRequests requests;  // commands and polls as transfers
+  NodeRequests requests;  // commands, polls, probes and bring-up as transfers
+  TpdoFreshness tpdos;    // the TPDOs that spare polls their transfer
   std::deque<std::shared_ptr<PendingCommand>> commands;
   bool urgent_waiting = false;
   SteadyTime next_probe{};
@@ -319,8 +313,7 @@ asio::awaitable<void> CanBus::run() {
     const auto now = BusClock::now();
     for (auto& n : nodes_) {
       n->nmt.bring_up(true);
-      // TPDOs get one poll period to show up before their points are read by SDO.
-      for (const uint32_t cob : n->points.tpdo_cobs()) n->tpdo_seen[cob] = now;
+      n->tpdos.restart(now);
       n->next_probe = now;
     }
     wake_all();
@@ -359,7 +352,7 @@ void CanBus::fail_commands(std::string_view why) {
   for (auto& n : nodes_) {
     while (!n->commands.empty()) {
       n->commands.front()->done.try_send(boost::system::error_code{},
-                                         make_reply(Reply::Status::unreachable, std::string(why)));
+                                         Reply::of(Reply::Status::unreachable, std::string(why)));
       n->commands.pop_front();
     }
     n->urgent_waiting = false;
@@ -475,7 +468,7 @@ void CanBus::on_error_frame(const CanFrame& frame, SteadyTime now) {
 }
 
 void CanBus::on_tpdo(NodeRuntime& n, const CanFrame& frame, SteadyTime now) {
-  n.tpdo_seen[frame.id] = now;
+  n.tpdos.received(frame.id, now);
   ++n.nmt.status().pdos;
   auto& img = *n.image;
   std::vector<std::string> errors;
@@ -522,7 +515,7 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
                 old == NodeState::offline ? " again" : "");
     n.nmt.went_online(old == NodeState::offline);
     resume_polls(n, now);
-    for (const uint32_t cob : n.points.tpdo_cobs()) n.tpdo_seen[cob] = now;
+    n.tpdos.restart(now);
     refresh_local_points(n, now);
   } else if (state == NodeState::offline) {
     log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name, n.id, why);
@@ -531,10 +524,6 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
     n.nmt.went_offline();
   }
   n.wake.cancel();
-}
-
-asio::awaitable<void> CanBus::guard(NodeRuntime& n, SteadyTime now) {
-  if (auto rtr = n.nmt.guard(now)) co_await send(*rtr);
 }
 
 void CanBus::resume_polls(NodeRuntime& n, SteadyTime now) {
@@ -566,13 +555,6 @@ void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {
   }
 }
 
-void CanBus::record_latency(double seconds) {
-  std::size_t bucket = 0;
-  while (bucket < std::size(kLatencyBuckets) && seconds > kLatencyBuckets[bucket]) ++bucket;
-  ++counters_.latency_counts[bucket];
-  counters_.latency_sum += seconds;
-}
-
 // --- transfers -------------------------------------------------------------------------------
 
 asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOptions options) {
@@ -583,14 +565,14 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
       ++counters_.commands;
       if (options.on_sent) options.on_sent();
       const bool sent = co_await send(*frame);
-      co_return sent ? make_reply(Reply::Status::ok, {})
-                     : make_reply(Reply::Status::link_down, "bus link is down");
+      co_return sent ? Reply::of(Reply::Status::ok)
+                     : Reply::of(Reply::Status::link_down, "bus link is down");
     }
   }
   // A bus-wide command (NMT to all nodes) concerns every node: only the link must be up.
   if ((n.image->state == NodeState::offline && !request.bus_wide) || !link_up_)
-    co_return make_reply(Reply::Status::unreachable,
-                         link_up_ ? "node is offline" : "bus link is down");
+    co_return Reply::of(Reply::Status::unreachable,
+                        link_up_ ? "node is offline" : "bus link is down");
   auto cmd = std::make_shared<PendingCommand>(executor_);
   cmd->request = std::move(request);
   cmd->options = options;
@@ -603,7 +585,7 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
   }
   n.wake.cancel();
   auto [ec, reply] = co_await cmd->done.async_receive(use_tuple);
-  if (ec) co_return make_reply(Reply::Status::link_down, "gateway stopping");
+  if (ec) co_return Reply::of(Reply::Status::link_down, "gateway stopping");
   co_return reply;
 }
 
@@ -618,39 +600,15 @@ asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, S
     plan_.completed(item_index, now);
     co_return;
   }
-  if (info.kind == PollJob::Kind::tpdo_fallback) {
-    const auto seen = n.tpdo_seen.find(info.tpdo_cob);
-    if (seen != n.tpdo_seen.end() && now - seen->second < period) {
-      plan_.completed(item_index, now);  // the PDO keeps it fresh: no SDO traffic
-      co_return;
-    }
+  if (n.tpdos.keeps_fresh(info, period, now)) {
+    plan_.completed(item_index, now);  // no SDO traffic
+    co_return;
   }
   // Due again a period after it was started, so a poll that is due sooner than its transfer
   // takes runs straight after it.
   plan_.completed(item_index, now);
   // upload() stores the value in every point of the object, the targets among them.
   co_await n.requests.upload(info.object, config_.timing.retries, now);
-}
-
-asio::awaitable<void> CanBus::probe(NodeRuntime& n, SteadyTime now) {
-  n.next_probe = now + config_.timing.probe_interval;
-  co_await n.requests.upload(kDeviceTypeObject, 0, now);
-}
-
-asio::awaitable<void> CanBus::configure_heartbeat(NodeRuntime& n, SteadyTime now) {
-  Operation op;
-  op.kind = Operation::Kind::write;
-  op.object = kHeartbeatObject;
-  op.value = n.nmt.producer_ms();
-  const Reply r = co_await n.requests.download(op, now);
-  n.nmt.configured(r, op.value, n.requests.finished_at);
-}
-
-asio::awaitable<void> CanBus::report_pre_operational(NodeRuntime& n, SteadyTime now) {
-  n.nmt.begin_pre_operational_report();
-  // upload() puts it into the error register point, so the map shows it with the NMT state.
-  const Reply r = co_await n.requests.upload(kErrorRegisterObject, config_.timing.retries, now);
-  n.nmt.report_pre_operational(r);
 }
 
 asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
@@ -662,28 +620,9 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
       co_await sleep_until(n.wake, SteadyTime::max());
       continue;
     }
-    using Duty = NodeSupervision::Duty;
-    const Duty duty = n.nmt.duty(n.image->state != NodeState::offline);
-    if (duty == Duty::configure) {
-      co_await configure_heartbeat(n, BusClock::now());
-      continue;
-    }
-    if (duty == Duty::start) {
-      const CanFrame start = n.nmt.start(BusClock::now());
-      co_await send(start);
-      continue;
-    }
-    if (duty == Duty::report_pre_operational) {
-      co_await report_pre_operational(n, BusClock::now());
-      continue;
-    }
-    if (duty == Duty::guard) {
-      const auto guard_now = BusClock::now();
-      if (n.nmt.next_guard() <= guard_now) {
-        co_await guard(n, guard_now);
-        continue;
-      }
-    }
+    // Bring-up, a report and node guarding go before commands and polls.
+    const bool reachable = n.image->state != NodeState::offline;
+    if (co_await n.requests.run_supervision_duty(reachable, config_.timing.retries)) continue;
     if (!n.commands.empty()) {
       auto cmd = n.commands.front();
       n.commands.pop_front();
@@ -693,7 +632,7 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
                                        [](const auto& c) { return c->options.urgent; });
       Reply reply;
       if (n.image->state == NodeState::offline && !cmd->request.bus_wide)
-        reply = make_reply(Reply::Status::unreachable, "node is offline");
+        reply = Reply::of(Reply::Status::unreachable, "node is offline");
       else {
         // Commands are not retried: a lost answer may hide a command the node carried out.
         if (cmd->options.on_sent) cmd->options.on_sent();
@@ -724,10 +663,12 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
       when = n.next_probe;
     }
     if (when <= now) {
-      if (offline)
-        co_await probe(n, now);
-      else
+      if (offline) {
+        n.next_probe = now + config_.timing.probe_interval;
+        co_await n.requests.probe(now);
+      } else {
         co_await run_poll(n, *due, now);
+      }
       known_now = n.requests.finished_at;
       continue;
     }

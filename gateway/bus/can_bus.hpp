@@ -16,6 +16,7 @@
 #include "drivers/canopen/node_requests.hpp"
 #include "drivers/canopen/node_supervision.hpp"
 #include "drivers/canopen/sdo_channel.hpp"
+#include "drivers/canopen/tpdo_freshness.hpp"
 #include "drivers/frame_family.hpp"
 #include "drivers/transport/socketcan_transport.hpp"
 #include "gateway/bus/bus.hpp"
@@ -78,11 +79,6 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   void trace_frame(const canopen::CanFrame& frame, TraceDirection direction, SteadyTime at,
                    std::string_view outcome);
   asio::awaitable<void> run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now);
-  asio::awaitable<void> probe(NodeRuntime& n, SteadyTime now);
-  // Bring-up (CiA 302): the heartbeat producer time the consumer expects, written to 0x1017.
-  asio::awaitable<void> configure_heartbeat(NodeRuntime& n, SteadyTime now);
-  // A node that stays pre-operational after NMT start: its error register, read and logged.
-  asio::awaitable<void> report_pre_operational(NodeRuntime& n, SteadyTime now);
 
   void dispatch(const canopen::CanFrame& frame, SteadyTime now);
   void on_error_frame(const canopen::CanFrame& frame, SteadyTime now);
@@ -90,10 +86,8 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   void refresh_local_points(NodeRuntime& n, SteadyTime now);
   // Overdue polls of a node back online run at once, each on its own phase.
   void resume_polls(NodeRuntime& n, SteadyTime now);
-  asio::awaitable<void> guard(NodeRuntime& n, SteadyTime now);
 
   void record(NodeRuntime& n, const Reply& reply, SteadyTime at);
-  void record_latency(double seconds);
   void set_state(NodeRuntime& n, NodeState state, std::string_view why);
   void link_failed(std::error_code ec);
   void fail_commands(std::string_view why);

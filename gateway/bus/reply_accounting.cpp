@@ -42,4 +42,11 @@ ReplyOutcome count_reply(NodeCounters& c, BusCounters& bus, const Reply& reply, 
   return ReplyOutcome::failed;
 }
 
+void count_latency(BusCounters& bus, double seconds) {
+  std::size_t bucket = 0;
+  while (bucket < std::size(kLatencyBuckets) && seconds > kLatencyBuckets[bucket]) ++bucket;
+  ++bus.latency_counts[bucket];
+  bus.latency_sum += seconds;
+}
+
 }  // namespace fieldgate

@@ -17,4 +17,7 @@ enum class ReplyOutcome {
 // applies its own online/offline policy to the outcome.
 ReplyOutcome count_reply(NodeCounters& node, BusCounters& bus, const Reply& reply, SteadyTime at);
 
+// Counts a transaction's latency into the bus's histogram (kLatencyBuckets).
+void count_latency(BusCounters& bus, double seconds);
+
 }  // namespace fieldgate

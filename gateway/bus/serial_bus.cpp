@@ -166,12 +166,9 @@ asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, Comman
   }
   // A bus-wide command (a global stop) concerns every node: only the link must be up.
   const bool node_gone = (*n.image).state == NodeState::offline && !request.bus_wide;
-  if (node_gone || !transport_->is_open()) {
-    Reply r;
-    r.status = Reply::Status::unreachable;
-    r.text = transport_->is_open() ? "node is offline" : "bus link is down";
-    co_return r;
-  }
+  if (node_gone || !transport_->is_open())
+    co_return Reply::of(Reply::Status::unreachable,
+                        transport_->is_open() ? "node is offline" : "bus link is down");
   auto cmd = std::make_shared<PendingCommand>(executor_);
   cmd->node = n.index;  // local, so a reload that renumbers the gateway's nodes cannot misroute it
   cmd->request = std::move(request);
@@ -179,12 +176,7 @@ asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, Comman
   commands_.push_back(cmd);
   wake_.cancel();
   auto [ec, reply] = co_await cmd->done.async_receive(use_tuple);
-  if (ec) {
-    Reply r;
-    r.status = Reply::Status::link_down;
-    r.text = "gateway stopping";
-    co_return r;
-  }
+  if (ec) co_return Reply::of(Reply::Status::link_down, "gateway stopping");
   co_return reply;
 }
 
@@ -344,10 +336,7 @@ asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
 }
 
 void SerialBus::record_latency(double seconds) {
-  std::size_t bucket = 0;
-  while (bucket < std::size(kLatencyBuckets) && seconds > kLatencyBuckets[bucket]) ++bucket;
-  ++counters_.latency_counts[bucket];
-  counters_.latency_sum += seconds;
+  count_latency(counters_, seconds);
   counters_.bytes_sent = link_.stats().bytes_sent;
   counters_.bytes_received = link_.stats().bytes_received;
 }
@@ -406,10 +395,8 @@ asio::awaitable<void> SerialBus::open_link() {
     }
     all_nodes_offline("bus link is down");
     while (!commands_.empty()) {
-      Reply r;
-      r.status = Reply::Status::unreachable;
-      r.text = "bus link is down";
-      commands_.front()->done.try_send(boost::system::error_code{}, r);
+      commands_.front()->done.try_send(boost::system::error_code{},
+                                       Reply::of(Reply::Status::unreachable, "bus link is down"));
       commands_.pop_front();
     }
     wake_.expires_after(delay);
@@ -472,8 +459,7 @@ asio::awaitable<void> SerialBus::run() {
       auto& n = nodes_[static_cast<std::size_t>(cmd->node)];
       Reply reply;
       if ((*n.image).state == NodeState::offline && !cmd->request.bus_wide) {
-        reply.status = Reply::Status::unreachable;
-        reply.text = "node is offline";
+        reply = Reply::of(Reply::Status::unreachable, "node is offline");
       } else {
         // Commands are not retried: a lost reply may hide a command the device already ran.
         if (cmd->options.on_sent) cmd->options.on_sent();

@@ -115,7 +115,7 @@ struct BusConfig {
 };
 
 // A node's timing: the bus's, with the node's reply_timeout, or where none is configured (node
-// or bus) at least what its family says the node needs (ProtocolFamily::node_timing_need).
+// or bus) at least what its family says the node needs (Family::node_timing_need).
 LinkTiming node_link_timing(const BusConfig& bus, const NodeConfig& node);
 
 struct MetricsConfig {

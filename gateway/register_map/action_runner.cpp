@@ -30,11 +30,7 @@ asio::awaitable<void> submit_into(Bus& bus, int node_index, Request request, Com
 
 Reply reply_of(std::tuple<boost::system::error_code, Reply> received) {
   auto [ec, reply] = std::move(received);
-  if (ec) {
-    reply = Reply{};
-    reply.status = Reply::Status::link_down;
-    reply.text = "gateway stopping";
-  }
+  if (ec) return Reply::of(Reply::Status::link_down, "gateway stopping");
   return reply;
 }
 
@@ -117,12 +113,7 @@ asio::awaitable<Reply> ActionRunner::start(int node_index, ModelPtr model_ptr,
       run_in_background(node_index, std::move(model_ptr), action, generation, slot, confirmation),
       asio::detached);
   auto [ec, reply] = co_await confirmation->channel.async_receive(use_tuple);
-  if (ec) {
-    Reply r;
-    r.status = Reply::Status::link_down;
-    r.text = "gateway stopping";
-    co_return r;
-  }
+  if (ec) co_return Reply::of(Reply::Status::link_down, "gateway stopping");
   co_return reply;
 }
 
@@ -189,8 +180,7 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
       if (model.setpoints[i].name == name) return setpoints[i];
     return 0;  // unreachable: placeholders are checked against setpoints at load
   };
-  Reply reply;
-  reply.status = Reply::Status::ok;
+  Reply reply = Reply::of(Reply::Status::ok);
   for (const auto& step : action.steps) {
     if (step.kind == ActionStep::Kind::delay) {
       asio::steady_timer t(executor_, step.duration);
