@@ -51,16 +51,10 @@ std::optional<NodeAddress> CententFamily::parse_address(std::string_view text,
                                                         std::string& error) const {
   const auto unit = cn0170::parse_unit_address(text, error);
   if (!unit) return std::nullopt;
-  configured_.insert(*unit);
   NodeAddress n;
   n.number = *unit;
   n.text = std::to_string(*unit);
   return n;
-}
-
-void CententFamily::set_options(const cn0170::Options& options) {
-  options_ = options;
-  options_bound_ = true;
 }
 
 std::vector<int> CententFamily::configured_units() const {
@@ -187,6 +181,7 @@ void CententFamily::validate_model(const Model& model, Diagnostics& diagnostics)
 }
 
 NodeContextPtr CententFamily::bind_node(const NodeAddress& node, const Model& model) {
+  configured_.insert(node.number);
   // Options apply to the whole chain: its first node's model sets them. Errors were reported by
   // validate_model.
   if (!options_bound_) {

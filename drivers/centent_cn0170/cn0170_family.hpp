@@ -20,15 +20,15 @@ class CententFamily final : public ProtocolFamily {
   CententFamily();
 
   std::string_view name() const override { return "centent-cn0170"; }
-  // Also records the unit as configured, for the chain discovery report.
   std::optional<NodeAddress> parse_address(std::string_view text,
                                            std::string& error) const override;
   // Also takes the model's options as the chain's settings.
   const ModelOptionSpecs& model_options() const override { return cn0170::option_specs(); }
   bool model_options_apply_to_bus() const override { return true; }
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
-  // The chain's settings come from the first bound node's model (the configuration loader
-  // refuses buses whose models' options differ).
+  // Records the unit as configured (chain discovery report, kill plans). The chain's settings
+  // come from the first bound node's model (the configuration loader refuses buses whose
+  // models' options differ).
   NodeContextPtr bind_node(const NodeAddress& node, const Model& model) override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   // The bus's resync (quiet for a guard time); late replies among what it drained pay their
@@ -43,7 +43,6 @@ class CententFamily final : public ProtocolFamily {
     log_sink_ = std::move(route);
     routed_ = true;
   }
-  void set_options(const cn0170::Options& options);
   const cn0170::Chain& chain() const { return chain_; }
   const cn0170::Options& options() const { return options_; }
 
@@ -64,8 +63,7 @@ class CententFamily final : public ProtocolFamily {
   std::vector<int> configured_units() const;
 
   cn0170::Chain chain_;
-  // parse_address is const in the interface but is where a family learns its nodes.
-  mutable std::set<int> configured_;
+  std::set<int> configured_;  // the bound units
   cn0170::Options options_;
   bool options_bound_ = false;
   LogSink log_sink_;
