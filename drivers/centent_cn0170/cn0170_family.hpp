@@ -56,9 +56,11 @@ class CententFamily final : public ProtocolFamily {
   asio::awaitable<Reply> kill(Link& link, int unit, const LinkTiming& timing);
   asio::awaitable<Reply> local_read(Link& link, int unit, const Request& request,
                                     const LinkTiming& timing);
-  // Reads lines until none arrives within the reply timeout; hands each to `on_message`.
-  asio::awaitable<void> collect(Link& link, const LinkTiming& timing,
-                                const std::function<void(const cn0170::Message&)>& on_message);
+  // Sends `query` and reads lines until none arrives within the reply timeout: the units of the
+  // `answer` lines in their order (the other lines go to the chain); nullopt if the send failed.
+  asio::awaitable<std::optional<std::vector<int>>> ask_units(Link& link, const LinkTiming& timing,
+                                                             std::string_view query,
+                                                             cn0170::MessageKind answer);
   void flush_log(Link& link);
   std::vector<int> configured_units() const;
 
