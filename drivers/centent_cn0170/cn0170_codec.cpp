@@ -6,19 +6,11 @@
 #include <charconv>
 #include <cmath>
 
+#include "drivers/ascii_blanks.hpp"
+
 namespace fieldgate::cn0170 {
 
 namespace {
-
-bool is_space(char c) {
-  return c == ' ' || c == '\t' || c == '\r' || c == '\n';
-}
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && is_space(s.front())) s.remove_prefix(1);
-  while (!s.empty() && is_space(s.back())) s.remove_suffix(1);
-  return s;
-}
 
 std::string upper(std::string_view s) {
   std::string out(s);
@@ -102,7 +94,7 @@ Message parse_body(std::string_view s, std::string_view original) {
     // "<string>" ? — the string itself may contain anything but its closing quote.
     const auto close = s.rfind('"');
     if (close == 0) return m;
-    const std::string_view tail = trim(s.substr(close + 1));
+    const std::string_view tail = trim_blanks(s.substr(close + 1));
     if (tail != "?") return m;
     m.kind = MessageKind::reject;
     m.text = std::string(original.substr(1, close - 1));
@@ -212,7 +204,7 @@ Message parse_body(std::string_view s, std::string_view original) {
 }  // namespace
 
 std::optional<int> parse_unit_address(std::string_view text, std::string& error) {
-  const std::string_view t = trim(text);
+  const std::string_view t = trim_blanks(text);
   if (t.size() != 1 || !is_digit(t[0])) {
     error = fmt::format("CN0170 unit number must be one digit 0..9, found '{}'", text);
     return std::nullopt;
@@ -235,7 +227,7 @@ std::vector<std::string> split_instructions(std::string_view request) {
   while (begin <= request.size()) {
     const auto end = request.find(';', begin);
     const auto part =
-        trim(request.substr(begin, end == std::string_view::npos ? end : end - begin));
+        trim_blanks(request.substr(begin, end == std::string_view::npos ? end : end - begin));
     if (!part.empty()) out.emplace_back(part);
     if (end == std::string_view::npos) break;
     begin = end + 1;
@@ -290,7 +282,7 @@ std::string_view to_string(MessageKind kind) {
 }
 
 Message parse_message(std::string_view line) {
-  const std::string_view t = trim(line);
+  const std::string_view t = trim_blanks(line);
   Message m;
   if (t.empty()) {
     m.kind = MessageKind::blank;
@@ -466,7 +458,7 @@ std::optional<std::string> negative_absolute_position(const std::string& u) {
 }  // namespace
 
 std::optional<std::string> normalise_instruction(std::string_view instruction, std::string& error) {
-  const std::string s(trim(instruction));
+  const std::string s(trim_blanks(instruction));
   const std::string u = upper(s);
   if (u.size() >= 3 && is_axis(u[0]) && u[1] == 'C' && is_digit(u[2])) {
     const auto n = small_decimal(std::string_view(u).substr(2));

@@ -51,16 +51,10 @@ std::optional<NodeAddress> CententFamily::parse_address(std::string_view text,
                                                         std::string& error) const {
   const auto unit = cn0170::parse_unit_address(text, error);
   if (!unit) return std::nullopt;
-  configured_.insert(*unit);
   NodeAddress n;
   n.number = *unit;
   n.text = std::to_string(*unit);
   return n;
-}
-
-void CententFamily::set_options(const cn0170::Options& options) {
-  options_ = options;
-  options_bound_ = true;
 }
 
 std::vector<int> CententFamily::configured_units() const {
@@ -187,6 +181,7 @@ void CententFamily::validate_model(const Model& model, Diagnostics& diagnostics)
 }
 
 NodeContextPtr CententFamily::bind_node(const NodeAddress& node, const Model& model) {
+  configured_.insert(node.number);
   // Options apply to the whole chain: its first node's model sets them. Errors were reported by
   // validate_model.
   if (!options_bound_) {
@@ -205,14 +200,22 @@ void CententFamily::flush_log(Link& link) {
   chain_.events.clear();
 }
 
-asio::awaitable<void> CententFamily::collect(
-    Link& link, const LinkTiming& timing,
-    const std::function<void(const cn0170::Message&)>& on_message) {
+asio::awaitable<std::optional<std::vector<int>>> CententFamily::ask_units(Link& link,
+                                                                          const LinkTiming& timing,
+                                                                          std::string_view query,
+                                                                          MessageKind answer) {
+  if (co_await link.send(query)) co_return std::nullopt;
+  std::vector<int> units;
   for (int i = 0; i < kMaxLinesPerExchange; ++i) {
     const LinkRead read = co_await link.read_frame(kLineSplitter, timing);
-    if (read.status != LinkRead::Status::frame) co_return;
-    on_message(cn0170::parse_message(read.frame));
+    if (read.status != LinkRead::Status::frame) break;
+    const Message m = cn0170::parse_message(read.frame);
+    if (m.kind == answer)
+      units.push_back(m.subject);
+    else
+      chain_.absorb(m);
   }
+  co_return units;
 }
 
 asio::awaitable<void> CententFamily::on_link_open(Link& link, const LinkTiming& timing) {
@@ -221,31 +224,13 @@ asio::awaitable<void> CententFamily::on_link_open(Link& link, const LinkTiming& 
   if (options_.autobaud_cr) {
     // After a power-up every unit waits for a CR to measure the baud rate and answers U<n>;
     // units already running read it as an empty line.
-    const std::error_code ec = co_await link.send("\r");
-    if (!ec) {
-      std::vector<int> answered;
-      const std::function<void(const Message&)> on_message = [&](const Message& m) {
-        if (m.kind == MessageKind::autobaud)
-          answered.push_back(m.subject);
-        else
-          chain_.absorb(m);
-      };
-      co_await collect(link, timing, on_message);
-      if (!answered.empty())
-        chain_.log(5, fmt::format("auto-baud CR answered by unit(s) {}", join(answered)));
-    }
+    const auto answered = co_await ask_units(link, timing, "\r", MessageKind::autobaud);
+    if (answered && !answered->empty())
+      chain_.log(5, fmt::format("auto-baud CR answered by unit(s) {}", join(*answered)));
   }
   if (options_.discover_chain) {
-    const std::error_code ec = co_await link.send(".U?\r");
-    if (!ec) {
-      std::vector<int> order;
-      const std::function<void(const Message&)> on_message = [&](const Message& m) {
-        if (m.kind == MessageKind::unit_list)
-          order.push_back(m.subject);
-        else
-          chain_.absorb(m);
-      };
-      co_await collect(link, timing, on_message);
+    if (const auto answered = co_await ask_units(link, timing, ".U?\r", MessageKind::unit_list)) {
+      const std::vector<int>& order = *answered;
       chain_.order = order;
       chain_.order_known = !order.empty();
       if (order.empty()) {

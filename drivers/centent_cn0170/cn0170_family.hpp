@@ -20,15 +20,15 @@ class CententFamily final : public ProtocolFamily {
   CententFamily();
 
   std::string_view name() const override { return "centent-cn0170"; }
-  // Also records the unit as configured, for the chain discovery report.
   std::optional<NodeAddress> parse_address(std::string_view text,
                                            std::string& error) const override;
   // Also takes the model's options as the chain's settings.
   const ModelOptionSpecs& model_options() const override { return cn0170::option_specs(); }
   bool model_options_apply_to_bus() const override { return true; }
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
-  // The chain's settings come from the first bound node's model (the configuration loader
-  // refuses buses whose models' options differ).
+  // Records the unit as configured (chain discovery report, kill plans). The chain's settings
+  // come from the first bound node's model (the configuration loader refuses buses whose
+  // models' options differ).
   NodeContextPtr bind_node(const NodeAddress& node, const Model& model) override;
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   // The bus's resync (quiet for a guard time); late replies among what it drained pay their
@@ -43,7 +43,6 @@ class CententFamily final : public ProtocolFamily {
     log_sink_ = std::move(route);
     routed_ = true;
   }
-  void set_options(const cn0170::Options& options);
   const cn0170::Chain& chain() const { return chain_; }
   const cn0170::Options& options() const { return options_; }
 
@@ -57,15 +56,16 @@ class CententFamily final : public ProtocolFamily {
   asio::awaitable<Reply> kill(Link& link, int unit, const LinkTiming& timing);
   asio::awaitable<Reply> local_read(Link& link, int unit, const Request& request,
                                     const LinkTiming& timing);
-  // Reads lines until none arrives within the reply timeout; hands each to `on_message`.
-  asio::awaitable<void> collect(Link& link, const LinkTiming& timing,
-                                const std::function<void(const cn0170::Message&)>& on_message);
+  // Sends `query` and reads lines until none arrives within the reply timeout: the units of the
+  // `answer` lines in their order (the other lines go to the chain); nullopt if the send failed.
+  asio::awaitable<std::optional<std::vector<int>>> ask_units(Link& link, const LinkTiming& timing,
+                                                             std::string_view query,
+                                                             cn0170::MessageKind answer);
   void flush_log(Link& link);
   std::vector<int> configured_units() const;
 
   cn0170::Chain chain_;
-  // parse_address is const in the interface but is where a family learns its nodes.
-  mutable std::set<int> configured_;
+  std::set<int> configured_;  // the bound units
   cn0170::Options options_;
   bool options_bound_ = false;
   LogSink log_sink_;

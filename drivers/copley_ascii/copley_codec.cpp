@@ -6,6 +6,8 @@
 #include <charconv>
 #include <cstdlib>
 
+#include "drivers/ascii_blanks.hpp"
+
 namespace fieldgate::copley {
 
 std::string encode_command(int node, char axis, std::string_view command) {
@@ -27,16 +29,6 @@ std::size_t frame_length(std::string_view buf) {
 }
 
 namespace {
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() &&
-         (s.front() == ' ' || s.front() == '\n' || s.front() == '\r' || s.front() == '\t'))
-    s.remove_prefix(1);
-  while (!s.empty() &&
-         (s.back() == ' ' || s.back() == '\n' || s.back() == '\r' || s.back() == '\t'))
-    s.remove_suffix(1);
-  return s;
-}
 
 // Whitespace-separated decimal or 0x-hex integers, possibly negative; false on anything else.
 bool parse_numbers(std::string_view text, std::vector<int64_t>& out) {
@@ -70,7 +62,7 @@ bool parse_numbers(std::string_view text, std::vector<int64_t>& out) {
 
 ParsedReply parse_reply(std::string_view line) {
   ParsedReply reply;
-  line = trim(line);
+  line = trim_blanks(line);
   if (line == "ok") {
     reply.kind = ParsedReply::Kind::ok;
     return reply;

@@ -229,8 +229,8 @@ asio::awaitable<Reply> CopleyFamily::transact(Link& link, const NodeAddress& nod
   co_return r;
 }
 
-ProtocolFamily::NodeTimingNeed CopleyFamily::node_timing_need(const NodeAddress& node,
-                                                              const LinkTiming& bus) const {
+Family::NodeTimingNeed CopleyFamily::node_timing_need(const NodeAddress& node,
+                                                      const LinkTiming& bus) const {
   if (node.number == 0) return {};
   const auto can =
       bus.forward_timeout.count() > 0

@@ -147,6 +147,18 @@ std::string pin_hint(std::string_view option, std::string_view value) {
   return fmt::format(" (the model pins {}: {}; set it to auto to accept both)", option, value);
 }
 
+// A result line found where the unit's pinned result_placement says it cannot be.
+std::string misplaced_result(const NodeAddress& node, ims::ResultPlacement found,
+                             std::string_view line) {
+  const bool on_echo_line = found == ims::ResultPlacement::echo_line;
+  return fmt::format("unit {}: result {} '{}'", node.text,
+                     on_echo_line ? "on the echo's line" : "on a line of its own",
+                     ims::printable(line)) +
+         pin_hint("result_placement",
+                  ims::to_string(on_echo_line ? ims::ResultPlacement::next_line
+                                              : ims::ResultPlacement::echo_line));
+}
+
 }  // namespace
 
 ImsPartyLineFamily::ImsPartyLineFamily()
@@ -535,9 +547,8 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
   }
   if (parsed.result) {
     if (pins.placement == ims::ResultPlacement::next_line) {
-      bad = Reply::of(Reply::Status::garbled, fmt::format("unit {}: result on the echo's line '{}'",
-                                                          node.text, ims::printable(echo.line)) +
-                                                  pin_hint("result_placement", "next_line"));
+      bad = Reply::of(Reply::Status::garbled,
+                      misplaced_result(node, ims::ResultPlacement::echo_line, echo.line));
       co_await after_failure(link, t, name, request, bad);
       co_return bad;
     }
@@ -581,9 +592,8 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
     }
   }
   if (pins.placement == ims::ResultPlacement::echo_line) {
-    bad = Reply::of(Reply::Status::garbled, fmt::format("unit {}: result on a line of its own '{}'",
-                                                        node.text, ims::printable(result.line)) +
-                                                pin_hint("result_placement", "echo_line"));
+    bad = Reply::of(Reply::Status::garbled,
+                    misplaced_result(node, ims::ResultPlacement::next_line, result.line));
     co_await after_failure(link, t, name, request, bad);
     co_return bad;
   }

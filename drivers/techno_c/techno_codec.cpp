@@ -7,6 +7,8 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <iterator>
+#include <utility>
 
 #include "drivers/printable_bytes.hpp"
 
@@ -52,6 +54,32 @@ ParsedReply single_character(char c, std::string_view what) {
       fmt::format("unexpected character '{}'", printable_bytes(std::string_view(&c, 1))));
 }
 
+// Command letters (p.29 ff.) and what they are.
+constexpr std::pair<char, CommandKind> kCommandLetters[] = {
+    {'A', CommandKind::move_relative},
+    {'a', CommandKind::move_relative},
+    {'M', CommandKind::move_absolute},
+    {'m', CommandKind::move_absolute},
+    {'R', CommandKind::home},
+    {'r', CommandKind::home},
+    {'S', CommandKind::start_program},
+    {'s', CommandKind::start_program},
+    {'Y', CommandKind::circle},
+    {'n', CommandKind::zero},
+    {'d', CommandKind::home_speed},
+    {'P', CommandKind::position},
+    {'b', CommandKind::peek},
+    {'c', CommandKind::peek},
+    {'B', CommandKind::poke},
+    {'e', CommandKind::plane},
+    {'z', CommandKind::interpolation_3d},
+    {'f', CommandKind::circle_direction},
+    {'k', CommandKind::clear_program},
+    {'i', CommandKind::enter_program},
+    {'u', CommandKind::save_to_card},
+    {'t', CommandKind::trace},
+};
+
 }  // namespace
 
 Command classify(std::string_view command) {
@@ -73,68 +101,15 @@ Command classify(std::string_view command) {
   }
   c.letter = command.front();
   c.values = command.substr(1);
-  switch (c.letter) {
-    case 'A':
-    case 'a':
-      c.kind = CommandKind::move_relative;
-      break;
-    case 'M':
-    case 'm':
-      c.kind = CommandKind::move_absolute;
-      break;
-    case 'R':
-    case 'r':
-      c.kind = CommandKind::home;
-      break;
-    case 'S':
-    case 's':
-      c.kind = CommandKind::start_program;
-      break;
-    case 'Y':
-      // The manual does not say when Y answers; like the capital moves, at the end [inf].
-      c.kind = CommandKind::circle;
-      c.handshake = Handshake::at_end;
-      return c;
-    case 'n':
-      c.kind = CommandKind::zero;
-      break;
-    case 'd':
-      c.kind = CommandKind::home_speed;
-      break;
-    case 'P':
-      c.kind = CommandKind::position;
-      break;
-    case 'b':
-    case 'c':
-      c.kind = CommandKind::peek;
-      break;
-    case 'B':
-      c.kind = CommandKind::poke;
-      break;
-    case 'e':
-      c.kind = CommandKind::plane;
-      break;
-    case 'z':
-      c.kind = CommandKind::interpolation_3d;
-      break;
-    case 'f':
-      c.kind = CommandKind::circle_direction;
-      break;
-    case 'k':
-      c.kind = CommandKind::clear_program;
-      break;
-    case 'i':
-      c.kind = CommandKind::enter_program;
-      break;
-    case 'u':
-      c.kind = CommandKind::save_to_card;
-      break;
-    case 't':
-      c.kind = CommandKind::trace;
-      break;
-    default:
-      c.kind = CommandKind::unknown;
-      return c;
+  const auto* entry =
+      std::find_if(std::begin(kCommandLetters), std::end(kCommandLetters),
+                   [&](const std::pair<char, CommandKind>& e) { return e.first == c.letter; });
+  if (entry == std::end(kCommandLetters)) return c;
+  c.kind = entry->second;
+  if (c.kind == CommandKind::circle) {
+    // The manual does not say when Y answers; like the capital moves, at the end [inf].
+    c.handshake = Handshake::at_end;
+    return c;
   }
   if (c.kind == CommandKind::move_relative || c.kind == CommandKind::move_absolute ||
       c.kind == CommandKind::home || c.kind == CommandKind::start_program)

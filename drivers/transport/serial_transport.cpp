@@ -7,15 +7,7 @@
 
 #include <algorithm>
 
-#include <boost/asio/as_tuple.hpp>
-#include <boost/asio/use_awaitable.hpp>
-#include <boost/asio/write.hpp>
-
 namespace fieldgate {
-
-namespace {
-constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
-}
 
 double serial_char_time_us(const SerialSettings& s) {
   const unsigned bits = 1 + s.data_bits + (s.parity == 'N' ? 0 : 1) + s.stop_bits;
@@ -23,74 +15,55 @@ double serial_char_time_us(const SerialSettings& s) {
 }
 
 SerialTransport::SerialTransport(asio::any_io_executor executor, SerialSettings settings)
-    : settings_(std::move(settings)), current_baud_(settings_.baud), port_(executor) {}
+    : StreamTransport(executor), settings_(std::move(settings)), current_baud_(settings_.baud) {}
 
 std::error_code SerialTransport::set_baud(unsigned baud) {
   boost::system::error_code ec;
-  port_.set_option(asio::serial_port_base::baud_rate(baud), ec);
-  if (ec) return std::error_code(ec.value(), std::generic_category());
+  stream_.set_option(asio::serial_port_base::baud_rate(baud), ec);
+  if (ec) return to_std_error(ec);
   current_baud_ = baud;
   return {};
 }
 
 void SerialTransport::drain() {
-  if (port_.is_open()) ::tcdrain(port_.native_handle());
+  if (stream_.is_open()) ::tcdrain(stream_.native_handle());
 }
 
 asio::awaitable<std::error_code> SerialTransport::open() {
   boost::system::error_code ec;
-  port_.open(settings_.device, ec);
-  if (ec) co_return std::error_code(ec.value(), std::generic_category());
+  stream_.open(settings_.device, ec);
+  if (ec) co_return to_std_error(ec);
   using sp = asio::serial_port_base;
   const sp::parity::type parity = settings_.parity == 'E'   ? sp::parity::even
                                   : settings_.parity == 'O' ? sp::parity::odd
                                                             : sp::parity::none;
   current_baud_ = settings_.baud;
-  port_.set_option(sp::baud_rate(settings_.baud), ec);
-  if (!ec) port_.set_option(sp::character_size(settings_.data_bits), ec);
-  if (!ec) port_.set_option(sp::parity(parity), ec);
+  stream_.set_option(sp::baud_rate(settings_.baud), ec);
+  if (!ec) stream_.set_option(sp::character_size(settings_.data_bits), ec);
+  if (!ec) stream_.set_option(sp::parity(parity), ec);
   if (!ec)
-    port_.set_option(
+    stream_.set_option(
         sp::stop_bits(settings_.stop_bits == 2 ? sp::stop_bits::two : sp::stop_bits::one), ec);
-  if (!ec) port_.set_option(sp::flow_control(sp::flow_control::none), ec);
+  if (!ec) stream_.set_option(sp::flow_control(sp::flow_control::none), ec);
   if (ec) {
-    port_.close();
-    co_return std::error_code(ec.value(), std::generic_category());
+    stream_.close();
+    co_return to_std_error(ec);
   }
-  ::tcflush(port_.native_handle(), TCIOFLUSH);
+  ::tcflush(stream_.native_handle(), TCIOFLUSH);
   co_return std::error_code{};
 }
 
-void SerialTransport::close() {
-  boost::system::error_code ignored;
-  port_.close(ignored);
-}
-
-asio::awaitable<std::error_code> SerialTransport::write(std::string_view bytes) {
-  auto [ec, n] =
-      co_await asio::async_write(port_, asio::buffer(bytes.data(), bytes.size()), use_tuple);
-  (void)n;
-  co_return ec ? std::error_code(ec.value(), std::generic_category()) : std::error_code{};
-}
-
-asio::awaitable<std::pair<std::error_code, std::size_t>> SerialTransport::read_some(
-    asio::mutable_buffer buffer) {
-  auto [ec, n] = co_await port_.async_read_some(buffer, use_tuple);
-  co_return std::pair{ec ? std::error_code(ec.value(), std::generic_category()) : std::error_code{},
-                      n};
-}
-
 std::size_t SerialTransport::read_available(asio::mutable_buffer buffer) {
-  if (!port_.is_open()) return 0;
+  if (!stream_.is_open()) return 0;
   int pending = 0;
-  if (::ioctl(port_.native_handle(), FIONREAD, &pending) != 0 || pending <= 0) return 0;
-  const auto n = ::read(port_.native_handle(), buffer.data(),
+  if (::ioctl(stream_.native_handle(), FIONREAD, &pending) != 0 || pending <= 0) return 0;
+  const auto n = ::read(stream_.native_handle(), buffer.data(),
                         std::min<std::size_t>(buffer.size(), static_cast<std::size_t>(pending)));
   return n > 0 ? static_cast<std::size_t>(n) : 0;
 }
 
 void SerialTransport::discard_input() {
-  if (port_.is_open()) ::tcflush(port_.native_handle(), TCIFLUSH);
+  if (stream_.is_open()) ::tcflush(stream_.native_handle(), TCIFLUSH);
 }
 
 std::string SerialTransport::describe() const {

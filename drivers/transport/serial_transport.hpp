@@ -3,7 +3,7 @@
 #include <boost/asio/any_io_executor.hpp>
 #include <boost/asio/serial_port.hpp>
 
-#include "drivers/transport/byte_transport.hpp"
+#include "drivers/transport/stream_transport.hpp"
 
 namespace fieldgate {
 
@@ -17,16 +17,11 @@ struct SerialSettings {
 
 double serial_char_time_us(const SerialSettings& settings);
 
-class SerialTransport final : public ByteTransport {
+class SerialTransport final : public StreamTransport<asio::serial_port> {
  public:
   SerialTransport(asio::any_io_executor executor, SerialSettings settings);
 
   asio::awaitable<std::error_code> open() override;
-  void close() override;
-  bool is_open() const override { return port_.is_open(); }
-  asio::awaitable<std::error_code> write(std::string_view bytes) override;
-  asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
-      asio::mutable_buffer buffer) override;
   std::size_t read_available(asio::mutable_buffer buffer) override;
   std::error_code set_baud(unsigned baud) override;
   unsigned baud() const override { return current_baud_; }
@@ -38,7 +33,6 @@ class SerialTransport final : public ByteTransport {
  private:
   SerialSettings settings_;
   unsigned current_baud_;
-  asio::serial_port port_;
 };
 
 }  // namespace fieldgate

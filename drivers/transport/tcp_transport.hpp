@@ -3,22 +3,17 @@
 #include <boost/asio/any_io_executor.hpp>
 #include <boost/asio/ip/tcp.hpp>
 
-#include "drivers/transport/byte_transport.hpp"
+#include "drivers/transport/stream_transport.hpp"
 
 namespace fieldgate {
 
 // A serial device server (terminal server) port reached over TCP in raw mode.
-class TcpTransport final : public ByteTransport {
+class TcpTransport final : public StreamTransport<asio::ip::tcp::socket> {
  public:
   TcpTransport(asio::any_io_executor executor, std::string host, uint16_t port,
                double char_time_us);
 
   asio::awaitable<std::error_code> open() override;
-  void close() override;
-  bool is_open() const override { return socket_.is_open(); }
-  asio::awaitable<std::error_code> write(std::string_view bytes) override;
-  asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
-      asio::mutable_buffer buffer) override;
   std::size_t read_available(asio::mutable_buffer buffer) override;
   void discard_input() override;
   std::string describe() const override;
@@ -28,7 +23,6 @@ class TcpTransport final : public ByteTransport {
   std::string host_;
   uint16_t port_;
   double char_time_us_;
-  asio::ip::tcp::socket socket_;
 };
 
 }  // namespace fieldgate

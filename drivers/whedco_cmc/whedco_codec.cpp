@@ -7,13 +7,11 @@
 #include <cctype>
 #include <charconv>
 
+#include "drivers/ascii_blanks.hpp"
+
 namespace fieldgate::whedco {
 
 namespace {
-
-bool is_blank(char c) {
-  return c == ' ' || c == '\t' || c == '\r' || c == '\n';
-}
 
 bool is_axis(char c) {
   return c == 'W' || c == 'X' || c == 'Y' || c == 'Z';
@@ -29,12 +27,6 @@ bool is_hex_digit(char c) {
 
 char upper(char c) {
   return (c >= 'a' && c <= 'z') ? static_cast<char>(c - 'a' + 'A') : c;
-}
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() && is_blank(s.front())) s.remove_prefix(1);
-  while (!s.empty() && is_blank(s.back())) s.remove_suffix(1);
-  return s;
 }
 
 std::string lower_words(std::string_view s) {
@@ -63,7 +55,7 @@ EchoMatch match_echo(std::string_view buffer, std::string_view line, std::size_t
 }
 
 std::size_t skip_blanks(std::string_view s, std::size_t i) {
-  while (i < s.size() && is_blank(s[i])) ++i;
+  while (i < s.size() && is_ascii_blank(s[i])) ++i;
   return i;
 }
 
@@ -389,13 +381,14 @@ std::string wire_command(const PreparedCommand& command, int unit_ratio) {
 
 std::optional<std::vector<Decimal>> parse_numbers(std::string_view body, bool hex) {
   std::vector<Decimal> out;
-  body = trim(body);
+  body = trim_blanks(body);
   // One label in front, as in "V1=25000" or "X: 12".
   {
     std::size_t i = 0;
     if (i < body.size() && std::isalpha(static_cast<unsigned char>(body[i]))) {
       while (i < body.size() && std::isalnum(static_cast<unsigned char>(body[i]))) ++i;
-      if (i < body.size() && (body[i] == '=' || body[i] == ':')) body = trim(body.substr(i + 1));
+      if (i < body.size() && (body[i] == '=' || body[i] == ':'))
+        body = trim_blanks(body.substr(i + 1));
     }
   }
   std::size_t i = 0;
@@ -403,7 +396,7 @@ std::optional<std::vector<Decimal>> parse_numbers(std::string_view body, bool he
     i = skip_blanks(body, i);
     if (i >= body.size()) break;
     std::size_t end = i;
-    while (end < body.size() && !is_blank(body[end])) ++end;
+    while (end < body.size() && !is_ascii_blank(body[end])) ++end;
     std::string_view token = body.substr(i, end - i);
     i = end;
     Decimal d;
@@ -515,7 +508,7 @@ std::optional<int64_t> unit_fault_from_text(std::string_view text) {
   while (i < text.size()) {
     std::size_t end = i;
     while (end < text.size() && text[end] != '\r' && text[end] != '\n') ++end;
-    const std::string_view line = trim(text.substr(i, end - i));
+    const std::string_view line = trim_blanks(text.substr(i, end - i));
     i = end + 1;
     if (line.empty()) continue;
     any = true;
@@ -543,7 +536,7 @@ std::optional<int64_t> unit_fault_from_text(std::string_view text) {
 }
 
 std::optional<int64_t> parse_bit_string(std::string_view body) {
-  body = trim(body);
+  body = trim_blanks(body);
   if (body.size() < 8 || body.size() > 63) return std::nullopt;
   int64_t bits = 0;
   for (std::size_t i = 0; i < body.size(); ++i) {
@@ -586,7 +579,7 @@ std::string_view to_string(StatusForm form) {
 
 std::optional<StatusWord> parse_status_word(std::string_view body, std::optional<StatusForm> known,
                                             std::string& problem) {
-  body = trim(body);
+  body = trim_blanks(body);
   const auto all = [&](auto pred) {
     return !body.empty() && std::all_of(body.begin(), body.end(), pred);
   };

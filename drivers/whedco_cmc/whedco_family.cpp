@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "drivers/ascii_blanks.hpp"
 #include "drivers/printable_bytes.hpp"
 
 namespace fieldgate {
@@ -25,16 +26,6 @@ bool has_text(std::string_view s) {
   for (const char c : s)
     if ((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || c == '?') return true;
   return false;
-}
-
-std::string_view trim(std::string_view s) {
-  while (!s.empty() &&
-         (s.front() == ' ' || s.front() == '\r' || s.front() == '\n' || s.front() == '\t'))
-    s.remove_prefix(1);
-  while (!s.empty() &&
-         (s.back() == ' ' || s.back() == '\r' || s.back() == '\n' || s.back() == '\t'))
-    s.remove_suffix(1);
-  return s;
 }
 
 Reply garbled(std::string text) {
@@ -175,7 +166,7 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
   const auto prompt = body.rfind(whedco::kPrompt);
   if (prompt == std::string_view::npos)
     return garbled("no '*' prompt in '" + printable_bytes(frame) + "'");
-  body = trim(body.substr(0, prompt));
+  body = trim_blanks(body.substr(0, prompt));
   if (x.mode == EchoMode::echo && !echoed)
     return garbled(
         fmt::format("no echo of '{}' before '{}': is the unit set to non-echo "

@@ -36,7 +36,12 @@ class FamilyOnChain : public ::testing::Test {
       log_ += std::to_string(level) + " " + std::string(text) + "\n";
     });
     std::string error;
-    for (const auto& c : configured) nodes_[std::stoi(c)] = *family_.parse_address(c, error);
+    Model model;  // no options: the defaults
+    model.family = "centent-cn0170";
+    for (const auto& c : configured) {
+      const NodeAddress& node = nodes_[std::stoi(c)] = *family_.parse_address(c, error);
+      family_.configure_node(node, model);
+    }
     run(family_.on_link_open(*link_, timing_));
   }
 
