@@ -124,19 +124,25 @@ SdoServer::Result SdoServer::initiate_download(const SdoPayload& request, TimePo
   return {&kDownloadSegments, multiplexed(kScsInitiateDownload << 5, index_, sub_)};
 }
 
-SdoServer::Result SdoServer::download_segment_recv(const SdoPayload& request, TimePoint) {
+std::optional<SdoServer::Result> SdoServer::segment_refused(const SdoPayload& request,
+                                                            std::uint8_t expected) const {
   const std::uint8_t ccs = command_specifier(request);
-  if (ccs == kCcsAbort) return {&kIdle, std::nullopt};
-  if (ccs != kCcsDownloadSegment) return abort(SdoAbort::command_specifier);
+  if (ccs == kCcsAbort) return Result{&kIdle, std::nullopt};
+  if (ccs != expected) return abort(SdoAbort::command_specifier);
   const bool toggle = request[0] & 0x10;
   if (toggle != toggle_) return abort(SdoAbort::toggle_bit);
+  return std::nullopt;
+}
+
+SdoServer::Result SdoServer::download_segment_recv(const SdoPayload& request, TimePoint) {
+  if (const auto refused = segment_refused(request, kCcsDownloadSegment)) return *refused;
   const std::size_t n = 7 - ((request[0] >> 1) & 0x07);
   const bool last = request[0] & 0x01;
   buffer_.insert(buffer_.end(), request.begin() + 1, request.begin() + 1 + n);
   if (buffer_.size() > max_size_ || (size_known_ && buffer_.size() > size_))
     return abort(SdoAbort::length_mismatch);
 
-  const SdoPayload ack{static_cast<std::uint8_t>(kScsDownloadSegment << 5 | (toggle ? 0x10 : 0)),
+  const SdoPayload ack{static_cast<std::uint8_t>(kScsDownloadSegment << 5 | (toggle_ ? 0x10 : 0)),
                        0,
                        0,
                        0,
@@ -175,17 +181,13 @@ SdoServer::Result SdoServer::initiate_upload(const SdoPayload& request, TimePoin
 }
 
 SdoServer::Result SdoServer::upload_segment_recv(const SdoPayload& request, TimePoint) {
-  const std::uint8_t ccs = command_specifier(request);
-  if (ccs == kCcsAbort) return {&kIdle, std::nullopt};
-  if (ccs != kCcsUploadSegment) return abort(SdoAbort::command_specifier);
-  const bool toggle = request[0] & 0x10;
-  if (toggle != toggle_) return abort(SdoAbort::toggle_bit);
+  if (const auto refused = segment_refused(request, kCcsUploadSegment)) return *refused;
 
   const std::size_t n = std::min<std::size_t>(7, buffer_.size() - offset_);
   const bool last = offset_ + n == buffer_.size();
   SdoPayload reply{};
-  reply[0] = static_cast<std::uint8_t>(kScsUploadSegment << 5 | (toggle ? 0x10 : 0) | (7 - n) << 1 |
-                                       (last ? 0x01 : 0));
+  reply[0] = static_cast<std::uint8_t>(kScsUploadSegment << 5 | (toggle_ ? 0x10 : 0) |
+                                       (7 - n) << 1 | (last ? 0x01 : 0));
   std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(offset_), n, reply.begin() + 1);
   offset_ += n;
   toggle_ = !toggle_;

@@ -54,6 +54,9 @@ class SdoServer {
   Result initiate_download(const SdoPayload& request, TimePoint now);
   Result initiate_upload(const SdoPayload& request, TimePoint now);
   Result abort(SdoAbort code) const;
+  // A segment request of the transfer in progress that ends it instead: the client's abort, or
+  // another command specifier than `expected`, or the toggle bit out of step.
+  std::optional<Result> segment_refused(const SdoPayload& request, std::uint8_t expected) const;
 
   ObjectDictionary& od_;
   std::chrono::milliseconds timeout_;

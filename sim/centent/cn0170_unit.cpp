@@ -73,6 +73,21 @@ std::optional<double> velocity_of(std::string_view text, double lo) {
   return v;
 }
 
+// "base,max" of V= and XYV= (p.28): either may be left out, not both; nullopt if malformed.
+struct VelocityPair {
+  std::optional<double> base, max;
+};
+std::optional<VelocityPair> velocity_pair_of(std::string_view text) {
+  const auto comma = text.find(',');
+  const auto base = text.substr(0, comma);
+  const auto max = comma == std::string_view::npos ? std::string_view{} : text.substr(comma + 1);
+  VelocityPair pair;
+  if (!base.empty() && !(pair.base = velocity_of(base, 0))) return std::nullopt;
+  if (!max.empty() && !(pair.max = velocity_of(max, 0.25))) return std::nullopt;
+  if (!pair.base && !pair.max) return std::nullopt;
+  return pair;
+}
+
 SimTime end_of_motion(const MotionAxis& m, SimTime from) {
   if (!m.in_motion(from)) return from;
   if (m.velocity_move()) return SimTime::max();
@@ -380,16 +395,10 @@ bool Cn0170Unit::run(const std::string& s, SimTime now, std::vector<std::string>
     return true;
   }
   if (s.rfind("XYV=", 0) == 0) {
-    const std::string_view v = std::string_view(s).substr(4);
-    const auto comma = v.find(',');
-    const auto base = v.substr(0, comma);
-    const auto max = comma == std::string_view::npos ? std::string_view{} : v.substr(comma + 1);
-    std::optional<double> b, m;
-    if (!base.empty() && !(b = velocity_of(base, 0))) return false;
-    if (!max.empty() && !(m = velocity_of(max, 0.25))) return false;
-    if (!b && !m) return false;
-    if (b) vector_base_ = *b;
-    if (m) vector_max_ = *m;
+    const auto pair = velocity_pair_of(std::string_view(s).substr(4));
+    if (!pair) return false;
+    if (pair->base) vector_base_ = *pair->base;
+    if (pair->max) vector_max_ = *pair->max;
     return true;
   }
   if (s == "XYH") {
@@ -645,16 +654,10 @@ bool Cn0170Unit::axis_instruction(Axis& a, const std::string& rest, SimTime now)
     return true;
   }
   if (r.rfind("V=", 0) == 0) {
-    const std::string_view v = r.substr(2);
-    const auto comma = v.find(',');
-    const auto base = v.substr(0, comma);
-    const auto max = comma == std::string_view::npos ? std::string_view{} : v.substr(comma + 1);
-    std::optional<double> b, m;
-    if (!base.empty() && !(b = velocity_of(base, 0))) return false;
-    if (!max.empty() && !(m = velocity_of(max, 0.25))) return false;
-    if (!b && !m) return false;
-    if (b) a.base_velocity = *b;
-    if (m) a.max_velocity = *m;
+    const auto pair = velocity_pair_of(r.substr(2));
+    if (!pair) return false;
+    if (pair->base) a.base_velocity = *pair->base;
+    if (pair->max) a.max_velocity = *pair->max;
     return true;
   }
   if (r.rfind("A=", 0) == 0) {

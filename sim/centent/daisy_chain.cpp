@@ -3,6 +3,8 @@
 #include <charconv>
 #include <stdexcept>
 
+#include "sim/common/split.hpp"
+
 namespace fieldgate::sim::centent {
 
 namespace {
@@ -10,18 +12,6 @@ namespace {
 std::optional<int> digit(char c) {
   if (c < '0' || c > '9') return std::nullopt;
   return c - '0';
-}
-
-std::vector<std::string> split(std::string_view text, char separator) {
-  std::vector<std::string> out;
-  std::size_t begin = 0;
-  for (;;) {
-    const auto end = text.find(separator, begin);
-    out.emplace_back(text.substr(begin, end == std::string_view::npos ? end : end - begin));
-    if (end == std::string_view::npos) break;
-    begin = end + 1;
-  }
-  return out;
 }
 
 std::string strip(std::string_view s) {
@@ -35,9 +25,10 @@ std::string strip(std::string_view s) {
 
 std::vector<int> parse_unit_list(std::string_view text) {
   std::vector<int> units;
-  for (const auto& item : split(text, ',')) {
+  for (const std::string_view item : split(text, ',')) {
     const auto d = item.size() == 1 ? digit(item[0]) : std::nullopt;
-    if (!d) throw std::invalid_argument("unit numbers are digits 0-9, found '" + item + "'");
+    if (!d)
+      throw std::invalid_argument("unit numbers are digits 0-9, found '" + std::string(item) + "'");
     units.push_back(*d);
   }
   return units;

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "sim/centent/daisy_chain.hpp"
+#include "sim/common/choice_option.hpp"
 #include "sim/common/line_simulator.hpp"
 
 namespace sim = fieldgate::sim;
@@ -19,15 +20,18 @@ int main(int argc, char** argv) {
   long hop_delay_us = 0;
   bool initialised = false;
   bool power_up = false;
-  std::string prefix_separator = "none";
+  std::string prefix_separator;
   bool lenient_autobaud = false;
-  std::string select_after_reset = "self";
+  bool select_self_after_reset = true;
   bool kill_upstream = false;
   bool prefix_unit_messages = false;
-  std::string position_reply = "x";
-  std::string absolute_compare = "unsigned";
-  std::string terminator = "cr";
-  std::string overflow_mnemonic = "both";
+  bool position_reply_xp = false;
+  bool signed_absolute = false;
+  std::string terminator = "\r";
+  struct OverflowSpellings {
+    bool backslash = true;
+    bool plain = true;
+  } overflow;
   std::size_t queue = 20;
   app.add_option("--units", units,
                  "unit numbers in chain order, nearest the host first, e.g. 0,1,2 (duplicates "
@@ -41,31 +45,31 @@ int main(int argc, char** argv) {
   app.add_flag("--lenient-autobaud", lenient_autobaud,
                "a unit waiting for its auto-baud CR locks on the next CR even after other "
                "characters (default: they make it fail until the next reset, as p.1 says)");
-  app.add_option("--select-after-reset", select_after_reset,
-                 "self: a unit selects itself after power-up (as a lone unit must); none")
-      ->check(CLI::IsMember({"self", "none"}));
+  sim::add_choice(app, "--select-after-reset", select_self_after_reset,
+                  {{"self", true}, {"none", false}},
+                  "self: a unit selects itself after power-up (as a lone unit must); none");
   app.add_flag("--kill-upstream", kill_upstream,
                "units a K passes on its way to the selected unit obey it too");
   app.add_flag("--prefix-unit-messages", prefix_unit_messages,
                "prefix [Un] and U<n> with the unit number as well");
   app.add_flag("--power-up", power_up, "start as after power-on (the default; kept for scripts)");
-  app.add_option("--prefix-separator", prefix_separator,
-                 "between a unit's digit and its message (the manual never shows one): none "
-                 "(2X=…h), space (2 X=…h) or colon (2:X=…h)")
-      ->check(CLI::IsMember({"none", "space", "colon"}));
-  app.add_option("--position-reply", position_reply, "x: X=…h (p.35); xp: XP=…h (p.2)")
-      ->check(CLI::IsMember({"x", "xp"}));
-  app.add_option("--absolute-compare", absolute_compare,
-                 "how an absolute target is compared with the position (\"positive only\", "
-                 "§9 #20): unsigned (a move to the other side of 0 runs the long way round the "
-                 "register) or signed (it crosses 0)")
-      ->check(CLI::IsMember({"unsigned", "signed"}));
-  app.add_option("--terminator", terminator, "reply terminator")
-      ->check(CLI::IsMember({"cr", "crlf", "lf"}));
-  app.add_option("--overflow-mnemonic", overflow_mnemonic,
-                 "which spelling of the overflow mode the units accept: backslash (M1\\-), "
-                 "plain (M1-) or both")
-      ->check(CLI::IsMember({"backslash", "plain", "both"}));
+  sim::add_choice(app, "--prefix-separator", prefix_separator,
+                  {{"none", ""}, {"space", " "}, {"colon", ":"}},
+                  "between a unit's digit and its message (the manual never shows one): none "
+                  "(2X=…h), space (2 X=…h) or colon (2:X=…h)");
+  sim::add_choice(app, "--position-reply", position_reply_xp, {{"x", false}, {"xp", true}},
+                  "x: X=…h (p.35); xp: XP=…h (p.2)");
+  sim::add_choice(app, "--absolute-compare", signed_absolute,
+                  {{"unsigned", false}, {"signed", true}},
+                  "how an absolute target is compared with the position (\"positive only\", "
+                  "§9 #20): unsigned (a move to the other side of 0 runs the long way round the "
+                  "register) or signed (it crosses 0)");
+  sim::add_choice(app, "--terminator", terminator, {{"cr", "\r"}, {"crlf", "\r\n"}, {"lf", "\n"}},
+                  "reply terminator");
+  sim::add_choice(app, "--overflow-mnemonic", overflow,
+                  {{"backslash", {true, false}}, {"plain", {false, true}}, {"both", {true, true}}},
+                  "which spelling of the overflow mode the units accept: backslash (M1\\-), "
+                  "plain (M1-) or both");
   app.add_option("--queue", queue, "Immediate Queue length (the manual says about 20)")
       ->check(CLI::Range(std::size_t{3}, std::size_t{1000}));
 
@@ -75,19 +79,17 @@ int main(int argc, char** argv) {
     centent::ChainOptions options;
     options.units = centent::parse_unit_list(units);
     options.power_up = power_up || !initialised;
-    options.prefix_separator = prefix_separator == "space"   ? " "
-                               : prefix_separator == "colon" ? ":"
-                                                             : "";
+    options.prefix_separator = prefix_separator;
     options.strict_autobaud = !lenient_autobaud;
-    options.select_self_after_reset = select_after_reset == "self";
+    options.select_self_after_reset = select_self_after_reset;
     options.kill_acts_upstream = kill_upstream;
     options.prefix_unit_messages = prefix_unit_messages;
-    options.unit.position_reply_xp = position_reply == "xp";
-    options.unit.signed_absolute = absolute_compare == "signed";
-    options.unit.accept_backslash_overflow = overflow_mnemonic != "plain";
-    options.unit.accept_plain_overflow = overflow_mnemonic != "backslash";
+    options.unit.position_reply_xp = position_reply_xp;
+    options.unit.signed_absolute = signed_absolute;
+    options.unit.accept_backslash_overflow = overflow.backslash;
+    options.unit.accept_plain_overflow = overflow.plain;
     options.unit.immediate_queue = queue;
-    options.terminator = terminator == "cr" ? "\r" : terminator == "lf" ? "\n" : "\r\n";
+    options.terminator = terminator;
     options.hop_delay = std::chrono::microseconds(hop_delay_us);
     auto chain = std::make_shared<centent::DaisyChain>(options, s.start());
     return sim::line_family(chain, sim::request_hooks(*chain));

@@ -6,6 +6,7 @@
 #include <variant>
 
 #include "sim/common/control_channel.hpp"
+#include "sim/common/split.hpp"
 
 namespace fieldgate::sim::copley {
 namespace {
@@ -21,17 +22,6 @@ int parse_int(std::string_view text, int low, int high, const char* what) {
     throw std::invalid_argument(std::string("bad ") + what + " '" + std::string(text) + "'");
   }
   return static_cast<int>(*value);
-}
-
-std::vector<std::string_view> split(std::string_view text, char separator) {
-  std::vector<std::string_view> parts;
-  std::size_t begin = 0;
-  while (true) {
-    const std::size_t end = text.find(separator, begin);
-    parts.push_back(text.substr(begin, end - begin));
-    if (end == std::string_view::npos) return parts;
-    begin = end + 1;
-  }
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <memory>
 #include <string>
 
+#include "sim/common/choice_option.hpp"
 #include "sim/common/line_simulator.hpp"
 #include "sim/copley/amplifier_network.hpp"
 
@@ -20,8 +21,9 @@ int main(int argc, char** argv) {
   long boot_ms = 0;
   bool stepper = false;
   bool compact = false;
-  std::string missing_axis = "a";
-  std::string zero_prefix = "gateway";
+  using Options = copley::NetworkOptions;
+  auto missing_axis = Options::MissingAxis::first_axis;
+  auto zero_prefix = Options::ZeroPrefix::gateway;
   long can_timeout_ms = 0;
   app.add_option("--nodes", nodes,
                  "CAN node IDs, e.g. 0,3,5 (0 = the RS-232 gateway amplifier, "
@@ -34,14 +36,18 @@ int main(int argc, char** argv) {
   app.add_flag("--stepper", stepper, "Stepnet amplifiers (microstep states 31-42), default servo");
   app.add_flag("--compact-replies", compact,
                "reply v1200 instead of v 1200 (both are in the manual)");
-  app.add_option("--missing-axis", missing_axis,
-                 "a command without axis letter to a multi-axis amplifier: a (goes to axis a), "
-                 "e33 (parse error) or silent (no reply)")
-      ->check(CLI::IsMember({"a", "e33", "silent"}));
-  app.add_option("--zero-prefix", zero_prefix,
-                 "the prefix '0 ': gateway (addresses the gateway amplifier), e31 (invalid node "
-                 "ID) or e32 (CAN failure after the CAN timeout)")
-      ->check(CLI::IsMember({"gateway", "e31", "e32"}));
+  sim::add_choice(app, "--missing-axis", missing_axis,
+                  {{"a", Options::MissingAxis::first_axis},
+                   {"e33", Options::MissingAxis::parse_error},
+                   {"silent", Options::MissingAxis::silent}},
+                  "a command without axis letter to a multi-axis amplifier: a (goes to axis a), "
+                  "e33 (parse error) or silent (no reply)");
+  sim::add_choice(app, "--zero-prefix", zero_prefix,
+                  {{"gateway", Options::ZeroPrefix::gateway},
+                   {"e31", Options::ZeroPrefix::invalid_node},
+                   {"e32", Options::ZeroPrefix::can_failure}},
+                  "the prefix '0 ': gateway (addresses the gateway amplifier), e31 (invalid node "
+                  "ID) or e32 (CAN failure after the CAN timeout)");
   app.add_option("--can-timeout-ms", can_timeout_ms,
                  "the gateway amplifier's CAN timeout: e 32 for an absent node comes this late")
       ->check(CLI::NonNegativeNumber);
@@ -49,7 +55,7 @@ int main(int argc, char** argv) {
   simulator.describe_baud("the gateway amplifier's current serial rate (power-up is 9600)",
                           CLI::Range(9600u, 115200u));
   return simulator.run(argc, argv, [&](sim::LineSimulator& s) {
-    copley::NetworkOptions options;
+    Options options;
     options.nodes = copley::parse_node_list(nodes);
     copley::parse_axes(axes, options);
     options.stepper = stepper;
@@ -57,13 +63,8 @@ int main(int argc, char** argv) {
     options.forward_latency = std::chrono::microseconds(forward_us);
     options.boot_time = std::chrono::milliseconds(boot_ms);
     options.compact_replies = compact;
-    using Options = copley::NetworkOptions;
-    options.missing_axis = missing_axis == "e33"      ? Options::MissingAxis::parse_error
-                           : missing_axis == "silent" ? Options::MissingAxis::silent
-                                                      : Options::MissingAxis::first_axis;
-    options.zero_prefix = zero_prefix == "e31"   ? Options::ZeroPrefix::invalid_node
-                          : zero_prefix == "e32" ? Options::ZeroPrefix::can_failure
-                                                 : Options::ZeroPrefix::gateway;
+    options.missing_axis = missing_axis;
+    options.zero_prefix = zero_prefix;
     options.can_timeout = std::chrono::milliseconds(can_timeout_ms);
     auto network = std::make_shared<copley::AmplifierNetwork>(options, s.start());
 

@@ -1,8 +1,10 @@
 #include "sim/ims/indexer.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 namespace fieldgate::sim::ims {
 namespace {
@@ -13,6 +15,17 @@ constexpr double kInstant = 1e12;
 // 500 steps/s² per unit of K.
 constexpr double kRampPerK = 500.0;
 constexpr double kMaxPosition = 8'388'607.99;
+
+// Encoder option parameters (d e h r s t v): stored as sent, not simulated.
+constexpr std::array<std::pair<char, int Parameters::*>, 7> kEncoderParameters{{
+    {'d', &Parameters::deadband},
+    {'e', &Parameters::encoder_lines},
+    {'h', &Parameters::hunt_resolution},
+    {'r', &Parameters::retries},
+    {'s', &Parameters::stall_factor},
+    {'t', &Parameters::stall_interval},
+    {'v', &Parameters::hunt_velocity},
+}};
 
 bool is_digit(char c) {
   return c >= '0' && c <= '9';
@@ -207,6 +220,12 @@ Indexer::Outcome Indexer::execute(std::string_view line, SimTime now) {
     return out;
   };
   out.kind = Outcome::Kind::completion;
+  for (const auto& [letter, parameter] : kEncoderParameters) {
+    if (c == letter) {
+      params_.*parameter = i0;
+      return out;
+    }
+  }
   switch (c) {
     case 'Z':
       return result(padded(format_position(motion_.position(now))));
@@ -266,27 +285,6 @@ Indexer::Outcome Indexer::execute(std::string_view line, SimTime now) {
       return out;
     case 'l':
       params_.limit_mode = std::clamp(i0, 0, 3);
-      return out;
-    case 'd':
-      params_.deadband = i0;
-      return out;
-    case 'e':
-      params_.encoder_lines = i0;
-      return out;
-    case 'h':
-      params_.hunt_resolution = i0;
-      return out;
-    case 'r':
-      params_.retries = i0;
-      return out;
-    case 's':
-      params_.stall_factor = i0;
-      return out;
-    case 't':
-      params_.stall_interval = i0;
-      return out;
-    case 'v':
-      params_.hunt_velocity = i0;
       return out;
     case '+':
     case '-':

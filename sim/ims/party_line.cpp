@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "sim/common/split.hpp"
+
 namespace fieldgate::sim::ims {
 namespace {
 
@@ -34,10 +36,7 @@ bool is_query(std::string_view body) {
 
 std::vector<char> parse_names(std::string_view text) {
   std::vector<char> names;
-  std::size_t start = 0;
-  while (start <= text.size()) {
-    const std::size_t comma = std::min(text.find(',', start), text.size());
-    const std::string_view item = text.substr(start, comma - start);
+  for (const std::string_view item : split(text, ',')) {
     if (item.size() != 1 || !valid_name(item[0]))
       throw std::invalid_argument("unit names are single characters A-Z, a-z or [\\]^_`, found '" +
                                   std::string(item) + "'");
@@ -45,7 +44,6 @@ std::vector<char> parse_names(std::string_view text) {
       throw std::invalid_argument("unit name '" + std::string(item) +
                                   "' is listed twice (use the duplicate control command)");
     names.push_back(item[0]);
-    start = comma + 1;
   }
   return names;
 }

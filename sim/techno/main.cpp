@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "sim/common/choice_option.hpp"
 #include "sim/common/line_simulator.hpp"
 #include "sim/techno/controller.hpp"
 #include "sim/techno/exchange.hpp"
@@ -24,7 +25,7 @@ int main(int argc, char** argv) {
   double home_distance = 5000;
   double travel = 100000;
   bool no_mechanics = false;
-  std::string queries = "answer";
+  bool queries_during_motion = true;
   bool position_ack = false;
   bool no_cr = false;
   bool stop_ack = false;
@@ -46,10 +47,10 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   app.add_flag("--no-mechanics", no_mechanics,
                "homing never finds a switch and never answers (manual p.41)");
-  app.add_option("--queries-during-motion", queries,
-                 "answer: P/b/c are answered during a lower-case motion; defer: they wait for "
-                 "its end like every other command")
-      ->check(CLI::IsMember({"answer", "defer"}));
+  sim::add_choice(app, "--queries-during-motion", queries_during_motion,
+                  {{"answer", true}, {"defer", false}},
+                  "answer: P/b/c are answered during a lower-case motion; defer: they wait for "
+                  "its end like every other command");
   app.add_flag("--position-ack", position_ack, "send the 0 handshake before the P data");
   app.add_flag("--no-cr", no_cr, "no CR after the data of P and b/c");
   app.add_flag("--stop-ack", stop_ack, "a capital command ended by STOP still answers 0");
@@ -70,7 +71,7 @@ int main(int argc, char** argv) {
     options.home_distance = home_distance;
     options.travel = travel;
     options.mechanics = !no_mechanics;
-    options.queries_during_motion = queries == "answer";
+    options.queries_during_motion = queries_during_motion;
     options.position_ack = position_ack;
     options.reply_cr = !no_cr;
     options.stop_acknowledges = stop_ack;

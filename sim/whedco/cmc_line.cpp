@@ -3,20 +3,10 @@
 #include <stdexcept>
 
 #include "sim/common/control_channel.hpp"
+#include "sim/common/split.hpp"
 
 namespace fieldgate::sim::whedco {
 namespace {
-
-std::vector<std::string_view> split(std::string_view text, char separator) {
-  std::vector<std::string_view> parts;
-  std::size_t begin = 0;
-  while (true) {
-    const std::size_t end = text.find(separator, begin);
-    parts.push_back(text.substr(begin, end - begin));
-    if (end == std::string_view::npos) return parts;
-    begin = end + 1;
-  }
-}
 
 int address_of(std::string_view text) {
   if (text.size() != 1 || text[0] < '0' || text[0] > '7')

@@ -199,14 +199,17 @@ std::optional<Command> parse(Cursor& c) {
     cmd.index = *d;
     return cmd;
   };
-  const auto load = [&](std::string mnemonic, char axis, bool allow_variable) {
-    cmd.op = Op::load;
-    cmd.mnemonic = std::move(mnemonic);
+  const auto with_value = [&](Op op, char axis, bool allow_variable) -> std::optional<Command> {
+    cmd.op = op;
     cmd.axis = axis;
     const auto v = value(c, allow_variable);
-    if (!v) return std::optional<Command>{};
+    if (!v) return std::nullopt;
     cmd.value = *v;
-    return std::optional<Command>{cmd};
+    return cmd;
+  };
+  const auto load = [&](std::string mnemonic, char axis, bool allow_variable) {
+    cmd.mnemonic = std::move(mnemonic);
+    return with_value(Op::load, axis, allow_variable);
   };
   const auto axis_set = [&](Op op) -> std::optional<Command> {
     cmd.op = op;
@@ -302,22 +305,8 @@ std::optional<Command> parse(Cursor& c) {
   if (c.eat("VOW")) return load("VOW", 'W', false);
   if (c.eat("VX")) return load("VX", 'X', true);
   if (c.eat("VW")) return load("VW", 'W', true);
-  if (c.eat("IX")) {
-    cmd.op = Op::radius_increment;
-    cmd.axis = 'X';
-    const auto v = value(c, false);
-    if (!v) return std::nullopt;
-    cmd.value = *v;
-    return cmd;
-  }
-  if (c.eat("IW")) {
-    cmd.op = Op::radius_increment;
-    cmd.axis = 'W';
-    const auto v = value(c, false);
-    if (!v) return std::nullopt;
-    cmd.value = *v;
-    return cmd;
-  }
+  if (c.eat("IX")) return with_value(Op::radius_increment, 'X', false);
+  if (c.eat("IW")) return with_value(Op::radius_increment, 'W', false);
   if (c.eat("IF")) {
     cmd.op = Op::if_branch;
     const std::size_t begin = c.position();
@@ -329,10 +318,7 @@ std::optional<Command> parse(Cursor& c) {
       cmd.gosub = true;
     else if (!c.eat("GT"))
       return std::nullopt;
-    const auto n = c.integer();
-    if (!n || *n < 0 || *n > 255) return std::nullopt;
-    cmd.index = static_cast<int>(*n);
-    return cmd;
+    return with_index(Op::if_branch);
   }
   if (c.eat("RX")) return load("RX", 'X', true);
   if (c.eat("RW")) return load("RW", 'W', true);

@@ -4,6 +4,7 @@
 #include <memory>
 #include <string>
 
+#include "sim/common/choice_option.hpp"
 #include "sim/common/line_simulator.hpp"
 #include "sim/whedco/cmc_line.hpp"
 
@@ -19,10 +20,10 @@ int main(int argc, char** argv) {
   std::string axes = "WXYZ";
   std::string non_echo;
   std::string steppers;
-  std::string style = "compact";
+  auto style = whedco::ReplyStyle::compact;
   bool power_failure = false;
   bool initialised = false;
-  std::string status_format = "decimal";
+  auto status_format = whedco::StatusFormat::decimal;
   bool fc_table_codes = false;
   bool de_answers_ed = false;
   long position_read_us = 0;
@@ -32,14 +33,18 @@ int main(int argc, char** argv) {
                  "units in non-echo format (SW2-5): all, or addresses e.g. 5 (default: echo)");
   app.add_option("--steppers", steppers,
                  "CMC-1 stepper axes (no following error): e.g. X or 4:X; others are servos");
-  app.add_option("--reply-style", style,
-                 "compact (1250\\r\\n*), terminal (\\r\\n 1250\\r\\n*) or inline (the value on "
-                 "the echo's line: 4RPX 1250\\r\\n*)")
-      ->check(CLI::IsMember({"compact", "terminal", "inline"}));
-  app.add_option("--status-format", status_format,
-                 "how RS/RSa print the status word: decimal (1538), hex (0602) or binary "
-                 "(0000011000000010)")
-      ->check(CLI::IsMember({"decimal", "hex", "binary"}));
+  sim::add_choice(app, "--reply-style", style,
+                  {{"compact", whedco::ReplyStyle::compact},
+                   {"terminal", whedco::ReplyStyle::terminal},
+                   {"inline", whedco::ReplyStyle::inline_echo}},
+                  "compact (1250\\r\\n*), terminal (\\r\\n 1250\\r\\n*) or inline (the value on "
+                  "the echo's line: 4RPX 1250\\r\\n*)");
+  sim::add_choice(app, "--status-format", status_format,
+                  {{"decimal", whedco::StatusFormat::decimal},
+                   {"hex", whedco::StatusFormat::hex},
+                   {"binary", whedco::StatusFormat::binary}},
+                  "how RS/RSa print the status word: decimal (1538), hex (0602) or binary "
+                  "(0000011000000010)");
   app.add_flag("--fc-table-codes", fc_table_codes,
                "non-echo FC uses the FCa code table: 8 Unit Functional, 0 Power Failure, plus the "
                "axis byte (default: base x 256 + axis byte, 0 Unit Functional)");
@@ -60,15 +65,11 @@ int main(int argc, char** argv) {
     options.units = whedco::parse_units(units, axes, non_echo, steppers);
     for (auto& u : options.units) {
       u.power_failure = power_failure || !initialised;
-      u.status_format = status_format == "hex"      ? whedco::StatusFormat::hex
-                        : status_format == "binary" ? whedco::StatusFormat::binary
-                                                    : whedco::StatusFormat::decimal;
+      u.status_format = status_format;
       u.fc_table_codes = fc_table_codes;
       u.de_answers_ed = de_answers_ed;
     }
-    options.style = style == "terminal" ? whedco::ReplyStyle::terminal
-                    : style == "inline" ? whedco::ReplyStyle::inline_echo
-                                        : whedco::ReplyStyle::compact;
+    options.style = style;
     options.position_read_delay = std::chrono::microseconds(position_read_us);
     auto line = std::make_shared<whedco::CmcLine>(options, s.start());
     sim::LineDeviceHooks hooks = sim::request_hooks(*line);
