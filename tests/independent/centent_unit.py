@@ -353,10 +353,8 @@ def main():
     ap.add_argument("--units", default="0")
     args = ap.parse_args()
     numbers = [int(n) for n in args.units.split(",") if n]
-    pty = uc.Pty(args.link, 9600)
-    chain = Chain(pty, numbers)
-    uc.log("centent: units %s on %s" % (args.units, args.link))
-    uc.run(pty, chain.on_bytes, chain.on_tick)
+    uc.serve(args.link, 9600, lambda pty: Chain(pty, numbers),
+             "centent: units %s on %s" % (args.units, args.link))
 
 
 if __name__ == "__main__":

@@ -370,10 +370,8 @@ def main():
     ap.add_argument("--nodes", default="0,3")
     args = ap.parse_args()
     nodes = [int(n) for n in args.nodes.split(",") if n]
-    pty = uc.Pty(args.link, 9600)
-    bus = Bus(pty, nodes)
-    uc.log("copley: nodes %s on %s" % (args.nodes, args.link))
-    uc.run(pty, bus.on_bytes, bus.on_tick)
+    uc.serve(args.link, 9600, lambda pty: Bus(pty, nodes),
+             "copley: nodes %s on %s" % (args.nodes, args.link))
 
 
 if __name__ == "__main__":

@@ -295,10 +295,8 @@ def main():
     for n in names:
         if len(n) != 1 or not NAME_RE.fullmatch(n.encode()):
             raise SystemExit("invalid party-line name %r (p.10)" % n)
-    pty = uc.Pty(args.link, 9600)
-    bus = Bus(pty, names)
-    uc.log("ims: units %s on %s" % (",".join(names), args.link))
-    uc.run(pty, bus.on_bytes, bus.on_tick)
+    uc.serve(args.link, 9600, lambda pty: Bus(pty, names),
+             "ims: units %s on %s" % (",".join(names), args.link))
 
 
 if __name__ == "__main__":

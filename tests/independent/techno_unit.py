@@ -293,18 +293,8 @@ def main():
     args = ap.parse_args()
     pty = uc.Pty(args.link, args.baud)
     card = Card(args.variant, pty, args.queries == "live")
-    def on_bytes(data, now):
-        if not pty.heard_at(args.baud, now):
-            uc.wire("(host at %d baud, card at %d: %d bytes unreadable)" %
-                    (pty.rate_now, args.baud, len(data)))
-            return
-        card.on_bytes(data, now)
-
-    def on_tick(now):
-        card.tick(now)
-
     uc.log("techno: %s at %d baud on %s" % (args.variant, args.baud, args.link))
-    uc.run(pty, on_bytes, on_tick)
+    uc.run(pty, uc.heard_only_at(pty, args.baud, "card", card.on_bytes), card.tick)
 
 
 if __name__ == "__main__":

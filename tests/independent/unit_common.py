@@ -86,6 +86,27 @@ class Pty:
             return b""
 
 
+def serve(link, baud, make, what):
+    """A PTY at `baud` on `link` for the unit make(pty) (with on_bytes and on_tick): logs `what`
+    once the unit is made, then serves until killed."""
+    pty = Pty(link, baud)
+    unit = make(pty)
+    log(what)
+    run(pty, unit.on_bytes, unit.on_tick)
+
+
+def heard_only_at(pty, baud, unit, on_bytes):
+    """on_bytes for a unit fixed at `baud`: what the host sent at another rate is logged as
+    unreadable and dropped."""
+    def filtered(data, now):
+        if not pty.heard_at(baud, now):
+            wire("(host at %d baud, %s at %d: %d bytes unreadable)" %
+                 (pty.rate_now, unit, baud, len(data)))
+            return
+        on_bytes(data, now)
+    return filtered
+
+
 def run(pty, on_bytes, on_tick, tick=0.005):
     """Serves until killed: bytes in go to on_bytes(data, now), on_tick(now) runs every tick."""
     last = time.monotonic()

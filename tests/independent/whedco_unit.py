@@ -359,19 +359,9 @@ def main():
     controllers = [Controller(a, args.axes, not args.non_echo, args.status_bits)
                    for a in args.units.split(",") if a]
     line = Line(pty, controllers)
-    def on_bytes(data, now):
-        if not pty.heard_at(args.baud, now):
-            uc.wire("(host at %d baud, unit at %d: %d bytes unreadable)" %
-                    (pty.rate_now, args.baud, len(data)))
-            return
-        line.on_bytes(data, now)
-
-    def on_tick(now):
-        line.on_tick(now)
-
     uc.log("whedco: units %s axes %s %s at %d baud on %s" % (
         args.units, args.axes, "non-echo" if args.non_echo else "echo", args.baud, args.link))
-    uc.run(pty, on_bytes, on_tick)
+    uc.run(pty, uc.heard_only_at(pty, args.baud, "unit", line.on_bytes), line.on_tick)
 
 
 if __name__ == "__main__":

@@ -6,15 +6,8 @@ fieldgate=$1 sim=$2 models=$3
 source "$(dirname "$0")/lib.sh"
 scratch_dir
 
-start_copley "$sim" "$dir/copley0" 0,3 "$dir/sim.log"
-gateway_config "$dir/gw.yaml" <<YAML
-$copley_bus
-    timing: {reply_timeout: 50ms, probe_interval: 300ms}
-    nodes:
-      - {name: a0, address: 0, model: copley-amplifier, unit_id: 1}
-      - {name: a3, address: 3, model: copley-amplifier, unit_id: 2}
-      - {name: a9, address: 9, model: copley-amplifier, unit_id: 3}
-YAML
+copley_units "$sim" "{reply_timeout: 50ms, probe_interval: 300ms}" \
+  "      - {name: a9, address: 9, model: copley-amplifier, unit_id: 3}"
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 mbpoll_args=(-m tcp -p "$port") mbpoll_target=127.0.0.1
 

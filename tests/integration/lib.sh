@@ -120,6 +120,21 @@ start_copley() {
     serial: {device: $2, baud: 115200}"
 }
 
+# copley_units SIM [TIMING [NODES]]: the Copley simulator with nodes 0 and 3 on $dir/copley0 and
+# the config $dir/gw.yaml serving them as a0 (unit 1) and a3 (unit 2), as mbpoll_basics expects;
+# TIMING (the bus's timing map) and NODES (further node lines) go into the bus.
+copley_units() {
+  start_copley "$1" "$dir/copley0" 0,3 "$dir/sim.log"
+  {
+    echo "$copley_bus"
+    [ -z "${2:-}" ] || echo "    timing: $2"
+    echo "    nodes:"
+    echo "      - {name: a0, address: 0, model: copley-amplifier, unit_id: 1}"
+    echo "      - {name: a3, address: 3, model: copley-amplifier, unit_id: 2}"
+    [ -z "${3:-}" ] || echo "$3"
+  } | gateway_config "$dir/gw.yaml"
+}
+
 # mbpoll_basics LABEL: what every Modbus master checks first on Copley units 1 and 2 (as mb
 # reaches them): unit 2 polled, unit 1's position, unit 2's online flag, a 32-bit setpoint
 # written and read back.

@@ -7,13 +7,7 @@ fieldgate=$1 sim=$2 models=$3
 source "$(dirname "$0")/lib.sh"
 scratch_dir
 
-start_copley "$sim" "$dir/copley0" 0,3 "$dir/sim.log"
-gateway_config "$dir/gw.yaml" <<YAML
-$copley_bus
-    nodes:
-      - {name: a0, address: 0, model: copley-amplifier, unit_id: 1}
-      - {name: a3, address: 3, model: copley-amplifier, unit_id: 2}
-YAML
+copley_units "$sim"
 "$fieldgate" map "$dir/gw.yaml" --format csv >"$dir/map.csv"
 "$fieldgate" map "$dir/gw.yaml" --format md >"$dir/map.md"
 grep -q '^| holding registers | 100 | 40101 | action.command |' "$dir/map.md" || { echo "FAIL: markdown lacks the action register"; exit 1; }

@@ -56,6 +56,17 @@ def wait_for(pred, timeout=15.0):
     return pred()
 
 
+def stop_processes(*processes):
+    """Terminates each process still running; one that does not exit within 10 s is killed."""
+    for p in processes:
+        if p.poll() is None:
+            p.terminate()
+            try:
+                p.wait(10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
 class Broker:
     def __init__(self, d, port, conf=None):
         self.port = port
@@ -219,13 +230,7 @@ sparkplug:
         return wait_for(port, 10)
 
     def stop(self):
-        for p in (self.daemon, self.sim):
-            if p.poll() is None:
-                p.terminate()
-                try:
-                    p.wait(10)
-                except subprocess.TimeoutExpired:
-                    p.kill()
+        stop_processes(self.daemon, self.sim)
 
 
 def load_model(name):
@@ -280,22 +285,44 @@ def dump_logs(gateways):
             print("".join(open(os.path.join(g.dir, link + ".log")).readlines()[-15:]))
 
 
-def single(d):
+def start_session(d):
+    """A Mosquitto broker on a free loopback port and a host connected to it."""
     port = free_port()
     broker = Broker(d, port)
     broker.start()
     host = Host(port)
     wait_for(lambda: host.client.is_connected(), 5)
+    return port, broker, host
+
+
+def end_session(host, broker, gateways, broker_log=False):
+    """Logs if anything failed, then every gateway, the host and the broker stopped."""
+    if failures:
+        dump_logs(gateways)
+        if broker_log:
+            print("--- mosquitto log ---")
+            print(open(broker.log.name).read()[-3000:])
+    for g in gateways:
+        g.stop()
+    host.client.loop_stop()
+    broker.stop()
+
+
+def check_devices(host, kind, edge, devices, name, after=0, timeout=15.0):
+    """For each device in turn, checks that the host sees its `kind` message (DBIRTH, DDEATH)
+    after message `after`; name(device) names the check."""
+    for dev in devices:
+        check(name(dev), host.wait(topic(kind, edge, dev), after=after, timeout=timeout) is not None)
+
+
+def single(d):
+    port, broker, host = start_session(d)
     gw = Gateway(d, "gw1", port, [0, 3])
     try:
         run_single(host, broker, gw)
     finally:
         check_sequences(host, "gw1")
-        if failures:
-            dump_logs([gw])
-        gw.stop()
-        host.client.loop_stop()
-        broker.stop()
+        end_session(host, broker, [gw])
 
 
 def run_single(host, broker, gw):
@@ -386,8 +413,7 @@ def run_single(host, broker, gw):
     nb2 = host.wait(topic("NBIRTH", e), after=mark)
     check("NCMD rebirth gives a new NBIRTH with the same bdSeq",
           nb2 is not None and value(nb2[1], "bdSeq") == 0)
-    for d in gw.nodes:
-        check(f"rebirth: DBIRTH {d}", host.wait(topic("DBIRTH", e, d), after=mark) is not None)
+    check_devices(host, "DBIRTH", e, gw.nodes, lambda d: f"rebirth: DBIRTH {d}", after=mark)
 
     # A node switched off dies as a device; back on, it is born again.
     mark = host.count()
@@ -419,8 +445,7 @@ def run_single(host, broker, gw):
     check("broker restart: the NBIRTH counts a second MQTT session",
           nb3 is not None and value(nb3[1], "Diagnostics/MQTT connects") == 2,
           nb3 and value(nb3[1], "Diagnostics/MQTT connects"))
-    for d in gw.nodes:
-        check(f"broker restart: DBIRTH {d}", host.wait(topic("DBIRTH", e, d), after=mark) is not None)
+    check_devices(host, "DBIRTH", e, gw.nodes, lambda d: f"broker restart: DBIRTH {d}", after=mark)
     mb.close()
 
     # kill -9: the broker publishes the will, the NDEATH of this session.
@@ -434,11 +459,7 @@ def run_single(host, broker, gw):
 
 def primary(d):
     """The primary host application's STATE is honoured (Sparkplug 3.0 spBv1.0/STATE/<id>)."""
-    port = free_port()
-    broker = Broker(d, port)
-    broker.start()
-    host = Host(port)
-    wait_for(lambda: host.client.is_connected(), 5)
+    port, broker, host = start_session(d)
     gw = Gateway(d, "gw1", port, [0], extra="  primary_host_id: scada\n")
     e = gw.edge
 
@@ -475,26 +496,17 @@ def primary(d):
               host.find(topic("NDEATH", e), after=mark) is None)
     finally:
         check_sequences(host, e)
-        if failures:
-            dump_logs([gw])
-        gw.stop()
-        host.client.loop_stop()
-        broker.stop()
+        end_session(host, broker, [gw])
 
 
 def fleet(d):
-    port = free_port()
-    broker = Broker(d, port)
-    broker.start()
-    host = Host(port)
-    wait_for(lambda: host.client.is_connected(), 5)
+    port, broker, host = start_session(d)
     gws = [Gateway(d, "gw1", port, [0, 3]), Gateway(d, "gw2", port, [0, 5]),
            Gateway(d, "gw3", port, [0, 7], commands_enabled=False)]
     try:
         for g in gws:
             check(f"fleet: NBIRTH {g.edge}", host.wait(topic("NBIRTH", g.edge)) is not None)
-            for dev in g.nodes:
-                check(f"fleet: DBIRTH {dev}", host.wait(topic("DBIRTH", g.edge, dev)) is not None)
+            check_devices(host, "DBIRTH", g.edge, g.nodes, lambda dev: f"fleet: DBIRTH {dev}")
         # The default is no commands from MQTT: a DCMD is refused and counted.
         g3 = gws[2]
         mark = host.count()
@@ -524,12 +536,7 @@ def fleet(d):
     finally:
         for g in gws:
             check_sequences(host, g.edge)
-        if failures:
-            dump_logs(gws)
-        for g in gws:
-            g.stop()
-        host.client.loop_stop()
-        broker.stop()
+        end_session(host, broker, gws)
 
 
 # The simulators behind the demo plant's serial buses, started as scripts/demo starts them, by
@@ -605,13 +612,7 @@ class DemoGateway:
             sim.stdin.flush()
 
     def stop(self):
-        for p in (self.daemon, *self.sims.values()):
-            if p.poll() is None:
-                p.terminate()
-                try:
-                    p.wait(10)
-                except subprocess.TimeoutExpired:
-                    p.kill()
+        stop_processes(self.daemon, *self.sims.values())
 
 
 def demo_gateways(d, port, modbus_ports=None):
@@ -620,6 +621,11 @@ def demo_gateways(d, port, modbus_ports=None):
     return [DemoGateway(d, edge, port, [by_name[b] for b in buses],
                         **({"modbus": f"127.0.0.1:{modbus_ports[i]}"} if modbus_ports else {}))
             for i, (edge, buses) in enumerate(DEMO_SPLIT.items())]
+
+
+def demo_present(g):
+    """The nodes of a demo edge node that are on their simulated bus."""
+    return [dev for dev in g.nodes if dev not in DEMO_ABSENT]
 
 
 def latest(host, edge, dev, name, after=0):
@@ -769,11 +775,7 @@ def wrap_sequence(host, g, dev, name, base):
 
 
 def demo_fleet(d):
-    port = free_port()
-    broker = Broker(d, port)
-    broker.start()
-    host = Host(port)
-    wait_for(lambda: host.client.is_connected(), 5)
+    port, broker, host = start_session(d)
     gws = demo_gateways(d, port)
     try:
         run_demo_fleet(host, gws)
@@ -781,12 +783,7 @@ def demo_fleet(d):
         for g in gws:
             check_sequences(host, g.edge)
             check_lifecycle(host, g.edge, list(g.nodes))
-        if failures:
-            dump_logs(gws)
-        for g in gws:
-            g.stop()
-        host.client.loop_stop()
-        broker.stop()
+        end_session(host, broker, gws)
 
 
 def run_demo_fleet(host, gws):
@@ -826,26 +823,17 @@ def run_demo_fleet(host, gws):
     # Every simulator silenced: every node of every family dies; back, every node is born again.
     # First every node is alive (a node that went offline on its own is born again meanwhile).
     for g in gws:
-        for dev in g.nodes:
-            if dev not in DEMO_ABSENT:
-                check(f"{g.edge}: {dev} is alive before the silence",
-                      wait_for(lambda: alive(host, g.edge, dev), 20))
-    mark = host.count()
-    for g in gws:
-        g.control("silence on")
-    for g in gws:
-        for dev in g.nodes:
-            if dev not in DEMO_ABSENT:
-                check(f"{g.edge}: DDEATH {dev} when its simulator is silenced",
-                      host.wait(topic("DDEATH", g.edge, dev), after=mark, timeout=20) is not None)
-    mark = host.count()
-    for g in gws:
-        g.control("silence off")
-    for g in gws:
-        for dev in g.nodes:
-            if dev not in DEMO_ABSENT:
-                check(f"{g.edge}: DBIRTH {dev} when its simulator answers again",
-                      host.wait(topic("DBIRTH", g.edge, dev), after=mark, timeout=20) is not None)
+        for dev in demo_present(g):
+            check(f"{g.edge}: {dev} is alive before the silence",
+                  wait_for(lambda: alive(host, g.edge, dev), 20))
+    for control, kind, when in (("silence on", "DDEATH", "when its simulator is silenced"),
+                                ("silence off", "DBIRTH", "when its simulator answers again")):
+        mark = host.count()
+        for g in gws:
+            g.control(control)
+        for g in gws:
+            check_devices(host, kind, g.edge, demo_present(g),
+                          lambda dev: f"{g.edge}: {kind} {dev} {when}", after=mark, timeout=20)
 
     # kill -9: the broker publishes each daemon's will, its NDEATH.
     mark = host.count()
@@ -1011,14 +999,7 @@ keyfile {srv_key}
             check(f"tls: {why}: Modbus serves the node", regs is not None)
     finally:
         check_sequences(host, gws[0].edge)
-        if failures:
-            dump_logs(gws)
-            print("--- mosquitto log ---")
-            print(open(os.path.join(d, "mosquitto.log")).read()[-3000:])
-        for g in gws:
-            g.stop()
-        host.client.loop_stop()
-        broker.stop()
+        end_session(host, broker, gws, broker_log=True)
 
 
 with tempfile.TemporaryDirectory() as d:

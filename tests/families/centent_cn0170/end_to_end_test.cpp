@@ -177,10 +177,7 @@ TEST_F(CententEndToEnd, MoveOnUnit2WhileUnits0And1KeepUpdating) {
 TEST_F(CententEndToEnd, MissingUnitGoesOfflineWithoutStallingTheChain) {
   start("0,1,2,4", {0, 1, 2, 3});
   wait_online({1, 2, 3});
-  ASSERT_TRUE(wait_until([&] {
-    auto d = client_->read_input(4, kDiagNodeState, 1);
-    return d.ok() && d.values[0] == 2;
-  }));
+  ASSERT_TRUE(wait_until([&] { return input(4, kDiagNodeState) == 2; }));
   EXPECT_EQ(client_->read_input(4, kXPosition, 2).exception, kTargetFailed);
   EXPECT_EQ(client_->write_single(4, kCommand, kMoveXAbsolute).exception, kTargetFailed);
   for (int i = 0; i < 5; ++i) {
@@ -201,12 +198,7 @@ TEST_F(CententEndToEnd, UnsolicitedResetResynchronisesTheSelection) {
   start("0,1,2", {0, 1, 2});
   wait_online({1, 2, 3});
   EXPECT_EQ(plant_->control("reset 1"), "ok reset 1");
-  ASSERT_TRUE(wait_until(
-      [&] {
-        auto r = client_->read_input(2, kResets, 1);
-        return r.ok() && r.values[0] == 1;
-      },
-      5s));
+  ASSERT_TRUE(wait_until([&] { return input(2, kResets) == 1; }, 5s));
   // Every unit answers again, with fresh positions.
   std::this_thread::sleep_for(500ms);
   for (int id : {1, 2, 3}) EXPECT_LT(age_ms(id).value_or(~0u), 400u) << "unit id " << id;
@@ -244,22 +236,12 @@ TEST_F(CententEndToEnd, RefusalsAnswer04WithTheFamilyCode) {
   EXPECT_EQ(client_->read_holding(1, kActionError, 1).values, std::vector<uint16_t>{4});
   // Queue nearly full (Q*): moves are refused until *Q.
   plant_->control("emit 1 Q*");
-  ASSERT_TRUE(wait_until(
-      [&] {
-        auto r = client_->read_input(2, kQueueFull, 1);
-        return r.ok() && r.values[0] == 1;
-      },
-      5s));
+  ASSERT_TRUE(wait_until([&] { return input(2, kQueueFull) == 1; }, 5s));
   EXPECT_EQ(client_->read_input(2, kOverflowWarnings, 1).values, std::vector<uint16_t>{1});
   EXPECT_EQ(client_->write_single(2, kCommand, kMoveXAbsolute).exception, kDeviceFailure);
   EXPECT_EQ(client_->read_holding(2, kActionError, 1).values, std::vector<uint16_t>{2});
   plant_->control("emit 1 *Q");
-  ASSERT_TRUE(wait_until(
-      [&] {
-        auto r = client_->read_input(2, kQueueFull, 1);
-        return r.ok() && r.values[0] == 0;
-      },
-      5s));
+  ASSERT_TRUE(wait_until([&] { return input(2, kQueueFull) == 0; }, 5s));
   EXPECT_TRUE(client_->write_single(2, kCommand, kMoveXAbsolute).ok());
 }
 

@@ -1,10 +1,13 @@
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <boost/asio/co_spawn.hpp>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/use_future.hpp>
 
 #include <chrono>
+#include <cstdint>
 #include <future>
 #include <memory>
 #include <string>
@@ -50,6 +53,15 @@ class ImsChainBench {
 
   Reply transact(char name, const Request& r) {
     return run(family_.transact(*link_, unit(name), r, timing_));
+  }
+
+  // Places B at -2500 and C at 777 (A stays at 0) and checks that each axis answers Z with its own.
+  void expect_each_axis_reads_its_position() {
+    control("position", {"B", "-2500"});
+    control("position", {"C", "777"});
+    EXPECT_EQ(transact('A', read("Z")).values, std::vector<int64_t>{0});
+    EXPECT_EQ(transact('B', read("Z")).values, std::vector<int64_t>{-2500});
+    EXPECT_EQ(transact('C', read("Z")).values, std::vector<int64_t>{777});
   }
 
   sim::ims::PartyLine& chain() { return transport_->chain(); }

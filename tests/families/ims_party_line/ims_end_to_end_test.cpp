@@ -103,10 +103,7 @@ TEST_F(ImsEndToEnd, SecondMoveWhileMovingIsRefused) {
 }
 
 TEST_F(ImsEndToEnd, MissingNameGoesOfflineWithoutSlowingTheOthers) {
-  ASSERT_TRUE(wait_until([&] {
-    auto d = client_->read_input(4, kDiagNodeState, 1);
-    return d.ok() && d.values[0] == 2;
-  }));
+  ASSERT_TRUE(wait_until([&] { return input(4, kDiagNodeState) == 2; }));
   EXPECT_EQ(client_->read_input(4, kPosition, 2).exception, kTargetFailed);
   EXPECT_EQ(client_->write_single(4, kCommand, kMoveAbsolute).exception, kTargetFailed);
   EXPECT_EQ(client_->read_input(4, kDiagOnline, 1).values, std::vector<uint16_t>{0});

@@ -131,11 +131,7 @@ class ImsTransact : public ::testing::Test, protected test::ImsChainBench {
 };
 
 TEST_F(ImsTransact, ReadsEveryAxisOnTheChain) {
-  control("position", {"B", "-2500"});
-  control("position", {"C", "777"});
-  EXPECT_EQ(transact('A', read("Z")).values, std::vector<int64_t>{0});
-  EXPECT_EQ(transact('B', read("Z")).values, std::vector<int64_t>{-2500});
-  EXPECT_EQ(transact('C', read("Z")).values, std::vector<int64_t>{777});
+  expect_each_axis_reads_its_position();
   EXPECT_EQ(transact('A', read("^")).values, std::vector<int64_t>{0});
   EXPECT_EQ(transport_->writes().back(), "A^\n");
 }

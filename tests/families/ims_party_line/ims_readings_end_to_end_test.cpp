@@ -84,12 +84,7 @@ TEST_P(ImsReadingEndToEnd, ReadsMovesAndReadsBack) {
       << "every node online with its position";
   ASSERT_TRUE(client_->write_i32(2, kTarget, 1500).ok());
   ASSERT_TRUE(client_->write_single(2, kCommand, kMoveAbsolute).ok());
-  ASSERT_TRUE(wait_until(
-      [&] {
-        auto r = client_->read_holding(2, kActionStatus, 1);
-        return r.ok() && r.values[0] == 2;
-      },
-      60s));
+  ASSERT_TRUE(wait_until([&] { return holding(2, kActionStatus) == 2; }, 60s));
   EXPECT_EQ(client_->read_input_i32(2, kPosition), 1500);
   EXPECT_EQ(client_->read_input_i32(1, kPosition), 1000);
   ASSERT_TRUE(wait_until(

@@ -211,11 +211,7 @@ class ImsEveryReading : public ChainFixture, public ::testing::TestWithParam<Rea
 };
 
 TEST_P(ImsEveryReading, ReadsMovesAndReadsBack) {
-  control("position", {"B", "-2500"});
-  control("position", {"C", "777"});
-  EXPECT_EQ(transact('A', read("Z")).values, std::vector<int64_t>{0});
-  EXPECT_EQ(transact('B', read("Z")).values, std::vector<int64_t>{-2500});
-  EXPECT_EQ(transact('C', read("Z")).values, std::vector<int64_t>{777});
+  expect_each_axis_reads_its_position();
   // The model's move_absolute: V, K, R; then ^ until idle, then Z.
   for (const char* step : {"V5000", "K0 0", "R1500"}) {
     const Reply r = transact('A', write(step));
