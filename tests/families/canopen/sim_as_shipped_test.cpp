@@ -15,9 +15,7 @@ namespace {
 using namespace std::chrono_literals;
 
 NodeConfig shipped() {
-  NodeConfig c;
-  c.heartbeat_ms = 0;
-  return c;
+  return with_heartbeat_ms(0);
 }
 
 TEST(SimAsShipped, NoHeartbeatUntilAMasterSets1017) {

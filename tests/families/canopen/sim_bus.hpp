@@ -20,6 +20,13 @@
 
 namespace fieldgate::sim::canopen {
 
+// A node configuration whose heartbeat producer time (0x1017) at power-up is ms.
+inline NodeConfig with_heartbeat_ms(std::uint16_t ms) {
+  NodeConfig config;
+  config.heartbeat_ms = ms;
+  return config;
+}
+
 class SimBus {
  public:
   explicit SimBus(NodeConfig config, std::vector<std::uint8_t> ids = {2})

@@ -16,18 +16,12 @@ namespace {
 
 using namespace std::chrono_literals;
 
-// These device tests were written against a node producing a 1000 ms heartbeat from power-up,
-// not the CiA 301 default of none.
-NodeConfig with_heartbeat() {
-  NodeConfig config;
-  config.heartbeat_ms = 1000;
-  return config;
-}
-
-// The device tests' bus: node 2 (or the given nodes) with the 1000 ms heartbeat.
+// The device tests' bus: node 2 (or the given nodes). These tests were written against a node
+// producing a 1000 ms heartbeat from power-up, not the CiA 301 default of none.
 class Bus : public SimBus {
  public:
-  explicit Bus(std::vector<std::uint8_t> ids = {2}) : SimBus(with_heartbeat(), std::move(ids)) {}
+  explicit Bus(std::vector<std::uint8_t> ids = {2})
+      : SimBus(with_heartbeat_ms(1000), std::move(ids)) {}
 };
 
 std::string abort_frame(const std::string& mux, std::uint32_t code) {
