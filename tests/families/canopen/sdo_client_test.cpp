@@ -199,18 +199,21 @@ TEST(SdoClient, UnknownCommandSpecifierIsAborted) {
   c.download(0x6040, 0, {6, 0}, t0);
   s = c.on_frame(frame("582#4B40600006000000"), t0);  // an upload response
   EXPECT_EQ(sent(s), "602#8040600001000405");
+  ASSERT_TRUE(s.done);
   EXPECT_EQ(s.done->status, SdoResult::Status::client_abort);
 
   c.upload(0x1008, 0, t0);
   c.on_frame(frame("582#410810001B000000"), t0);
   s = c.on_frame(frame("582#2000000000000000"), t0);  // download segment response
   EXPECT_EQ(sent(s), "602#8008100001000405");
+  ASSERT_TRUE(s.done);
   EXPECT_EQ(s.done->status, SdoResult::Status::client_abort);
 
   c.download(0x2000, 0, bytes("fieldgate"), t0);
   c.on_frame(frame("582#6000200000000000"), t0);
   s = c.on_frame(frame("582#4300200000000000"), t0);
   EXPECT_EQ(sent(s), "602#8000200001000405");
+  ASSERT_TRUE(s.done);
   EXPECT_EQ(s.done->status, SdoResult::Status::client_abort);
 }
 
@@ -229,6 +232,7 @@ TEST(SdoClient, DownloadToggleErrorIsAborted) {
   c.on_frame(frame("582#6000200000000000"), t0);
   auto s = c.on_frame(frame("582#3000000000000000"), t0);  // toggle 1 where 0 is due
   EXPECT_EQ(sent(s), "602#8000200000000305");
+  ASSERT_TRUE(s.done);
   EXPECT_EQ(s.done->abort_code, 0x05030000u);
 }
 
@@ -255,6 +259,7 @@ TEST(SdoClient, HugeUploadIsAborted) {
   c.upload(0x2000, 0, t0);
   auto s = c.on_frame(frame("583#4100200000000001"), t0);  // 16 MiB announced
   EXPECT_EQ(sent(s), "603#8000200005000405");              // 0x05040005 out of memory
+  ASSERT_TRUE(s.done);
   EXPECT_EQ(s.done->abort_code, 0x05040005u);
 }
 

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <thread>
 
+#include "copley_amplifiers.hpp"
 #include "harness.hpp"
 #include "plant_test.hpp"
 
@@ -33,16 +34,14 @@ constexpr int kEnable = 1, kMoveAbsolute = 3;
 constexpr int kIllegalFunction = 0x01, kIllegalAddress = 0x02, kIllegalValue = 0x03,
               kDeviceFailure = 0x04, kPathUnavailable = 0x0A, kTargetFailed = 0x0B;
 
-const char* kNodes =
-    "      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1}\n"
-    "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2}\n"
-    "      - {name: amp5, address: 5, model: copley-amplifier, unit_id: 3}\n"
+// Configured, but not on the simulated line.
+const char* kAbsentAmplifier =
     "      - {name: amp7, address: 7, model: copley-amplifier, unit_id: 4}\n";
 
 class CopleyEndToEnd : public PlantTest {
  protected:
   void SetUp() override {
-    start(std::make_unique<CopleyPlant>("0,3,5", kNodes));
+    start(amplifier_plant(kAbsentAmplifier));
     // Position, velocity, event and trajectory status: the fast poll class, all polled once.
     wait_inputs({1, 2, 3}, kPosition, 7);
   }

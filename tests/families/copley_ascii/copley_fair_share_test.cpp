@@ -5,6 +5,7 @@
 #include <atomic>
 #include <thread>
 
+#include "copley_amplifiers.hpp"
 #include "harness.hpp"
 #include "plant_test.hpp"
 
@@ -26,13 +27,9 @@ class CopleyFairShare : public PlantTest {
     SimulatedBus bus;
     bus.name = "copley";
     bus.protocol = "copley-ascii";
-    bus.sim_argv = {
-        FIELDGATE_SIM_COPLEY, "--link", "{link}", "--nodes", "0,3,5", "--baud", "115200",
-        "--emulate-wire"};
-    bus.nodes =
-        "      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1}\n"
-        "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2}\n"
-        "      - {name: amp5, address: 5, model: copley-amplifier, unit_id: 3}\n";
+    bus.sim_argv = {FIELDGATE_SIM_COPLEY, "--link", "{link}", "--nodes",
+                    kAmplifierAddresses,  "--baud", "115200", "--emulate-wire"};
+    bus.nodes = kAmplifierNodes;
     start({bus});
     wait_inputs({1, 2, 3}, kPosition, 2);
   }

@@ -14,6 +14,7 @@
 #include <random>
 #include <thread>
 
+#include "copley_amplifiers.hpp"
 #include "harness.hpp"
 #include "plant_test.hpp"
 
@@ -43,8 +44,8 @@ class CopleyFaultProperty : public PlantFixture<::testing::TestWithParam<FaultRu
     SimulatedBus bus;
     bus.name = "copley";
     bus.protocol = "copley-ascii";
-    bus.sim_argv = {FIELDGATE_SIM_COPLEY, "--link",       "{link}", "--nodes", "0,3,5",
-                    "--journal",          "{dir}/journal"};
+    bus.sim_argv = {FIELDGATE_SIM_COPLEY, "--link",    "{link}",       "--nodes",
+                    kAmplifierAddresses,  "--journal", "{dir}/journal"};
     if (run.slow_wire) {
       for (const char* a : {"--baud", "9600", "--emulate-wire"}) bus.sim_argv.push_back(a);
       bus.serial = "baud: 9600";
@@ -54,10 +55,7 @@ class CopleyFaultProperty : public PlantFixture<::testing::TestWithParam<FaultRu
         // counts attempts); the property is about the exchanges, so keep them online.
         "reply_timeout: 100ms, byte_timeout: 10ms, retries: 1, offline_after: 10, "
         "probe_interval: 300ms";
-    bus.nodes =
-        "      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1}\n"
-        "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2}\n"
-        "      - {name: amp5, address: 5, model: copley-amplifier, unit_id: 3}\n";
+    bus.nodes = kAmplifierNodes;
     start({bus});
     plant_->sim().send_line("inputs 0 0x11");
     plant_->sim().send_line("inputs 3 0x22");

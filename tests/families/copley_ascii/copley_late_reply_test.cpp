@@ -3,6 +3,7 @@
 // daemon and the Copley simulator.
 #include <gtest/gtest.h>
 
+#include "copley_amplifiers.hpp"
 #include "harness.hpp"
 #include "plant_test.hpp"
 
@@ -16,15 +17,10 @@ constexpr int kPosition = 0;      // input 0-1: motor_position
 constexpr int kDiagUnknownWrites = 1015;
 constexpr int kDeviceFailure = 0x04, kTargetFailed = 0x0B;
 
-const char* kNodes =
-    "      - {name: amp0, address: 0, model: copley-amplifier, unit_id: 1}\n"
-    "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2}\n"
-    "      - {name: amp5, address: 5, model: copley-amplifier, unit_id: 3}\n";
-
 class CopleyLateReply : public PlantTest {
  protected:
   void SetUp() override {
-    start(std::make_unique<CopleyPlant>("0,3,5", kNodes));
+    start(amplifier_plant());
     wait_inputs({1, 2, 3}, kPosition, 2);
   }
 };
