@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "gateway/bus/node_image_setup.hpp"
 #include "gateway/bus/reply_accounting.hpp"
 #include "gateway/lifecycle/log.hpp"
 
@@ -158,13 +159,8 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
     auto rt = std::make_unique<NodeRuntime>(*this, executor, nc, timing);
     auto& n = *rt;
     n.index = index;
-    n.image = std::make_shared<NodeImage>();
+    n.image = make_node_image(nc);
     const Model& model = *nc.model;
-    n.image->points.assign(model.points.size(), {});
-    for (const auto& s : model.setpoints) {
-      const auto it = nc.setpoints.find(s.name);
-      n.image->setpoints.push_back(it != nc.setpoints.end() ? it->second : s.default_value);
-    }
     for (const uint32_t cob : family_.receive_ids(nc.address, model)) by_cob_[cob] = &n;
 
     // One poll item per object and period: points that share an object share its upload.

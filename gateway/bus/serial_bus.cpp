@@ -9,6 +9,7 @@
 #include "drivers/printable_bytes.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/tcp_transport.hpp"
+#include "gateway/bus/node_image_setup.hpp"
 #include "gateway/bus/reply_accounting.hpp"
 #include "gateway/lifecycle/log.hpp"
 
@@ -76,15 +77,9 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
     rt.config = &n;
     rt.timing = node_link_timing(config, n);
     rt.family_context = family_.bind_node(n.address, *n.model);
-    rt.image = std::make_shared<NodeImage>();
+    rt.image = make_node_image(n);
     nodes_.push_back(rt);
     auto& img = *rt.image;
-    img.points.assign(n.model->points.size(), {});
-    img.setpoints.clear();
-    for (const auto& s : n.model->setpoints) {
-      const auto it = n.setpoints.find(s.name);
-      img.setpoints.push_back(it != n.setpoints.end() ? it->second : s.default_value);
-    }
     // One poll item per distinct request: points that share a reply share a transaction.
     std::vector<PollItem> items;
     for (std::size_t p = 0; p < n.model->points.size(); ++p) {
