@@ -3,13 +3,13 @@
 #include <boost/asio/as_tuple.hpp>
 #include <boost/asio/co_spawn.hpp>
 #include <boost/asio/detached.hpp>
-#include <boost/asio/experimental/channel.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
 #include <algorithm>
 #include <stdexcept>
 
 #include "gateway/bus/node_image_setup.hpp"
+#include "gateway/bus/pending_command.hpp"
 #include "gateway/bus/reply_accounting.hpp"
 #include "gateway/lifecycle/log.hpp"
 
@@ -32,13 +32,6 @@ const FrameFamily& frame_family(const BusConfig& config) {
   return *family;
 }
 }  // namespace
-
-struct CanBus::PendingCommand {
-  explicit PendingCommand(asio::any_io_executor ex) : done(ex, 1) {}
-  Request request;
-  CommandOptions options;
-  asio::experimental::channel<void(boost::system::error_code, Reply)> done;
-};
 
 struct CanBus::NodeRuntime final : RequestHost {
   NodeRuntime(CanBus& bus, asio::any_io_executor ex, const NodeConfig& nc,
@@ -347,8 +340,7 @@ void CanBus::link_failed(std::error_code ec) {
 void CanBus::fail_commands(std::string_view why) {
   for (auto& n : nodes_) {
     while (!n->commands.empty()) {
-      n->commands.front()->done.try_send(boost::system::error_code{},
-                                         Reply::of(Reply::Status::unreachable, std::string(why)));
+      n->commands.front()->answer(Reply::of(Reply::Status::unreachable, std::string(why)));
       n->commands.pop_front();
     }
     n->urgent_waiting = false;
@@ -580,9 +572,7 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
     n.commands.push_back(cmd);
   }
   n.wake.cancel();
-  auto [ec, reply] = co_await cmd->done.async_receive(use_tuple);
-  if (ec) co_return Reply::of(Reply::Status::link_down, "gateway stopping");
-  co_return reply;
+  co_return co_await cmd->reply();
 }
 
 // --- node worker -----------------------------------------------------------------------------
@@ -635,7 +625,7 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
         reply = co_await n.requests.execute(cmd->request, cmd->options.accept_no_reply,
                                             BusClock::now());
       }
-      cmd->done.try_send(boost::system::error_code{}, std::move(reply));
+      cmd->answer(std::move(reply));
       continue;
     }
     const auto now = known_now ? *known_now : BusClock::now();
@@ -672,7 +662,7 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
     if (expired) known_now = when;
   }
   while (!n.commands.empty()) {
-    n.commands.front()->done.try_send(asio::error::operation_aborted, Reply{});
+    n.commands.front()->abandon();
     n.commands.pop_front();
   }
   --workers_running_;
