@@ -3,12 +3,13 @@
 #include <boost/asio/as_tuple.hpp>
 #include <boost/asio/co_spawn.hpp>
 #include <boost/asio/detached.hpp>
-#include <boost/asio/experimental/channel.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
 #include <algorithm>
 #include <stdexcept>
 
+#include "gateway/bus/node_image_setup.hpp"
+#include "gateway/bus/pending_command.hpp"
 #include "gateway/bus/reply_accounting.hpp"
 #include "gateway/lifecycle/log.hpp"
 
@@ -31,13 +32,6 @@ const FrameFamily& frame_family(const BusConfig& config) {
   return *family;
 }
 }  // namespace
-
-struct CanBus::PendingCommand {
-  explicit PendingCommand(asio::any_io_executor ex) : done(ex, 1) {}
-  Request request;
-  CommandOptions options;
-  asio::experimental::channel<void(boost::system::error_code, Reply)> done;
-};
 
 struct CanBus::NodeRuntime final : RequestHost {
   NodeRuntime(CanBus& bus, asio::any_io_executor ex, const NodeConfig& nc,
@@ -158,13 +152,8 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
     auto rt = std::make_unique<NodeRuntime>(*this, executor, nc, timing);
     auto& n = *rt;
     n.index = index;
-    n.image = std::make_shared<NodeImage>();
+    n.image = make_node_image(nc);
     const Model& model = *nc.model;
-    n.image->points.assign(model.points.size(), {});
-    for (const auto& s : model.setpoints) {
-      const auto it = nc.setpoints.find(s.name);
-      n.image->setpoints.push_back(it != nc.setpoints.end() ? it->second : s.default_value);
-    }
     for (const uint32_t cob : family_.receive_ids(nc.address, model)) by_cob_[cob] = &n;
 
     // One poll item per object and period: points that share an object share its upload.
@@ -351,8 +340,7 @@ void CanBus::link_failed(std::error_code ec) {
 void CanBus::fail_commands(std::string_view why) {
   for (auto& n : nodes_) {
     while (!n->commands.empty()) {
-      n->commands.front()->done.try_send(boost::system::error_code{},
-                                         Reply::of(Reply::Status::unreachable, std::string(why)));
+      n->commands.front()->answer(Reply::of(Reply::Status::unreachable, std::string(why)));
       n->commands.pop_front();
     }
     n->urgent_waiting = false;
@@ -584,9 +572,7 @@ asio::awaitable<Reply> CanBus::submit(int node_index, Request request, CommandOp
     n.commands.push_back(cmd);
   }
   n.wake.cancel();
-  auto [ec, reply] = co_await cmd->done.async_receive(use_tuple);
-  if (ec) co_return Reply::of(Reply::Status::link_down, "gateway stopping");
-  co_return reply;
+  co_return co_await cmd->reply();
 }
 
 // --- node worker -----------------------------------------------------------------------------
@@ -639,7 +625,7 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
         reply = co_await n.requests.execute(cmd->request, cmd->options.accept_no_reply,
                                             BusClock::now());
       }
-      cmd->done.try_send(boost::system::error_code{}, std::move(reply));
+      cmd->answer(std::move(reply));
       continue;
     }
     const auto now = known_now ? *known_now : BusClock::now();
@@ -676,7 +662,7 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
     if (expired) known_now = when;
   }
   while (!n.commands.empty()) {
-    n.commands.front()->done.try_send(asio::error::operation_aborted, Reply{});
+    n.commands.front()->abandon();
     n.commands.pop_front();
   }
   --workers_running_;

@@ -20,6 +20,7 @@
 #include "drivers/frame_family.hpp"
 #include "drivers/transport/socketcan_transport.hpp"
 #include "gateway/bus/bus.hpp"
+#include "gateway/bus/pending_command.hpp"
 #include "gateway/bus/poll_plan.hpp"
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/config/gateway_config.hpp"
@@ -67,7 +68,6 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   NodeStatus node_status(int node_index) const;
 
  private:
-  struct PendingCommand;
   struct NodeRuntime;
 
   asio::awaitable<void> read_loop();

@@ -9,6 +9,8 @@
 #include "drivers/printable_bytes.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/tcp_transport.hpp"
+#include "gateway/bus/node_image_setup.hpp"
+#include "gateway/bus/pending_command.hpp"
 #include "gateway/bus/reply_accounting.hpp"
 #include "gateway/lifecycle/log.hpp"
 
@@ -34,14 +36,6 @@ ProtocolFamily& stream_family(const BusConfig& config) {
 }
 
 }  // namespace
-
-struct SerialBus::PendingCommand {
-  PendingCommand(asio::any_io_executor ex) : done(ex, 1) {}
-  int node = 0;
-  Request request;
-  CommandOptions options;
-  asio::experimental::channel<void(boost::system::error_code, Reply)> done;
-};
 
 SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
                      const BusConfig& config, int first_node_index, NodeUpdated on_update)
@@ -76,15 +70,9 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
     rt.config = &n;
     rt.timing = node_link_timing(config, n);
     rt.family_context = family_.bind_node(n.address, *n.model);
-    rt.image = std::make_shared<NodeImage>();
+    rt.image = make_node_image(n);
     nodes_.push_back(rt);
     auto& img = *rt.image;
-    img.points.assign(n.model->points.size(), {});
-    img.setpoints.clear();
-    for (const auto& s : n.model->setpoints) {
-      const auto it = n.setpoints.find(s.name);
-      img.setpoints.push_back(it != n.setpoints.end() ? it->second : s.default_value);
-    }
     // One poll item per distinct request: points that share a reply share a transaction.
     std::vector<PollItem> items;
     for (std::size_t p = 0; p < n.model->points.size(); ++p) {
@@ -175,12 +163,10 @@ asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, Comman
   cmd->options = options;
   commands_.push_back(cmd);
   wake_.cancel();
-  auto [ec, reply] = co_await cmd->done.async_receive(use_tuple);
-  if (ec) co_return Reply::of(Reply::Status::link_down, "gateway stopping");
-  co_return reply;
+  co_return co_await cmd->reply();
 }
 
-std::shared_ptr<SerialBus::PendingCommand> SerialBus::take_command() {
+std::shared_ptr<PendingCommand> SerialBus::take_command() {
   // A bus-wide command (a global stop) first; otherwise round-robin over nodes, in order of
   // arrival within a node, so one unit flooded with writes does not delay the others' commands.
   auto pick = commands_.begin();
@@ -395,8 +381,7 @@ asio::awaitable<void> SerialBus::open_link() {
     }
     all_nodes_offline("bus link is down");
     while (!commands_.empty()) {
-      commands_.front()->done.try_send(boost::system::error_code{},
-                                       Reply::of(Reply::Status::unreachable, "bus link is down"));
+      commands_.front()->answer(Reply::of(Reply::Status::unreachable, "bus link is down"));
       commands_.pop_front();
     }
     wake_.expires_after(delay);
@@ -474,7 +459,7 @@ asio::awaitable<void> SerialBus::run() {
                        ")";
         }
       }
-      cmd->done.try_send(boost::system::error_code{}, std::move(reply));
+      cmd->answer(std::move(reply));
       continue;
     }
     commands_in_row_ = 0;
@@ -494,7 +479,7 @@ asio::awaitable<void> SerialBus::run() {
     co_await wake_.async_wait(use_tuple);
   }
   while (!commands_.empty()) {
-    commands_.front()->done.try_send(asio::error::operation_aborted, Reply{});
+    commands_.front()->abandon();
     commands_.pop_front();
   }
 }

@@ -2,7 +2,6 @@
 
 #include <boost/asio/any_io_executor.hpp>
 #include <boost/asio/awaitable.hpp>
-#include <boost/asio/experimental/channel.hpp>
 #include <boost/asio/steady_timer.hpp>
 
 #include <deque>
@@ -14,6 +13,7 @@
 #include "drivers/protocol_family.hpp"
 #include "drivers/transport/byte_transport.hpp"
 #include "gateway/bus/bus.hpp"
+#include "gateway/bus/pending_command.hpp"
 #include "gateway/bus/poll_plan.hpp"
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/config/gateway_config.hpp"
@@ -50,7 +50,6 @@ class SerialBus final : public Bus {
   void rebind(int first_node_index, NodeUpdated on_update) override;
 
  private:
-  struct PendingCommand;
   struct NodeRuntime {
     int index = 0;  // position on this bus
     const NodeConfig* config = nullptr;

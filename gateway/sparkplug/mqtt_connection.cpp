@@ -98,14 +98,11 @@ void MqttConnection::restart() {
 
 void MqttConnection::resolve_and_connect() {
   if (!running_) return;
-  auto epoch = std::weak_ptr<int>(epoch_);
-  const int seen = *epoch_;
   resolver_.async_resolve(
       config_.host, std::to_string(config_.port),
-      [this, epoch, seen](const boost::system::error_code& ec,
-                          asio::ip::tcp::resolver::results_type results) {
-        const auto e = epoch.lock();
-        if (!e || *e != seen || !running_) return;
+      [this, epoch = mark_epoch()](const boost::system::error_code& ec,
+                                   asio::ip::tcp::resolver::results_type results) {
+        if (!epoch.current() || !running_) return;
         if (ec || results.empty()) {
           ++stats_.connect_failures;
           log::warning("sparkplug: cannot resolve broker {}: {}", config_.host, ec.message());
@@ -158,17 +155,14 @@ void MqttConnection::watch_socket() {
 }
 
 void MqttConnection::wait_readable() {
-  auto epoch = std::weak_ptr<int>(epoch_);
-  const int seen = *epoch_;
   socket_.async_wait(asio::posix::stream_descriptor::wait_read,
-                     [this, epoch, seen](const boost::system::error_code& ec) {
-                       const auto e = epoch.lock();
-                       if (ec || !e || *e != seen) return;
+                     [this, epoch = mark_epoch()](const boost::system::error_code& ec) {
+                       if (ec || !epoch.current()) return;
                        // One packet per call: packets already in the socket buffer raise
                        // no new readiness, so they are read now.
                        for (int n = 0; n < 64; ++n) {
                          check(mosquitto_loop_read(mosq_, 1), "read");
-                         if (*e != seen) return;
+                         if (!epoch.current()) return;
                          int pending = 0;
                          if (::ioctl(fd_, FIONREAD, &pending) != 0 || pending <= 0) break;
                        }
@@ -180,29 +174,23 @@ void MqttConnection::wait_readable() {
 void MqttConnection::wait_writable() {
   if (writing_ || !mosquitto_want_write(mosq_)) return;
   writing_ = true;
-  auto epoch = std::weak_ptr<int>(epoch_);
-  const int seen = *epoch_;
   socket_.async_wait(asio::posix::stream_descriptor::wait_write,
-                     [this, epoch, seen](const boost::system::error_code& ec) {
-                       const auto e = epoch.lock();
-                       if (ec || !e || *e != seen) return;
+                     [this, epoch = mark_epoch()](const boost::system::error_code& ec) {
+                       if (ec || !epoch.current()) return;
                        writing_ = false;
                        check(mosquitto_loop_write(mosq_, 1), "write");
-                       if (*e != seen) return;
+                       if (!epoch.current()) return;
                        wait_writable();
                      });
 }
 
 void MqttConnection::tick() {
-  auto epoch = std::weak_ptr<int>(epoch_);
-  const int seen = *epoch_;
   misc_timer_.expires_after(std::chrono::milliseconds(500));
-  misc_timer_.async_wait([this, epoch, seen](const boost::system::error_code& ec) {
-    const auto e = epoch.lock();
-    if (ec || !e || *e != seen) return;
+  misc_timer_.async_wait([this, epoch = mark_epoch()](const boost::system::error_code& ec) {
+    if (ec || !epoch.current()) return;
     // Keepalive: PINGREQ when due, and the session's end when PINGRESP stays away.
     check(mosquitto_loop_misc(mosq_), "keepalive");
-    if (*e != seen) return;
+    if (!epoch.current()) return;
     wait_writable();
     tick();
   });
@@ -268,11 +256,8 @@ void MqttConnection::on_connect(mosquitto*, void* self, int rc) {
 // libmosquitto calls back with its callback mutex held, and a DISCONNECT written from inside a
 // callback takes that mutex again (a deadlock): handlers run after the callback has returned.
 void MqttConnection::deliver(std::function<void()> handler) {
-  auto epoch = std::weak_ptr<int>(epoch_);
-  const int seen = *epoch_;
-  asio::post(executor_, [epoch, seen, handler = std::move(handler)] {
-    const auto e = epoch.lock();
-    if (e && *e == seen) handler();
+  asio::post(executor_, [epoch = mark_epoch(), handler = std::move(handler)] {
+    if (epoch.current()) handler();
   });
 }
 

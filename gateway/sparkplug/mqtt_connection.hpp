@@ -86,6 +86,17 @@ class MqttConnection {
   bool running_ = false;
   // Handlers of pending waits see this to know their connection is gone.
   std::shared_ptr<int> epoch_ = std::make_shared<int>(0);
+  // The epoch a wait was started in, captured by its handler: once a new socket, lost() or
+  // stop() moved on (or the connection was destroyed), the handler does nothing.
+  struct EpochMark {
+    std::weak_ptr<int> epoch;
+    int seen = 0;
+    bool current() const {
+      const auto e = epoch.lock();
+      return e && *e == seen;
+    }
+  };
+  EpochMark mark_epoch() const { return {epoch_, *epoch_}; }
 };
 
 }  // namespace fieldgate::sparkplug
