@@ -51,10 +51,7 @@ std::optional<NodeAddress> CententFamily::parse_address(std::string_view text,
                                                         std::string& error) const {
   const auto unit = cn0170::parse_unit_address(text, error);
   if (!unit) return std::nullopt;
-  NodeAddress n;
-  n.number = *unit;
-  n.text = std::to_string(*unit);
-  return n;
+  return NodeAddress::numbered(*unit);
 }
 
 std::vector<int> CententFamily::configured_units() const {

@@ -67,10 +67,7 @@ std::optional<NodeAddress> TechnoFamily::parse_address(std::string_view text,
                                                        std::string& error) const {
   const auto device = techno::parse_device(text, error);
   if (!device) return std::nullopt;
-  NodeAddress n;
-  n.number = *device;
-  n.text = std::to_string(*device);
-  return n;
+  return NodeAddress::numbered(*device);
 }
 
 void TechnoFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {

@@ -79,11 +79,9 @@ std::optional<NodeAddress> WhedcoFamily::parse_address(std::string_view text,
                                                        std::string& error) const {
   const auto a = whedco::parse_address(text, error);
   if (!a) return std::nullopt;
-  NodeAddress n;
-  n.number = a->unit;
   // The canonical text is the address digit alone, so two nodes on one unit are caught however
   // their formats are written.
-  n.text = std::to_string(a->unit);
+  NodeAddress n = NodeAddress::numbered(a->unit);
   n.axis = a->mode == EchoMode::echo ? 'e' : (a->mode == EchoMode::non_echo ? 'n' : 0);
   return n;
 }
