@@ -24,6 +24,9 @@ struct NodeAddress {
   std::string text;  // canonical form, for logs and maps
   int number = 0;    // node ID, unit number, device number
   char axis = 0;     // axis letter where the family has one, else 0
+
+  // A node addressed by its number alone: the number is also its canonical text.
+  static NodeAddress numbered(int number) { return NodeAddress{std::to_string(number), number, 0}; }
 };
 
 struct Request {

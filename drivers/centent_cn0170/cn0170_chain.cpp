@@ -172,11 +172,7 @@ void Chain::absorb(const Message& m) {
 namespace {
 
 Reply refusal(int64_t code, std::string text) {
-  Reply r;
-  r.status = Reply::Status::device_error;
-  r.device_code = code;
-  r.text = std::move(text);
-  return r;
+  return Reply::of(Reply::Status::device_error, std::move(text), code);
 }
 
 void select(Chain& chain, Plan& plan, int unit) {
@@ -388,10 +384,7 @@ void Exchange::owe_rest(std::size_t from) {
 }
 
 bool Exchange::finish(Reply::Status status, std::string text, int64_t code) {
-  reply_ = Reply{};
-  reply_.status = status;
-  reply_.text = std::move(text);
-  reply_.device_code = code;
+  reply_ = Reply::of(status, std::move(text), code);
   finished_ = true;
   return true;
 }
@@ -405,8 +398,7 @@ bool Exchange::finish_ok() {
                               "not executed",
                               unit_, what_),
                   kStoredInProgram);
-  reply_ = Reply{};
-  reply_.status = Reply::Status::ok;
+  reply_ = Reply::of(Reply::Status::ok);
   if (plan_.read) {
     reply_.values = values_;
     if (saw_position_) reply_.values.push_back(motion_);

@@ -51,10 +51,7 @@ std::optional<NodeAddress> CententFamily::parse_address(std::string_view text,
                                                         std::string& error) const {
   const auto unit = cn0170::parse_unit_address(text, error);
   if (!unit) return std::nullopt;
-  NodeAddress n;
-  n.number = *unit;
-  n.text = std::to_string(*unit);
-  return n;
+  return NodeAddress::numbered(*unit);
 }
 
 std::vector<int> CententFamily::configured_units() const {
@@ -279,19 +276,14 @@ asio::awaitable<Reply> CententFamily::run(Link& link, int unit, cn0170::Plan pla
     link.discard_input();
     chain_.drain_before_next = false;
   }
-  Reply reply;
   const std::error_code ec = co_await link.send(plan.bytes);
   if (ec) {
     chain_.forget_selection();
-    reply.status = Reply::Status::link_down;
-    reply.text = ec.message();
-  } else if (plan.expected.empty()) {
-    reply.status = Reply::Status::ok;
-  } else {
-    reply = co_await read_replies(
-        link, cn0170::Exchange(chain_, unit, std::move(plan), std::move(what)), timing);
+    co_return Reply::of(Reply::Status::link_down, ec.message());
   }
-  co_return reply;
+  if (plan.expected.empty()) co_return Reply::of(Reply::Status::ok);
+  co_return co_await read_replies(
+      link, cn0170::Exchange(chain_, unit, std::move(plan), std::move(what)), timing);
 }
 
 asio::awaitable<LinkResync> CententFamily::resync_after_failure(Link& link,
@@ -403,13 +395,10 @@ asio::awaitable<Reply> CententFamily::kill(Link& link, int unit, const LinkTimin
 
 asio::awaitable<Reply> CententFamily::local_read(Link& link, int unit, const Request& request,
                                                  const LinkTiming& timing) {
-  Reply r;
-  if (request.command != cn0170::kCountersRequest) {
-    r.status = Reply::Status::device_error;
-    r.device_code = cn0170::kInvalidValue;
-    r.text = "unknown gateway-local read '" + request.command + "'";
-    co_return r;
-  }
+  if (request.command != cn0170::kCountersRequest)
+    co_return Reply::of(Reply::Status::device_error,
+                        "unknown gateway-local read '" + request.command + "'",
+                        cn0170::kInvalidValue);
   // Counters are the gateway's, but a unit that stopped answering must not look online.
   if (!chain_.units[static_cast<std::size_t>(unit)].answering) {
     const Request probe{"M?", Request::Expect::values, NumberFormat::decimal};
@@ -417,7 +406,7 @@ asio::awaitable<Reply> CententFamily::local_read(Link& link, int unit, const Req
         co_await run(link, unit, cn0170::plan_request(chain_, options_, unit, probe), "M?", timing);
     if (answer.status != Reply::Status::ok) co_return answer;
   }
-  r.status = Reply::Status::ok;
+  Reply r = Reply::of(Reply::Status::ok);
   r.values = cn0170::counters_of(chain_, unit);
   co_return r;
 }

@@ -145,55 +145,43 @@ Reply interpret_copley_reply(const NodeAddress& node, const Request& request,
   if (expected.kind == copley::ExpectedReply::Kind::unknown)
     expected.kind = request.expect == Request::Expect::ack ? copley::ExpectedReply::Kind::ok
                                                            : copley::ExpectedReply::Kind::values;
-  Reply reply;
   const auto parsed = copley::parse_reply(line);
   const auto garbled = [&](std::string why) {
-    reply.status = Reply::Status::garbled;
-    reply.text = fmt::format("{} to '{}'", why, request.command);
+    return Reply::of(Reply::Status::garbled, fmt::format("{} to '{}'", why, request.command));
+  };
+  const auto with_values = [&] {
+    Reply reply = Reply::of(Reply::Status::ok);
+    reply.values = parsed.values;
+    return reply;
   };
   switch (parsed.kind) {
     case copley::ParsedReply::Kind::ok:
-      if (expected.kind == copley::ExpectedReply::Kind::ok)
-        reply.status = Reply::Status::ok;
-      else
-        garbled("'ok' where a value was expected");
-      break;
+      if (expected.kind == copley::ExpectedReply::Kind::ok) return Reply::of(Reply::Status::ok);
+      return garbled("'ok' where a value was expected");
     case copley::ParsedReply::Kind::values:
-      if (expected.kind != copley::ExpectedReply::Kind::values) {
-        garbled("a value where 'ok' was expected");
-      } else if (expected.count != 0 && parsed.values.size() != expected.count) {
-        garbled(fmt::format("{} value(s) where {} were expected", parsed.values.size(),
-                            expected.count));
-      } else {
-        reply.status = Reply::Status::ok;
-        reply.values = parsed.values;
-      }
-      break;
+      if (expected.kind != copley::ExpectedReply::Kind::values)
+        return garbled("a value where 'ok' was expected");
+      if (expected.count != 0 && parsed.values.size() != expected.count)
+        return garbled(fmt::format("{} value(s) where {} were expected", parsed.values.size(),
+                                   expected.count));
+      return with_values();
     case copley::ParsedReply::Kind::register_value:
       if (expected.kind == copley::ExpectedReply::Kind::register_value ||
-          (expected.kind == copley::ExpectedReply::Kind::values && request.command[0] != 'g')) {
-        reply.status = Reply::Status::ok;
-        reply.values = parsed.values;
-      } else {
-        garbled("a CVM register value ('r n')");
-      }
-      break;
+          (expected.kind == copley::ExpectedReply::Kind::values && request.command[0] != 'g'))
+        return with_values();
+      return garbled("a CVM register value ('r n')");
     case copley::ParsedReply::Kind::error: {
       const int64_t code = parsed.values.front();
-      reply.device_code = code;
-      reply.text = fmt::format("e {}: {}", code, copley::error_text(code));
       // Through the gateway amplifier, e 32 means the addressed node did not answer on CAN.
-      reply.status = (code == copley::kCanFailure && node.number != 0)
-                         ? Reply::Status::unreachable
-                         : Reply::Status::device_error;
-      break;
+      const Reply::Status status = (code == copley::kCanFailure && node.number != 0)
+                                       ? Reply::Status::unreachable
+                                       : Reply::Status::device_error;
+      return Reply::of(status, fmt::format("e {}: {}", code, copley::error_text(code)), code);
     }
     case copley::ParsedReply::Kind::malformed:
-      reply.status = Reply::Status::garbled;
-      reply.text = std::string(line);
-      break;
+      return Reply::of(Reply::Status::garbled, std::string(line));
   }
-  return reply;
+  return Reply{};
 }
 
 asio::awaitable<Reply> CopleyFamily::transact(Link& link, const NodeAddress& node,
@@ -202,31 +190,21 @@ asio::awaitable<Reply> CopleyFamily::transact(Link& link, const NodeAddress& nod
   // this one's reply.
   link.discard_input();
   const std::string frame = copley::encode_command(node.number, node.axis, request.command);
-  if (auto ec = co_await link.send(frame)) {
-    Reply r;
-    r.status = Reply::Status::link_down;
-    r.text = ec.message();
-    co_return r;
-  }
+  if (auto ec = co_await link.send(frame))
+    co_return Reply::of(Reply::Status::link_down, ec.message());
   const auto read = co_await link.read_frame(copley::frame_length, timing);
-  Reply r;
   switch (read.status) {
     case LinkRead::Status::frame:
       co_return interpret_copley_reply(node, request, read.frame);
     case LinkRead::Status::timeout:
-      r.status = read.partial.empty() ? Reply::Status::timeout : Reply::Status::garbled;
-      r.text = read.partial.empty() ? "no reply" : "incomplete reply '" + read.partial + "'";
-      co_return r;
+      if (read.partial.empty()) co_return Reply::of(Reply::Status::timeout, "no reply");
+      co_return Reply::of(Reply::Status::garbled, "incomplete reply '" + read.partial + "'");
     case LinkRead::Status::overflow:
-      r.status = Reply::Status::garbled;
-      r.text = "reply longer than any Copley reply";
-      co_return r;
+      co_return Reply::of(Reply::Status::garbled, "reply longer than any Copley reply");
     case LinkRead::Status::error:
-      r.status = Reply::Status::link_down;
-      r.text = read.error.message();
-      co_return r;
+      co_return Reply::of(Reply::Status::link_down, read.error.message());
   }
-  co_return r;
+  co_return Reply{};
 }
 
 Family::NodeTimingNeed CopleyFamily::node_timing_need(const NodeAddress& node,

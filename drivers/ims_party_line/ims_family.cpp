@@ -72,10 +72,9 @@ asio::awaitable<LineRead> read_line(Link& link, const LinkTiming& timing, std::s
   for (int blank = 0;; ++blank) {
     LinkRead read = co_await link.read_frame(ims::line_length, timing);
     if (auto failure = failed_read(read, what, name)) {
-      if (!prefix.empty() && failure->status == Reply::Status::timeout) {
-        failure->status = Reply::Status::garbled;
-        failure->text = fmt::format("incomplete {} '{}'", what, ims::printable(prefix));
-      }
+      if (!prefix.empty() && failure->status == Reply::Status::timeout)
+        failure = Reply::of(Reply::Status::garbled,
+                            fmt::format("incomplete {} '{}'", what, ims::printable(prefix)));
       out.failure = failure;
       out.partial = std::string(prefix) + read.partial;
       co_return out;
@@ -200,8 +199,7 @@ Reply interpret_ims_result(const NodeAddress& node, const Request& request, std:
     return Reply::of(Reply::Status::garbled,
                      fmt::format("unit {}: '{}' is no result line for '{}'", node.text,
                                  ims::printable(line), ims::printable(request.command)));
-  Reply r;
-  r.status = Reply::Status::ok;
+  Reply r = Reply::of(Reply::Status::ok);
   r.values = result->values;
   return r;
 }
@@ -562,11 +560,10 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
   if (result.failure) {
     if (result.failure->status == Reply::Status::link_down) co_return *result.failure;
     late_.owe_result(Clock::now());
-    if (result.failure->status == Reply::Status::timeout) {
-      result.failure->status = Reply::Status::garbled;
-      result.failure->text = fmt::format("unit {} echoed '{}' but sent no result line", node.text,
-                                         ims::printable(request.command));
-    }
+    if (result.failure->status == Reply::Status::timeout)
+      result.failure = Reply::of(Reply::Status::garbled,
+                                 fmt::format("unit {} echoed '{}' but sent no result line",
+                                             node.text, ims::printable(request.command)));
     bad = *result.failure;
     co_await after_failure(link, t, name, request, bad);
     co_return bad;

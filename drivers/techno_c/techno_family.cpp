@@ -26,36 +26,28 @@ microseconds seconds_to_us(double seconds) {
 }
 
 Reply link_down(const std::error_code& ec) {
-  Reply r;
-  r.status = Reply::Status::link_down;
-  r.text = ec.message();
-  return r;
+  return Reply::of(Reply::Status::link_down, ec.message());
 }
 
 Reply device_error(char code) {
-  Reply r;
-  r.status = Reply::Status::device_error;
-  r.device_code = static_cast<unsigned char>(code);
-  r.text = techno::describe_error(code);
-  return r;
+  return Reply::of(Reply::Status::device_error, techno::describe_error(code),
+                   static_cast<unsigned char>(code));
 }
 
 Reply from_parsed(const techno::ParsedReply& parsed, std::string_view frame) {
-  Reply r;
   switch (parsed.kind) {
-    case techno::ParsedReply::Kind::ok:
-      r.status = Reply::Status::ok;
+    case techno::ParsedReply::Kind::ok: {
+      Reply r = Reply::of(Reply::Status::ok);
       r.values = parsed.values;
-      break;
+      return r;
+    }
     case techno::ParsedReply::Kind::error:
-      r = device_error(parsed.code);
-      break;
+      return device_error(parsed.code);
     case techno::ParsedReply::Kind::malformed:
-      r.status = Reply::Status::garbled;
-      r.text = parsed.problem.empty() ? std::string(frame) : parsed.problem;
-      break;
+      return Reply::of(Reply::Status::garbled,
+                       parsed.problem.empty() ? std::string(frame) : parsed.problem);
   }
-  return r;
+  return Reply{};
 }
 
 }  // namespace
@@ -65,10 +57,9 @@ Reply interpret_techno_reply(const Request& request, std::string_view frame) {
   if (c.kind == CommandKind::position) return from_parsed(techno::parse_positions(frame), frame);
   if (c.kind == CommandKind::peek) return from_parsed(techno::parse_peek(frame), frame);
   Reply r = from_parsed(techno::parse_handshake(frame), frame);
-  if (r.status == Reply::Status::ok && request.expect == Request::Expect::values) {
-    r.status = Reply::Status::garbled;
-    r.text = "'" + request.command + "' answers only a handshake, no data";
-  }
+  if (r.status == Reply::Status::ok && request.expect == Request::Expect::values)
+    return Reply::of(Reply::Status::garbled,
+                     "'" + request.command + "' answers only a handshake, no data");
   return r;
 }
 
@@ -76,10 +67,7 @@ std::optional<NodeAddress> TechnoFamily::parse_address(std::string_view text,
                                                        std::string& error) const {
   const auto device = techno::parse_device(text, error);
   if (!device) return std::nullopt;
-  NodeAddress n;
-  n.number = *device;
-  n.text = std::to_string(*device);
-  return n;
+  return NodeAddress::numbered(*device);
 }
 
 void TechnoFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
@@ -233,21 +221,16 @@ asio::awaitable<Reply> TechnoFamily::send_raw(Link& link, CommandKind kind) {
   urgent_writing_ = false;
   if (ec) co_return link_down(ec);
   after_interrupt(kind);
-  Reply r;
-  r.status = Reply::Status::ok;
-  co_return r;
+  co_return Reply::of(Reply::Status::ok);
 }
 
 asio::awaitable<Reply> TechnoFamily::send_urgent(Link& link, const NodeAddress&,
                                                  const Request& request) {
   const Command c = techno::classify(request.command);
-  if (c.kind != CommandKind::stop && c.kind != CommandKind::reset) {
-    Reply r;
-    r.status = Reply::Status::device_error;
-    r.text = fmt::format("techno-c sends only {} and {} past a held line, not '{}'",
-                         techno::kStopCommand, techno::kResetCommand, request.command);
-    co_return r;
-  }
+  if (c.kind != CommandKind::stop && c.kind != CommandKind::reset)
+    co_return Reply::of(Reply::Status::device_error,
+                        fmt::format("techno-c sends only {} and {} past a held line, not '{}'",
+                                    techno::kStopCommand, techno::kResetCommand, request.command));
   co_return co_await send_raw(link, c.kind);
 }
 
@@ -257,12 +240,9 @@ asio::awaitable<Reply> TechnoFamily::transact_node(Link& link, NodeContext& cont
   const Command c = techno::classify(request.command);
   if (c.kind == CommandKind::stop || c.kind == CommandKind::reset)
     co_return co_await send_raw(link, c.kind);
-  if (request.bus_wide) {
-    Reply r;
-    r.status = Reply::Status::device_error;
-    r.text = "techno-c has no broadcast address for '" + request.command + "'";
-    co_return r;
-  }
+  if (request.bus_wide)
+    co_return Reply::of(Reply::Status::device_error,
+                        "techno-c has no broadcast address for '" + request.command + "'");
   BoundNode& bound = active(context);
   const NodeAddress& node = bound.address();
   const auto& p = bound.profile;
@@ -427,9 +407,9 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, BoundNode& bound, cons
       } else if (waited.interrupted) {
         reply = device_error(last_interrupt_);
       } else {
-        reply.status = Reply::Status::timeout;
-        reply.text = fmt::format("no handshake to '{}' within {:.1f} s", request.command,
-                                 static_cast<double>(budget.count()) / 1e6);
+        reply = Reply::of(Reply::Status::timeout,
+                          fmt::format("no handshake to '{}' within {:.1f} s", request.command,
+                                      static_cast<double>(budget.count()) / 1e6));
         if (c.kind == CommandKind::home)
           reply.text += " (a homing run without mechanics never answers)";
         if (c.handshake == Handshake::at_end && bound.profile.stop_on_timeout) {
@@ -440,8 +420,7 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, BoundNode& bound, cons
       }
       break;
     case LinkRead::Status::overflow:
-      reply.status = Reply::Status::garbled;
-      reply.text = "reply longer than any C-series reply";
+      reply = Reply::of(Reply::Status::garbled, "reply longer than any C-series reply");
       break;
     case LinkRead::Status::error:
       reply = link_down(waited.read.error);
@@ -530,12 +509,10 @@ asio::awaitable<void> TechnoFamily::check_single_handshake(Link& link, const Com
     pending_error_ = static_cast<unsigned char>(extra.front());
     co_return;
   }
-  reply.status = Reply::Status::garbled;
-  reply.device_code = 0;
-  reply.text = fmt::format(
-      "one handshake character expected, more followed ({} bytes): a late "
-      "or foreign reply",
-      extra.size() + 1);
+  reply = Reply::of(Reply::Status::garbled,
+                    fmt::format("one handshake character expected, more followed ({} bytes): a "
+                                "late or foreign reply",
+                                extra.size() + 1));
 }
 
 void TechnoFamily::after_reply(BoundNode& node, const Command& c,

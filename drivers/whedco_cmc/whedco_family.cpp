@@ -29,26 +29,18 @@ bool has_text(std::string_view s) {
 }
 
 Reply garbled(std::string text) {
-  Reply r;
-  r.status = Reply::Status::garbled;
-  r.text = std::move(text);
-  return r;
+  return Reply::of(Reply::Status::garbled, std::move(text));
 }
 
 Reply rejected(std::string_view body, std::string_view line) {
-  Reply r;
-  r.status = Reply::Status::device_error;
-  r.device_code = whedco::kRejected;
-  r.text = fmt::format("unit answered '{}' to '{}'", printable_bytes(body), line);
-  return r;
+  return Reply::of(Reply::Status::device_error,
+                   fmt::format("unit answered '{}' to '{}'", printable_bytes(body), line),
+                   whedco::kRejected);
 }
 
 Reply refused(std::string text) {
-  Reply r;
-  r.status = Reply::Status::device_error;
-  r.device_code = whedco::kRefusedByGateway;
-  r.text = "not sent: " + std::move(text);
-  return r;
+  return Reply::of(Reply::Status::device_error, "not sent: " + std::move(text),
+                   whedco::kRefusedByGateway);
 }
 
 bool is_axis(char c) {
@@ -87,11 +79,9 @@ std::optional<NodeAddress> WhedcoFamily::parse_address(std::string_view text,
                                                        std::string& error) const {
   const auto a = whedco::parse_address(text, error);
   if (!a) return std::nullopt;
-  NodeAddress n;
-  n.number = a->unit;
   // The canonical text is the address digit alone, so two nodes on one unit are caught however
   // their formats are written.
-  n.text = std::to_string(a->unit);
+  NodeAddress n = NodeAddress::numbered(a->unit);
   n.axis = a->mode == EchoMode::echo ? 'e' : (a->mode == EchoMode::non_echo ? 'n' : 0);
   return n;
 }
@@ -183,14 +173,13 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
       ((body[1] >= 'A' && body[1] <= 'Z') || body[1] == '!'))
     return garbled(fmt::format("corrupted echo '{}' of '{}'", printable_bytes(frame), x.line));
 
-  Reply r;
   if (x.expect == Request::Expect::ack) {
     if (!body.empty()) return rejected(body, x.line);
-    r.status = Reply::Status::ok;
-    return r;
+    return Reply::of(Reply::Status::ok);
   }
   if (body.empty()) return garbled(fmt::format("prompt without a value for '{}'", x.line));
 
+  Reply r = Reply::of(Reply::Status::ok);
   switch (x.kind) {
     case QueryKind::axis_fault: {
       std::optional<int64_t> code;
@@ -199,7 +188,6 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
       else if (const auto from_text = whedco::axis_fault_from_text(body))
         code = *from_text;
       if (!code) return has_text(body) ? rejected(body, x.line) : garbled(printable_bytes(frame));
-      r.status = Reply::Status::ok;
       r.values = {*code, *code != whedco::kAxisFunctional ? 1 : 0};
       return r;
     }
@@ -223,7 +211,6 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
         functional = x.unit_functional
                          ? *code == *x.unit_functional
                          : (*code == whedco::kUnitFunctional || *code == whedco::kAxisFunctional);
-      r.status = Reply::Status::ok;
       r.values = {*code, functional ? 0 : 1};
       return r;
     }
@@ -233,13 +220,11 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
           body, x.format == NumberFormat::hex ? whedco::StatusForm::hex : x.status_form, problem);
       if (!word) return garbled(problem);
       found.status_form = word->evidence;
-      r.status = Reply::Status::ok;
       r.values = {word->value};
       return r;
     }
     case QueryKind::bit_list:
       if (const auto bits = whedco::parse_bit_string(body)) {
-        r.status = Reply::Status::ok;
         r.values = {*bits};
         return r;
       }
@@ -255,7 +240,6 @@ Reply interpret_whedco_reply(const WhedcoExchange& x, std::string_view frame,
     if (!v) return garbled(fmt::format("value '{}' out of range", printable_bytes(body)));
     r.values.push_back(*v);
   }
-  r.status = Reply::Status::ok;
   return r;
 }
 
@@ -331,13 +315,8 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const BoundNode& bound
   x.format = format;
   x.kind = kind;
   x.unit_ratio = unit_ratio;
-  Reply r;
   const std::error_code ec = co_await link.send(x.line + whedco::kTerminator);
-  if (ec) {
-    r.status = Reply::Status::link_down;
-    r.text = ec.message();
-    co_return r;
-  }
+  if (ec) co_return Reply::of(Reply::Status::link_down, ec.message());
   const std::string line = x.line;
   const EchoMode mode = x.mode;
   const FrameSplitter splitter = [line, mode](std::string_view buffer) {
@@ -350,8 +329,8 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const BoundNode& bound
     read_timing.byte_timeout = std::max(timing.byte_timeout, timing.reply_timeout);
   const LinkRead read = co_await link.read_frame(splitter, read_timing);
   switch (read.status) {
-    case LinkRead::Status::frame:
-      r = interpret_whedco_reply(x, read.frame, &findings_);
+    case LinkRead::Status::frame: {
+      Reply r = interpret_whedco_reply(x, read.frame, &findings_);
       if (r.status == Reply::Status::garbled) resync_ = Resync::void_and_drain;
       if (findings_.status_form && findings_.status_form != x.status_form) {
         status_forms_[node.number] = *findings_.status_form;
@@ -361,29 +340,21 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const BoundNode& bound
       if (kind == QueryKind::status_word && r.status == Reply::Status::ok && !r.values.empty())
         r.values[0] = model_layout(link, bound, x.line, r.values[0]);
       co_return r;
+    }
     case LinkRead::Status::timeout:
-      if (read.partial.empty()) {
-        r.status = Reply::Status::timeout;
-        r.text = "no reply";
-        // A slow unit's late reply must not pass for the next one: wait it out too.
-        resync_ = Resync::void_and_drain;
-      } else {
-        r.status = Reply::Status::garbled;
-        r.text = "incomplete reply '" + printable_bytes(read.partial) + "'";
-        resync_ = Resync::void_and_drain;
-      }
-      co_return r;
-    case LinkRead::Status::overflow:
-      r.status = Reply::Status::garbled;
-      r.text = "reply longer than any Whedco reply, no '*' prompt";
+      // A slow unit's late reply must not pass for the next one: wait it out too.
       resync_ = Resync::void_and_drain;
-      co_return r;
+      if (read.partial.empty()) co_return Reply::of(Reply::Status::timeout, "no reply");
+      co_return Reply::of(Reply::Status::garbled,
+                          "incomplete reply '" + printable_bytes(read.partial) + "'");
+    case LinkRead::Status::overflow:
+      resync_ = Resync::void_and_drain;
+      co_return Reply::of(Reply::Status::garbled,
+                          "reply longer than any Whedco reply, no '*' prompt");
     case LinkRead::Status::error:
-      r.status = Reply::Status::link_down;
-      r.text = read.error.message();
-      co_return r;
+      co_return Reply::of(Reply::Status::link_down, read.error.message());
   }
-  co_return r;
+  co_return Reply{};
 }
 
 // The models read status words with busy at bit 0 (busy_first). A unit whose words are laid out
