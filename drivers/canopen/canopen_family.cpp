@@ -13,7 +13,7 @@ std::optional<NodeAddress> CanopenFamily::parse_address(std::string_view text,
                                                         std::string& error) const {
   const auto id = parse_node_id(text, error);
   if (!id) return std::nullopt;
-  return NodeAddress{std::to_string(*id), *id, 0};
+  return NodeAddress::numbered(*id);
 }
 
 void CanopenFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {

@@ -153,9 +153,7 @@ asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index,
   if (first.index() == 0) co_return reply_of(std::get<0>(std::move(first)));
   // Still no reply: the command is on its way and running. The write is confirmed; the action
   // stays busy until the reply arrives.
-  Reply accepted;
-  accepted.status = Reply::Status::ok;
-  confirmation.give(accepted);
+  confirmation.give(Reply::of(Reply::Status::ok));
   // The line is the node's whoever started the action: the native layout sees it held too.
   auto& action = image_.node(node_index).action;
   action.holding_line = true;
