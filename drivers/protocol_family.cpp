@@ -81,6 +81,10 @@ asio::awaitable<LinkResync> ProtocolFamily::resync_after_failure(Link& link,
   co_return co_await link.resync(guard, 10 * guard);
 }
 
+std::optional<AlignmentProof> ProtocolFamily::alignment_proof(NodeContext&, const LinkTiming&) {
+  return std::nullopt;
+}
+
 asio::awaitable<Reply> ProtocolFamily::send_urgent(Link&, const NodeAddress&, const Request& r) {
   co_return Reply::of(
       Reply::Status::device_error,

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "drivers/alignment_proof.hpp"
 #include "drivers/link.hpp"
 #include "mapping/diagnostics.hpp"
 #include "mapping/model.hpp"
@@ -150,6 +151,14 @@ class ProtocolFamily : public Family {
   // quiet for guard_time(timing) (Link::resync), giving up after ten guard times. A family whose
   // manual offers a cheaper way (an echo to check, a prompt) may override it.
   virtual asio::awaitable<LinkResync> resync_after_failure(Link& link, const LinkTiming& timing);
+  // The exchange that proves the line is in step again after such a failure
+  // (drivers/alignment_proof.hpp): the bus runs it once resync_after_failure() found the line
+  // quiet, and trusts no reply until it passed. `node` is whom to address where the proof needs
+  // a node (the bus tries the failed node first, then the others that are not offline); a proof
+  // on a device every node sits behind (a gateway amplifier) may ignore it. nullopt: the
+  // family's replies prove themselves and the quiet guard suffices.
+  virtual std::optional<AlignmentProof> alignment_proof(NodeContext& node,
+                                                        const LinkTiming& timing);
   // Sends a command that must not wait for the line (see CommandOptions::urgent). The default
   // refuses: a family without such commands reports it instead of corrupting a transaction.
   virtual asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,

@@ -105,9 +105,13 @@ asio::awaitable<Probe> probe_rate(Link& link, const LinkTiming& timing) {
 asio::awaitable<void> CopleyFamily::on_link_open(Link& link, const LinkTiming& timing) {
   auto& transport = link.transport();
   const unsigned configured = transport.baud();
+  link_baud_ = configured;
   if (configured == 0 || configured == kPowerUpBaud) co_return;
   const Probe at_configured = co_await probe_rate(link, timing);
-  if (at_configured.answered) co_return;            // already at the configured rate
+  if (at_configured.answered) {  // already at the configured rate
+    gateway_wants_axis_ = at_configured.wants_axis;
+    co_return;
+  }
   if (transport.set_baud(kPowerUpBaud)) co_return;  // not a real UART: nothing to switch
   const Probe at_power_up = co_await probe_rate(link, timing);
   if (!at_power_up.answered) {
@@ -118,6 +122,7 @@ asio::awaitable<void> CopleyFamily::on_link_open(Link& link, const LinkTiming& t
                     configured, at_configured.heard, kPowerUpBaud, at_power_up.heard, configured));
     co_return;
   }
+  gateway_wants_axis_ = at_power_up.wants_axis;
   // §4.1: send the new rate, switch the host as soon as the CR has left, expect ok at the new
   // rate, then wait 100 ms before anything else. A multi-axis amplifier gets the axis form.
   link.discard_input();
@@ -134,6 +139,35 @@ asio::awaitable<void> CopleyFamily::on_link_open(Link& link, const LinkTiming& t
                              configured, at_power_up.wants_axis ? " (it wants an axis letter)" : "")
                : fmt::format("Copley gateway amplifier did not confirm the switch to {} baud",
                              configured));
+}
+
+std::optional<AlignmentProof> CopleyFamily::alignment_proof(NodeContext&, const LinkTiming&) {
+  const std::string prefix = gateway_wants_axis_ ? ".a " : "";
+  const unsigned baud = link_baud_;
+  AlignmentProof proof;
+  proof.name = "g f0x32 -> e 15, g r0x90 -> the link's rate";
+  proof.steps.push_back({prefix + "g f0x32\r", copley::frame_length,
+                         [](std::string_view frame) {
+                           const auto r = copley::parse_reply(frame);
+                           return r.kind == copley::ParsedReply::Kind::error &&
+                                  r.values.front() == 15;
+                         },
+                         "'e 15'"});
+  proof.steps.push_back({prefix + "g r0x90\r", copley::frame_length,
+                         [baud](std::string_view frame) {
+                           const auto r = copley::parse_reply(frame);
+                           if (r.kind != copley::ParsedReply::Kind::values || r.values.size() != 1)
+                             return false;
+                           const int64_t v = r.values.front();
+                           // 0x90 reads back the nearest rate the amplifier's clock allows (§4.1
+                           // step 4); over TCP the rate is unknown, so any rate the amplifier
+                           // supports.
+                           if (baud == 0) return v >= 9600 && v <= 115200;
+                           return v * 100 >= static_cast<int64_t>(baud) * 97 &&
+                                  v * 100 <= static_cast<int64_t>(baud) * 103;
+                         },
+                         baud == 0 ? std::string("'v <rate>'") : fmt::format("'v {}'", baud)});
+  return proof;
 }
 
 Reply interpret_copley_reply(const NodeAddress& node, const Request& request,

@@ -17,8 +17,17 @@ class CopleyFamily final : public ProtocolFamily {
                                   const LinkTiming& timing) override;
   // A node other than 0 is reached through the gateway amplifier over CAN: its reply timeout
   // must exceed the amplifier's CAN timeout, so that e 32 for an absent node is its answer.
+  // The proof of alignment, on the gateway amplifier (every node's replies come through it):
+  // `g f0x32` answers `e 15` (0x32 is RAM-only, gotcha 16), then `g r0x90` answers the link's
+  // rate. No poll asks for e 15, and the second answer differs from the first.
+  std::optional<AlignmentProof> alignment_proof(NodeContext& node,
+                                                const LinkTiming& timing) override;
   NodeTimingNeed node_timing_need(const NodeAddress& node, const LinkTiming& bus) const override;
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
+
+ private:
+  unsigned link_baud_ = 0;  // the host side's rate once the link is open; 0 = unknown (TCP)
+  bool gateway_wants_axis_ = false;  // the gateway amplifier answered only the `.a` form
 };
 
 // The gateway amplifier's CAN timeout when the bus does not give forward_timeout. The ASCII

@@ -46,6 +46,11 @@ struct BusCounters {
   // drained during them.
   uint64_t resyncs = 0;
   uint64_t resync_bytes = 0;
+  // Proofs that the line is in step (drivers/alignment_proof.hpp) run after such a failure,
+  // those that failed, and the stray replies they drained.
+  uint64_t alignment_proofs = 0;
+  uint64_t alignment_failures = 0;
+  uint64_t stray_replies = 0;
   bool link_up = false;
   bool open_attempted = false;  // the first open finished, successfully or not
 };

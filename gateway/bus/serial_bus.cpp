@@ -252,6 +252,14 @@ void SerialBus::record(NodeRuntime& n, const Reply& reply, bool poll) {
 asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& request, int retries,
                                            bool accept_no_reply, bool poll) {
   Reply reply;
+  if (!aligned_) co_await prove_aligned(n);
+  if (!aligned_ && transport_->is_open()) {
+    // Nothing is sent while the line is out of step: its reply could not be told from a late one.
+    reply = Reply::of(Reply::Status::unreachable,
+                      "line not in step (no proof of alignment passed), not sent");
+    record(n, reply, poll);
+    co_return reply;
+  }
   for (int attempt = 0; attempt <= retries; ++attempt) {
     if (attempt > 0) {
       ++counters_.retries;
@@ -268,9 +276,17 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
     ++counters_.transactions;
     ++(*n.image).counters.transactions;
-    if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled ||
-        link_.buffered() > 0)
+    if (link_.buffered() > 0 && reply.status != Reply::Status::timeout &&
+        reply.status != Reply::Status::link_down) {
+      // Bytes behind a reply: the line was in step before this exchange, so something else is
+      // talking or the device answered twice, and the reply itself may be the stray one.
+      reply = Reply::of(Reply::Status::garbled, fmt::format("stray bytes followed the reply ({})",
+                                                            to_string(reply.status)));
+    }
+    if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled)
       co_await resync(n, reply);
+    if (!aligned_ && !(accept_no_reply && reply.status == Reply::Status::timeout))
+      break;  // no retry on a line out of step
     if (accept_no_reply && reply.status == Reply::Status::timeout) {
       reply.status = Reply::Status::ok;
       break;
@@ -318,7 +334,61 @@ asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
     log::error("bus {}: line still busy {} ms after the {} from node {}; reopening the link",
                config_.name, ms, after, n.config->name);
     transport_->close();
+    aligned_ = false;
+    co_return;
   }
+  co_await prove_aligned(n);
+}
+
+asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
+  if (!transport_->is_open()) {
+    aligned_ = false;
+    co_return;
+  }
+  // The failed node first; a proof addressed to an absent node fails, so then any other node
+  // that answers.
+  std::vector<NodeRuntime*> candidates{&failed};
+  for (auto& n : nodes_)
+    if (&n != &failed && n.image->state != NodeState::offline) candidates.push_back(&n);
+  std::string why;
+  for (auto* n : candidates) {
+    auto proof = family_.alignment_proof(*n->family_context, n->timing);
+    if (!proof) {
+      aligned_ = true;  // the family's replies prove themselves
+      co_return;
+    }
+    ++counters_.alignment_proofs;
+    trace_collecting_ = trace_.enabled();
+    const auto guard = guard_time(n->timing, link_.char_time_us());
+    // An offline node gets one attempt: it is most likely absent, and others may prove the line.
+    const int attempts = n->image->state == NodeState::offline ? 1 : 2;
+    const auto result = co_await prove_alignment(link_, *proof, n->timing, guard, attempts);
+    trace_collecting_ = false;
+    trace_transaction(*n, result.proved ? "proof" : "proof failed");
+    counters_.stray_replies += result.strays.size();
+    for (const auto& stray : result.strays)
+      log::warning("bus {}: drained a stray reply '{}' while proving the line in step ({})",
+                   config_.name, printable_bytes(stray, 80), proof->name);
+    if (!transport_->is_open()) break;
+    if (result.proved) {
+      if (!aligned_ || alignment_failure_logged_)
+        log::info("bus {}: line in step again ({}, {} attempt(s))", config_.name, proof->name,
+                  result.attempts);
+      aligned_ = true;
+      alignment_failure_logged_ = false;
+      co_return;
+    }
+    ++counters_.alignment_failures;
+    why = fmt::format("node {}: {}", n->config->name, result.why);
+    if (result.why.find("never went quiet") != std::string::npos) break;
+  }
+  aligned_ = false;
+  if (!alignment_failure_logged_)
+    log::warning(
+        "bus {}: cannot prove the line in step ({}); no reply is trusted and nothing is "
+        "sent until a proof passes",
+        config_.name, why);
+  alignment_failure_logged_ = true;
 }
 
 void SerialBus::record_latency(double seconds) {

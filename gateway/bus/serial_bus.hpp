@@ -71,6 +71,9 @@ class SerialBus final : public Bus {
   std::shared_ptr<PendingCommand> take_command();
   // After a timeout, a garbled reply or stray bytes: the family drains the line until quiet.
   asio::awaitable<void> resync(NodeRuntime& node, const Reply& failed);
+  // Runs the family's proof of alignment (the node first, then any node not offline) and
+  // records whether the line is in step.
+  asio::awaitable<void> prove_aligned(NodeRuntime& node);
   asio::awaitable<void> run_poll(std::size_t item_index);
   void record(NodeRuntime& node, const Reply& reply, bool poll);
   void record_latency(double seconds);
@@ -97,6 +100,9 @@ class SerialBus final : public Bus {
   int polls_in_row_ = 0;
   int last_command_node_ = -1;
   bool link_error_logged_ = false;
+  // False from a failed exchange until a proof of alignment passed: no reply is trusted meanwhile.
+  bool aligned_ = true;
+  bool alignment_failure_logged_ = false;
   // Wire trace: during a transaction the link's bytes wait here for its outcome.
   struct TracedBytes {
     SteadyTime at;

@@ -1,0 +1,52 @@
+#pragma once
+
+#include <boost/asio/awaitable.hpp>
+
+#include <chrono>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "drivers/link.hpp"
+
+namespace fieldgate {
+
+// Untagged replies carry nothing that ties them to a request, and a quiet line is no proof that
+// no late reply is still coming (a device may be silent past the timeout, then answer its
+// backlog). After any timeout, garbled or partial reply or stray bytes, a stream bus trusts a
+// reply again only once an exchange has proved that the line is in step: every step's answer is
+// known in advance, and each differs from the step before it, so a stray reply taken for a
+// step's answer makes the next step read the real one and fail. Every reply that arrives in
+// between is drained, counted and logged. Each untagged family names its own proof
+// (ProtocolFamily::alignment_proof).
+struct AlignmentStep {
+  std::string request;     // bytes sent, framing included
+  FrameSplitter splitter;  // frames this step's whole reply (echo and prompt included)
+  // True when a frame is exactly this step's known answer.
+  std::function<bool(std::string_view frame)> matches;
+  std::string expected;  // what the answer is, for logs
+};
+
+struct AlignmentProof {
+  std::string name;  // the exchange, for logs ("g f0x32 -> e 15, g r0x90 -> v <baud>")
+  // At least two steps, each answer different from the previous step's.
+  std::vector<AlignmentStep> steps;
+};
+
+struct AlignmentResult {
+  bool proved = false;
+  int attempts = 0;
+  std::vector<std::string> strays;  // replies (or partial bytes) read and thrown away
+  std::string why;                  // what the last failed attempt saw
+};
+
+// Runs the proof up to `attempts` times. The first step's request may be answered after stray
+// replies (the backlog drains ahead of it: each is counted); every later step must be answered
+// by its own reply, and nothing may follow the last. A failed attempt waits for the line to go
+// quiet (Link::resync with `guard`) before the next.
+asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProof& proof,
+                                                 const LinkTiming& timing,
+                                                 std::chrono::microseconds guard, int attempts);
+
+}  // namespace fieldgate
