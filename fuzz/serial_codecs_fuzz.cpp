@@ -7,13 +7,62 @@
 #include "drivers/whedco_cmc/whedco_codec.hpp"
 #include "fuzz/fuzz_input.hpp"
 
+#include <cctype>
+#include <cerrno>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
 namespace {
 
 using fieldgate::fuzz::split_frames;
 
+// The Copley reply grammar of the guide's transcripts, written apart from the parser: an
+// optional stray LF, `ok` or a tag (v, r, e), at most one space, integers one space apart
+// (decimal or 0x-hex, optional minus; one for r and e), an optional LF, the CR.
+bool copley_grammar(std::string_view line, std::vector<int64_t>& values) {
+  if (line.empty() || line.back() != '\r') return false;
+  line.remove_suffix(1);
+  if (!line.empty() && line.back() == '\n') line.remove_suffix(1);
+  if (!line.empty() && line.front() == '\n') line.remove_prefix(1);
+  if (line == "ok") return true;
+  if (line.size() < 2 || std::string_view("vre").find(line[0]) == std::string_view::npos)
+    return false;
+  const char tag = line[0];
+  std::string text(line.substr(line[1] == ' ' ? 2 : 1));
+  std::size_t at = 0;
+  while (true) {
+    const std::size_t start = at;
+    if (at < text.size() && text[at] == '-') ++at;
+    const bool hex = text.compare(at, 2, "0x") == 0 && at + 2 < text.size() &&
+                     std::isxdigit(static_cast<unsigned char>(text[at + 2]));
+    if (hex) at += 2;
+    const std::size_t digits = at;
+    while (at < text.size() && (hex ? std::isxdigit(static_cast<unsigned char>(text[at]))
+                                    : std::isdigit(static_cast<unsigned char>(text[at]))))
+      ++at;
+    if (at == digits) return false;
+    errno = 0;
+    const long long v =
+        std::strtoll(text.substr(start, at - start).c_str(), nullptr, hex ? 16 : 10);
+    if (errno == ERANGE) return false;
+    values.push_back(v);
+    if (at == text.size()) break;
+    if (text[at] != ' ') return false;
+    ++at;
+  }
+  return tag == 'v' || values.size() == 1;
+}
+
 void copley(std::string_view wire) {
-  split_frames(wire, fieldgate::copley::frame_length,
-               [](std::string_view line) { (void)fieldgate::copley::parse_reply(line); });
+  split_frames(wire, fieldgate::copley::frame_length, [](std::string_view line) {
+    const auto reply = fieldgate::copley::parse_reply(line);
+    if (reply.kind == fieldgate::copley::ParsedReply::Kind::malformed) return;
+    // Every reply the parser accepts is one the guide allows, with the values it prints.
+    std::vector<int64_t> values;
+    FUZZ_CHECK(copley_grammar(line, values));
+    FUZZ_CHECK(values == reply.values);
+  });
 }
 
 void ims(std::string_view wire, char name) {

@@ -6,8 +6,6 @@
 #include <charconv>
 #include <cstdlib>
 
-#include "drivers/ascii_blanks.hpp"
-
 namespace fieldgate::copley {
 
 std::string encode_command(int node, char axis, std::string_view command) {
@@ -30,21 +28,19 @@ std::size_t frame_length(std::string_view buf) {
 
 namespace {
 
-// Whitespace-separated decimal or 0x-hex integers, possibly negative; false on anything else.
+// Decimal or 0x-hex integers, possibly negative, separated by exactly one space (every
+// transcript of the guide); false on anything else.
 bool parse_numbers(std::string_view text, std::vector<int64_t>& out) {
   while (true) {
-    while (!text.empty() && text.front() == ' ') text.remove_prefix(1);
-    if (text.empty()) return !out.empty();
     const auto end = text.find(' ');
     std::string_view token = text.substr(0, end);
-    text = end == std::string_view::npos ? std::string_view{} : text.substr(end);
     bool negative = false;
-    if (token.front() == '-') {
+    if (!token.empty() && token.front() == '-') {
       negative = true;
       token.remove_prefix(1);
     }
     int base = 10;
-    if (token.size() > 2 && token[0] == '0' && (token[1] == 'x' || token[1] == 'X')) {
+    if (token.size() > 2 && token[0] == '0' && token[1] == 'x') {
       base = 16;
       token.remove_prefix(2);
     }
@@ -52,17 +48,30 @@ bool parse_numbers(std::string_view text, std::vector<int64_t>& out) {
     uint64_t magnitude = 0;
     const auto [p, ec] =
         std::from_chars(token.data(), token.data() + token.size(), magnitude, base);
-    if (ec != std::errc{} || p != token.data() + token.size()) return false;
+    if (ec != std::errc{} || p != token.data() + token.size() ||
+        magnitude > static_cast<uint64_t>(INT64_MAX))
+      return false;
     const auto v = static_cast<int64_t>(magnitude);
     out.push_back(negative ? -v : v);
+    if (end == std::string_view::npos) return true;
+    text = text.substr(end + 1);
   }
+}
+
+// The line without its CR and a stray LF on either side (LF is no part of the protocol, but an
+// adapter may add one); nothing else is trimmed.
+std::string_view without_line_end(std::string_view line) {
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  if (!line.empty() && line.back() == '\n') line.remove_suffix(1);
+  if (!line.empty() && line.front() == '\n') line.remove_prefix(1);
+  return line;
 }
 
 }  // namespace
 
 ParsedReply parse_reply(std::string_view line) {
   ParsedReply reply;
-  line = trim_blanks(line);
+  line = without_line_end(line);
   if (line == "ok") {
     reply.kind = ParsedReply::Kind::ok;
     return reply;
@@ -71,10 +80,9 @@ ParsedReply parse_reply(std::string_view line) {
   const char tag = line.front();
   const std::string_view rest = line.substr(1);
   if (tag != 'v' && tag != 'r' && tag != 'e') return reply;
-  if (rest.front() != ' ' && rest.front() != '-' &&
-      !std::isdigit(static_cast<unsigned char>(rest.front())))
-    return reply;
-  if (!parse_numbers(rest, reply.values)) {
+  // `v 1200` or `v1200` (§2.8): one space at most after the tag.
+  const std::string_view numbers = rest.front() == ' ' ? rest.substr(1) : rest;
+  if (!parse_numbers(numbers, reply.values)) {
     reply.values.clear();
     return reply;
   }

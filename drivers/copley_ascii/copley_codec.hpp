@@ -23,8 +23,10 @@ struct ParsedReply {
   std::vector<int64_t> values;  // for values, register_value and error (the code)
 };
 
-// Lenient on input as the digest advises: optional space after v, r, e; several values;
-// negative numbers; a stray LF before or after.
+// What the guide's transcripts allow: `ok`; `v`, `r` or `e`, at most one space, then decimal
+// (or 0x-hex) integers, possibly negative, one space apart (several for `v` only); the CR, and a
+// stray LF before or after. Anything else (tabs, double spaces, upper-case 0X, a value beyond
+// 64 bits) is malformed.
 ParsedReply parse_reply(std::string_view line);
 
 // What a command can be answered with besides `e <code>` (digest §3), so that a reply that

@@ -53,6 +53,11 @@ void CopleyFamily::validate_model(const Model& model, Diagnostics& diagnostics) 
       if (s.kind == ActionStep::Kind::send) check(s.command, s.mark, "action " + a.name);
 }
 
+NodeContextPtr CopleyFamily::bind_node(const NodeAddress& node, const Model& model) {
+  if (node.number == 0 && node.axis != 0 && gateway_axis_ == 0) gateway_axis_ = node.axis;
+  return ProtocolFamily::bind_node(node, model);
+}
+
 namespace {
 
 constexpr unsigned kPowerUpBaud = 9600;
@@ -142,7 +147,8 @@ asio::awaitable<void> CopleyFamily::on_link_open(Link& link, const LinkTiming& t
 }
 
 std::optional<AlignmentProof> CopleyFamily::alignment_proof(NodeContext&, const LinkTiming&) {
-  const std::string prefix = gateway_wants_axis_ ? ".a " : "";
+  const char axis = gateway_axis_ != 0 ? gateway_axis_ : gateway_wants_axis_ ? 'a' : 0;
+  const std::string prefix = axis != 0 ? std::string(".") + axis + " " : std::string();
   const unsigned baud = link_baud_;
   AlignmentProof proof;
   proof.name = "g f0x32 -> e 15, g r0x90 -> the link's rate";

@@ -10,6 +10,9 @@ class CopleyFamily final : public ProtocolFamily {
   std::optional<NodeAddress> parse_address(std::string_view text,
                                            std::string& error) const override;
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
+  // Notes whether the gateway amplifier (node 0) is configured by axis letter: its proof of
+  // alignment then uses the axis form, which a multi-axis amplifier needs.
+  NodeContextPtr bind_node(const NodeAddress& node, const Model& model) override;
   // The amplifier starts at 9600 baud after power-up, reset and break (ASCII guide §1.2, §4.1);
   // 0x90 is RAM-only. If it does not answer at the configured rate, switch it from 9600.
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
@@ -28,6 +31,7 @@ class CopleyFamily final : public ProtocolFamily {
  private:
   unsigned link_baud_ = 0;  // the host side's rate once the link is open; 0 = unknown (TCP)
   bool gateway_wants_axis_ = false;  // the gateway amplifier answered only the `.a` form
+  char gateway_axis_ = 0;            // the first axis letter configured on node 0, if any
 };
 
 // The gateway amplifier's CAN timeout when the bus does not give forward_timeout. The ASCII

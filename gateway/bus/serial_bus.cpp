@@ -39,13 +39,19 @@ ProtocolFamily& stream_family(const BusConfig& config) {
 
 SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
                      const BusConfig& config, int first_node_index, NodeUpdated on_update)
+    : SerialBus(executor, std::move(config_owner), config, first_node_index, std::move(on_update),
+                make_transport(executor, config.transport)) {}
+
+SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
+                     const BusConfig& config, int first_node_index, NodeUpdated on_update,
+                     std::unique_ptr<ByteTransport> transport)
     : executor_(executor),
       config_owner_(std::move(config_owner)),
       config_(config),
       family_(stream_family(config)),
       first_node_index_(first_node_index),
       on_update_(std::move(on_update)),
-      transport_(make_transport(executor, config.transport)),
+      transport_(std::move(transport)),
       link_(*transport_),
       wake_(executor),
       trace_(config.name, config.trace) {

@@ -29,6 +29,10 @@ class SerialBus final : public Bus {
   // which a reload may make longer than that configuration is in force.
   SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
             const BusConfig& config, int first_node_index, NodeUpdated on_update);
+  // On a transport the caller made (tests: an in-memory line) instead of the configured one.
+  SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
+            const BusConfig& config, int first_node_index, NodeUpdated on_update,
+            std::unique_ptr<ByteTransport> transport);
   ~SerialBus() override;
 
   // Runs until stop(); spawn it on the io_context.

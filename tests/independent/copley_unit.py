@@ -23,9 +23,14 @@ Readings of the manual where it leaves room:
   seek the home switch edge in the method's direction (0x010 = negative); limit methods (low
   nibble 1) seek the limit switch edge. The position at the reference is minus the home offset
   0xc6. A limit reached first ends homing with 0xc9 bit 11.
+- The gateway amp handles one command at a time: a reply waits behind the one before it (an
+  absent node's `e 32` after the CAN timeout, --can-timeout-ms, holds back what follows).
+- --pause-ms P --pause-every-ms E: every E ms the amp stops answering for P ms (a busy CPU, a USB
+  adapter's buffer) and then answers its backlog in order (issue 26).
 """
 import argparse
 import re
+import time
 
 import unit_common as uc
 
@@ -289,12 +294,15 @@ LINE_RE = re.compile(r"(?:(\d{1,3})(?:\.([abc]))? )?([a-z])(?: (.*))?")
 
 
 class Bus:
-    def __init__(self, pty, nodes):
+    def __init__(self, pty, nodes, can_timeout=0.01, pause=0.0, pause_every=0.0):
         self.pty = pty
         self.amps = {n: Amp(n) for n in nodes}
         self.gateway = self.amps[nodes[0]]
         self.buf = bytearray()
-        self.later = []  # (time, reply) for replies that come back through CAN
+        self.later = []  # (time, reply), in the order the commands came
+        self.can_timeout = can_timeout
+        self.pause = pause
+        self.pause_every = pause_every
 
     def set_baud(self, baud):
         self.pty.char_time = 10.0 / baud
@@ -341,16 +349,29 @@ class Bus:
                 return
             amp = self.amps.get(node)
             if amp is None or now < amp.booting_until:
-                self.later.append((now + 0.01, "e 32"))
+                self.queue(now + self.can_timeout, "e 32")
                 return
             if amp is not self.gateway:
                 result = amp.command(code, params, now, self)
                 # A remote reset answers e 32: it resets before it answers (2.5).
-                self.later.append((now + 0.002, result if result is not None else "e 32"))
+                self.queue(now + 0.002, result if result is not None else "e 32")
                 return
         result = amp.command(code, params, now, self)
         if result is not None:
-            self.reply(result)
+            self.queue(now, result)
+
+    def queue(self, when, text):
+        """One command at a time: a reply never overtakes the one before it."""
+        if self.later:
+            when = max(when, self.later[-1][0])
+        if self.pause_every > 0:
+            into = when % self.pause_every
+            if into < self.pause:
+                when += self.pause - into
+        if not self.later and when <= time.monotonic():
+            self.reply(text)
+        else:
+            self.later.append((when, text))
 
     def reply(self, text):
         self.pty.send(text.encode() + b"\r")
@@ -368,9 +389,14 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--link", required=True)
     ap.add_argument("--nodes", default="0,3")
+    ap.add_argument("--can-timeout-ms", type=float, default=10.0)
+    ap.add_argument("--pause-ms", type=float, default=0.0)
+    ap.add_argument("--pause-every-ms", type=float, default=0.0)
     args = ap.parse_args()
     nodes = [int(n) for n in args.nodes.split(",") if n]
-    uc.serve(args.link, 9600, lambda pty: Bus(pty, nodes),
+    uc.serve(args.link, 9600,
+             lambda pty: Bus(pty, nodes, args.can_timeout_ms / 1000, args.pause_ms / 1000,
+                             args.pause_every_ms / 1000),
              "copley: nodes %s on %s" % (args.nodes, args.link))
 
 

@@ -64,7 +64,10 @@ INSTANTIATE_TEST_SUITE_P(
 
 TEST(CopleyReply, MalformedIsNeverTakenForAValue) {
   for (const char* bad : {"", "\r", "x\r", "v\r", "v \r", "v 12a\r", "e\r", "e 1 2\r", "okay\r",
-                          "r\r", "vv 1\r", "v 0x\r", "\x7f\xff\r"}) {
+                          "r\r", "vv 1\r", "v 0x\r", "\x7f\xff\r",
+                          // Issue 26: only what the transcripts allow.
+                          "v 1  2\r", "v\t5\r", "v 5\t\r", " v 5\r", "v  5\r", "v 5 \r", "v 0X1F\r",
+                          "v 99999999999999999999\r", "v 1,2\r", "ok \r"}) {
     const auto r = parse_reply(bad);
     EXPECT_EQ(r.kind, ParsedReply::Kind::malformed) << "'" << bad << "'";
   }
