@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <optional>
+
 #include "drivers/printable_bytes.hpp"
 
 namespace fieldgate {
@@ -12,61 +14,157 @@ namespace {
 // producing frames that are not the answer is not coming into step.
 constexpr int kMaxStraysPerStep = 16;
 
-// One attempt: true when every step got its known answer, in order, and nothing followed.
-asio::awaitable<bool> attempt_once(Link& link, const AlignmentProof& proof,
-                                   const LinkTiming& timing, AlignmentResult& result) {
-  for (std::size_t i = 0; i < proof.steps.size(); ++i) {
-    const auto& step = proof.steps[i];
-    if (auto ec = co_await link.send(step.request)) {
-      result.why = "cannot send: " + ec.message();
-      co_return false;
-    }
-    for (int read_count = 0;; ++read_count) {
-      const auto read = co_await link.read_frame(step.splitter, timing);
-      if (read.status != LinkRead::Status::frame) {
-        if (!read.partial.empty()) result.strays.push_back(read.partial);
-        result.why = fmt::format(
-            "{} to '{}' where {} was expected",
-            read.status == LinkRead::Status::timeout
-                ? (read.partial.empty() ? std::string("no reply")
-                                        : "incomplete '" + printable_bytes(read.partial) + "'")
-                : std::string("an overlong or failed read"),
-            printable_bytes(step.request), step.expected);
-        co_return false;
+enum class Outcome {
+  proved,
+  failed,
+  // Every step got its known answer and nothing else came, yet replies are still owed: either
+  // those answers were stale ones of earlier identical requests, or earlier requests were lost.
+  clean_but_owing,
+};
+
+class Attempt {
+ public:
+  Attempt(Link& link, const AlignmentProof& proof, bool reversed, const LinkTiming& timing,
+          AlignmentResult& result, std::size_t& owed)
+      : link_(link),
+        proof_(proof),
+        reversed_(reversed),
+        timing_(timing),
+        result_(result),
+        owed_(owed) {}
+
+  asio::awaitable<Outcome> run() {
+    const std::size_t count = proof_.steps.size();
+    for (std::size_t i = 0; i < count; ++i) {
+      const auto& step = this->step(i);
+      if (auto ec = co_await link_.send(step.request)) {
+        result_.why = "cannot send: " + ec.message();
+        co_return Outcome::failed;
       }
-      if (step.matches(read.frame)) break;
-      result.strays.push_back(read.frame);
-      // Later steps follow an answered step: anything but their own answer means the line is
-      // still out of step (or a stray equalled the previous answer).
-      if (i > 0 || read_count + 1 >= kMaxStraysPerStep) {
-        result.why = fmt::format("'{}' to '{}' where {} was expected", printable_bytes(read.frame),
-                                 printable_bytes(step.request), step.expected);
-        co_return false;
+      ++owed_;
+      for (int read_count = 0;; ++read_count) {
+        auto frame = co_await read(step);
+        if (!frame) co_return Outcome::failed;
+        if (step.matches(*frame)) break;
+        stray(std::move(*frame));
+        // Later steps follow an answered step: anything but their own answer means the line is
+        // still out of step (or a stray equalled the previous answer).
+        if (i > 0 || read_count + 1 >= kMaxStraysPerStep) {
+          result_.why = fmt::format("'{}' to '{}' where {} was expected",
+                                    printable_bytes(result_.strays.back()),
+                                    printable_bytes(step.request), step.expected);
+          co_return Outcome::failed;
+        }
       }
     }
+    if (link_.buffered() > 0) {
+      result_.why = "bytes followed the last answer";
+      co_return Outcome::failed;
+    }
+    if (owed_ == 0) co_return Outcome::proved;
+    // Replies are owed: a device answers in order, so if the answers just read were stale ones,
+    // this attempt's own follow. Read them; the last `count` frames must be the pattern again.
+    const bool clean = strays_ == 0;
+    std::vector<std::string> last;
+    while (owed_ > 0) {
+      auto frame = co_await read(this->step(count - 1));
+      if (!frame) {
+        if (clean && result_.why.rfind("no reply", 0) == 0) co_return Outcome::clean_but_owing;
+        co_return Outcome::failed;
+      }
+      last.push_back(*frame);
+      stray(std::move(*frame));
+    }
+    if (last.size() < count) {
+      result_.why = "too few replies after stale answers";
+      co_return Outcome::failed;
+    }
+    for (std::size_t i = 0; i < count; ++i)
+      if (!this->step(i).matches(last[last.size() - count + i])) {
+        result_.why = "the replies owed after stale answers were not the proof's";
+        co_return Outcome::failed;
+      }
+    co_return link_.buffered() > 0 ? Outcome::failed : Outcome::proved;
   }
-  if (link.buffered() > 0) {
-    result.why = "bytes followed the last answer";
-    co_return false;
+
+ private:
+  const AlignmentStep& step(std::size_t i) const {
+    return proof_.steps[reversed_ ? proof_.steps.size() - 1 - i : i];
   }
-  co_return true;
-}
+  asio::awaitable<std::optional<std::string>> read(const AlignmentStep& step) {
+    const auto read = co_await link_.read_frame(step.splitter, timing_);
+    if (read.status == LinkRead::Status::frame) {
+      if (owed_ > 0) --owed_;
+      co_return read.frame;
+    }
+    if (!read.partial.empty()) stray(read.partial);
+    result_.why = fmt::format(
+        "{} to '{}' where {} was expected",
+        read.status == LinkRead::Status::timeout
+            ? (read.partial.empty() ? std::string("no reply")
+                                    : "incomplete '" + printable_bytes(read.partial) + "'")
+            : std::string("an overlong or failed read"),
+        printable_bytes(step.request), step.expected);
+    co_return std::nullopt;
+  }
+  void stray(std::string bytes) {
+    ++strays_;
+    result_.strays.push_back(std::move(bytes));
+  }
+
+  Link& link_;
+  const AlignmentProof& proof_;
+  bool reversed_;
+  const LinkTiming& timing_;
+  AlignmentResult& result_;
+  std::size_t& owed_;
+  int strays_ = 0;
+};
 
 }  // namespace
 
 asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProof& proof,
                                                  const LinkTiming& timing,
-                                                 std::chrono::microseconds guard, int attempts) {
+                                                 std::chrono::microseconds guard, int attempts,
+                                                 std::size_t& owed) {
   AlignmentResult result;
+  bool previous_clean_but_owing = false;
   while (result.attempts < attempts) {
     ++result.attempts;
-    if (co_await attempt_once(link, proof, timing, result)) {
+    const bool reversed = proof.reversible && result.attempts % 2 == 0;
+    Attempt attempt(link, proof, reversed, timing, result, owed);
+    const Outcome outcome = co_await attempt.run();
+    if (outcome == Outcome::proved) {
       result.proved = true;
       result.why.clear();
       co_return result;
     }
+    if (outcome == Outcome::clean_but_owing) {
+      // Twice in a row every answer came in order, nothing else arrived, and what is owed never
+      // came: those replies were lost (a request the device never heard), not late.
+      if (previous_clean_but_owing) {
+        result.lost = owed;
+        owed = 0;
+        result.proved = true;
+        result.why.clear();
+        co_return result;
+      }
+      previous_clean_but_owing = true;
+    } else {
+      previous_clean_but_owing = false;
+    }
     const auto drained = co_await link.resync(guard, 10 * guard);
-    if (!drained.drained.empty()) result.strays.push_back(drained.drained);
+    if (!drained.drained.empty()) {
+      result.strays.push_back(drained.drained);
+      // Whole frames among the drained bytes are owed replies arriving.
+      std::string_view rest = drained.drained;
+      while (!rest.empty() && owed > 0) {
+        const std::size_t n = proof.steps.front().splitter(rest);
+        if (n == 0 || n > rest.size()) break;
+        --owed;
+        rest.remove_prefix(n);
+      }
+    }
     if (!drained.quiet) {
       result.why += "; the line never went quiet";
       co_return result;

@@ -32,12 +32,18 @@ struct AlignmentProof {
   std::string name;  // the exchange, for logs ("g f0x32 -> e 15, g r0x90 -> v <baud>")
   // At least two steps, each answer different from the previous step's.
   std::vector<AlignmentStep> steps;
+  // Every other attempt runs the steps in reverse order, so that the answers of a failed
+  // attempt that arrive late (the same known answers) cannot pass the next attempt in step:
+  // with steps A, B the answers come as A B | B A | A B, and only an attempt's own pair reads
+  // as its pattern. False where the order matters (a write, then its read-back).
+  bool reversible = true;
 };
 
 struct AlignmentResult {
   bool proved = false;
   int attempts = 0;
   std::vector<std::string> strays;  // replies (or partial bytes) read and thrown away
+  std::size_t lost = 0;             // owed replies given up as lost (see prove_alignment)
   std::string why;                  // what the last failed attempt saw
 };
 
@@ -45,8 +51,15 @@ struct AlignmentResult {
 // replies (the backlog drains ahead of it: each is counted); every later step must be answered
 // by its own reply, and nothing may follow the last. A failed attempt waits for the line to go
 // quiet (Link::resync with `guard`) before the next.
+// `owed` counts replies the line still owes (the caller adds the requests of a failed exchange
+// that got no reply; the proof adds its own requests and takes off every frame read). A device
+// answers in order, so the known answers prove the line in step only when nothing is owed after
+// them: otherwise they may be stale answers to an earlier attempt's identical requests, and the
+// owed ones are read first. Owed replies that never come while two attempts in a row get exactly
+// their answers were lost (a request the device never heard), and are forgiven.
 asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProof& proof,
                                                  const LinkTiming& timing,
-                                                 std::chrono::microseconds guard, int attempts);
+                                                 std::chrono::microseconds guard, int attempts,
+                                                 std::size_t& owed);
 
 }  // namespace fieldgate

@@ -21,7 +21,7 @@ class CopleyFamily final : public ProtocolFamily {
   // A node other than 0 is reached through the gateway amplifier over CAN: its reply timeout
   // must exceed the amplifier's CAN timeout, so that e 32 for an absent node is its answer.
   // The proof of alignment, on the gateway amplifier (every node's replies come through it):
-  // `g f0x32` answers `e 15` (0x32 is RAM-only, gotcha 16), then `g r0x90` answers the link's
+  // `g f0x32` answers `e 15` (0x32 is RAM-only, gotcha 16), then `g r0x90` answers a baud
   // rate. No poll asks for e 15, and the second answer differs from the first.
   std::optional<AlignmentProof> alignment_proof(NodeContext& node,
                                                 const LinkTiming& timing) override;

@@ -272,6 +272,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
       ++(*n.image).counters.retries;
     }
     const auto started = Clock::now();
+    const auto received_before = link_.stats().bytes_received;
     trace_collecting_ = trace_.enabled();
     reply = co_await family_.transact_node(link_, *n.family_context, request, n.timing);
     trace_collecting_ = false;
@@ -289,6 +290,9 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
       reply = Reply::of(Reply::Status::garbled, fmt::format("stray bytes followed the reply ({})",
                                                             to_string(reply.status)));
     }
+    // A request that got no reply at all may still be answered.
+    if (reply.status == Reply::Status::timeout && link_.stats().bytes_received == received_before)
+      ++owed_replies_;
     if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled)
       co_await resync(n, reply);
     if (!aligned_ && !(accept_no_reply && reply.status == Reply::Status::timeout))
@@ -321,6 +325,7 @@ asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
   if (!transport_->is_open()) co_return;
   trace_collecting_ = trace_.enabled();
   const auto found = co_await family_.resync_after_failure(link_, n.timing);
+  drained_before_proof_ += found.drained;
   trace_collecting_ = false;
   trace_transaction(n, "resync");
   ++counters_.resyncs;
@@ -361,27 +366,51 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
     auto proof = family_.alignment_proof(*n->family_context, n->timing);
     if (!proof) {
       aligned_ = true;  // the family's replies prove themselves
+      owed_replies_ = 0;
+      drained_before_proof_.clear();
       co_return;
     }
     ++counters_.alignment_proofs;
+    // Whole replies drained while the line went quiet were owed ones arriving.
+    for (std::string_view rest = drained_before_proof_; !rest.empty() && owed_replies_ > 0;) {
+      const std::size_t length = proof->steps.front().splitter(rest);
+      if (length == 0 || length > rest.size()) break;
+      --owed_replies_;
+      rest.remove_prefix(length);
+    }
+    drained_before_proof_.clear();
     trace_collecting_ = trace_.enabled();
     const auto guard = guard_time(n->timing, link_.char_time_us());
     // An offline node gets one attempt: it is most likely absent, and others may prove the line.
     const int attempts = n->image->state == NodeState::offline ? 1 : 2;
-    const auto result = co_await prove_alignment(link_, *proof, n->timing, guard, attempts);
+    const auto result =
+        co_await prove_alignment(link_, *proof, n->timing, guard, attempts, owed_replies_);
     trace_collecting_ = false;
     trace_transaction(*n, result.proved ? "proof" : "proof failed");
     counters_.stray_replies += result.strays.size();
-    for (const auto& stray : result.strays)
-      log::warning("bus {}: drained a stray reply '{}' while proving the line in step ({})",
-                   config_.name, printable_bytes(stray, 80), proof->name);
+    if (!result.strays.empty()) {
+      std::string strays;
+      for (std::size_t i = 0; i < result.strays.size() && i < 4; ++i)
+        strays += (i ? ", '" : "'") + printable_bytes(result.strays[i], 40) + "'";
+      if (result.strays.size() > 4) strays += ", ...";
+      log::warning("bus {}: drained {} late or stray repl{} ({}) while proving the line in step",
+                   config_.name, result.strays.size(), result.strays.size() == 1 ? "y" : "ies",
+                   strays);
+    }
     if (!transport_->is_open()) break;
+    if (result.lost > 0)
+      log::warning(
+          "bus {}: {} repl{} never came and {} taken as lost (the device did not hear "
+          "the request)",
+          config_.name, result.lost, result.lost == 1 ? "y" : "ies",
+          result.lost == 1 ? "is" : "are");
     if (result.proved) {
       if (!aligned_ || alignment_failure_logged_)
         log::info("bus {}: line in step again ({}, {} attempt(s))", config_.name, proof->name,
                   result.attempts);
       aligned_ = true;
       alignment_failure_logged_ = false;
+      owed_replies_ = 0;
       co_return;
     }
     ++counters_.alignment_failures;

@@ -107,6 +107,9 @@ class SerialBus final : public Bus {
   // False from a failed exchange until a proof of alignment passed: no reply is trusted meanwhile.
   bool aligned_ = true;
   bool alignment_failure_logged_ = false;
+  // Replies the line may still owe: requests that got none (drivers/alignment_proof.hpp).
+  std::size_t owed_replies_ = 0;
+  std::string drained_before_proof_;  // what resync drained since the last proof
   // Wire trace: during a transaction the link's bytes wait here for its outcome.
   struct TracedBytes {
     SteadyTime at;

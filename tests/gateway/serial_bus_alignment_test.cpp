@@ -15,6 +15,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <map>
 #include <optional>
 #include <random>
@@ -42,6 +43,7 @@ class CopleyLine {
   struct Executed {
     std::string request;
     std::string reply;
+    long at_ms = 0, due_ms = 0;  // when heard and when answered, from the first request
   };
   CopleyLine(FakeLine& line, unsigned seed, bool pauses)
       : line_(line), random_(seed), pauses_(pauses) {
@@ -57,6 +59,11 @@ class CopleyLine {
     }
   }
   const std::vector<Executed>& journal() const { return journal_; }
+  long ms_now() const {
+    return static_cast<long>(
+        std::chrono::duration_cast<std::chrono::milliseconds>(FakeLine::Clock::now() - start_)
+            .count());
+  }
 
  private:
   void answer(const std::string& request) {
@@ -85,11 +92,16 @@ class CopleyLine {
     } else {
       reply = "e 3";
     }
-    journal_.push_back({request, reply});
     // One request at a time: this one is handled once the one before it was answered.
     const auto now = FakeLine::Clock::now();
     const auto due = std::max(now, busy_until_) + delay;
     busy_until_ = due;
+    if (journal_.empty()) start_ = now;
+    const auto ms = [&](FakeLine::Clock::time_point t) {
+      return static_cast<long>(
+          std::chrono::duration_cast<std::chrono::milliseconds>(t - start_).count());
+    };
+    journal_.push_back({request, reply, ms(now), ms(due)});
     line_.deliver(reply + "\r", due - now);
   }
 
@@ -100,6 +112,7 @@ class CopleyLine {
   std::string pending_;
   std::vector<Executed> journal_;
   FakeLine::Clock::time_point busy_until_{};
+  FakeLine::Clock::time_point start_{};
 };
 
 struct Run {
@@ -154,6 +167,11 @@ buses:
     bus_->stop();
     io_.run_for(50ms);
     log_ = ::testing::internal::GetCapturedStderr();
+    if (HasFailure()) {
+      std::cerr << "--- bus log ---\n" << log_ << "--- far end (request -> reply) ---\n";
+      for (const auto& e : far_end_->journal())
+        std::cerr << e.at_ms << " " << e.request << " -> " << e.reply << " at " << e.due_ms << "\n";
+    }
     fs::remove_all(dir_);
   }
 
@@ -166,7 +184,8 @@ buses:
     const int64_t expected = node == kGateway ? 1000 : node == kNode3 ? 3333 : 5555;
     if (node == kNode7 || v.value != expected) {
       if (wrong_++ == 0)
-        first_wrong_ = "node " + std::to_string(node) + " served " + std::to_string(v.value);
+        first_wrong_ = "node " + std::to_string(node) + " served " + std::to_string(v.value) +
+                       " at " + std::to_string(far_end_->ms_now()) + " ms";
     }
     ++good_;
   }

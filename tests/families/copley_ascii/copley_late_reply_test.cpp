@@ -14,7 +14,6 @@ using namespace std::chrono_literals;
 
 constexpr int kDesiredState = 0;  // holding 0: desired_state (0x24)
 constexpr int kPosition = 0;      // input 0-1: motor_position
-constexpr int kDiagUnknownWrites = 1015;
 constexpr int kDeviceFailure = 0x04, kTargetFailed = 0x0B;
 
 class CopleyLateReply : public PlantTest {
@@ -39,15 +38,13 @@ TEST_F(CopleyLateReply, RefusedWritesAreNeverConfirmedByALateReply) {
         << "round " << i << ": exception " << refused.exception;
   }
   EXPECT_EQ(successes, 0);
-  // The late replies were drained, counted and logged, not used.
+  // The late replies were drained, counted and logged, not used. With every reply late, no
+  // proof of alignment passes (issue 26): after the first failure nothing more is sent, so the
+  // writes are refused at the gateway ("line not in step") rather than sent into a line whose
+  // replies would belong to other requests.
   const std::string log = plant_->daemon().log();
   EXPECT_NE(log.find("drained"), std::string::npos);
-  // Writes sent without a valid reply are counted apart from clean timeouts (diagnostic
-  // registers 1015-1016) and logged as of unknown outcome.
-  auto unknown = client_->read_input(1, kDiagUnknownWrites, 2);
-  ASSERT_TRUE(unknown.ok());
-  EXPECT_GE((uint32_t{unknown.values[0]} << 16) | unknown.values[1], 1u);
-  EXPECT_NE(log.find("outcome unknown, not retried"), std::string::npos);
+  EXPECT_NE(log.find("cannot prove the line in step"), std::string::npos);
 }
 
 // The same sequence while the amplifiers answer within the timeout: refusals are reported as
