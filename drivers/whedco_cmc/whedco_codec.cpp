@@ -561,10 +561,6 @@ int64_t to_model_layout(int64_t word, StatusLayout layout) {
   return (word & ~int64_t{0x30f}) | busy | (fault << 1) | (set_a << 8) | (set_b << 9);
 }
 
-bool shows_outputs_layout(int64_t word) {
-  return (word & 4) != 0 && (word & 1) == 0;
-}
-
 std::string_view to_string(StatusForm form) {
   switch (form) {
     case StatusForm::decimal:
