@@ -26,11 +26,12 @@ bool is_hex(char c) {
   return is_digit(c) || (c >= 'A' && c <= 'F');
 }
 
-// "  0D485H" (after upper-casing): optional spaces, 1–9 hex digits, H. Values above 32 bits are
-// refused: no CN0170 register is wider.
+// "  0D485h": optional spaces, 1–9 hex digits, h (or H, §5). The manual prints the digits in
+// upper case only: a lower-case digit is a garbled character, not a hex digit. Values above 32
+// bits are refused: no CN0170 register is wider.
 std::optional<int64_t> hex_value(std::string_view s) {
   while (!s.empty() && s.front() == ' ') s.remove_prefix(1);
-  if (s.size() < 2 || s.back() != 'H') return std::nullopt;
+  if (s.size() < 2 || (s.back() != 'h' && s.back() != 'H')) return std::nullopt;
   s.remove_suffix(1);
   if (s.empty() || s.size() > 9) return std::nullopt;
   for (char c : s)
@@ -64,9 +65,9 @@ bool clock_reading(std::string_view s, char first, char second, std::vector<int6
   return true;
 }
 
-// The line without its unit prefix, upper-cased for matching; `original` keeps the case for
-// the text of a rejected string.
-Message parse_body(std::string_view s, std::string_view original) {
+// The line without its unit prefix. Replies are matched as the manual prints them: letters in
+// upper case, the hex suffix h (or H).
+Message parse_body(std::string_view s) {
   Message m;
   const auto value = [&](MessageKind kind, std::string key, std::string_view hex_part,
                          int64_t max) {
@@ -97,7 +98,7 @@ Message parse_body(std::string_view s, std::string_view original) {
     const std::string_view tail = trim_blanks(s.substr(close + 1));
     if (tail != "?") return m;
     m.kind = MessageKind::reject;
-    m.text = std::string(original.substr(1, close - 1));
+    m.text = std::string(s.substr(1, close - 1));
     return m;
   }
   if (s.size() == 4 && s[0] == '[' && s[1] == 'U' && is_digit(s[2]) && s[3] == ']') {
@@ -288,15 +289,14 @@ Message parse_message(std::string_view line) {
     m.kind = MessageKind::blank;
     return m;
   }
-  const std::string u = upper(t);
-  m = parse_body(u, t);
+  m = parse_body(t);
   if (m.kind != MessageKind::unknown) return m;
-  if (u[0] >= '1' && u[0] <= '9') {
+  if (t[0] >= '1' && t[0] <= '9') {
     std::size_t skip = 1;
-    if (u.size() > 1 && (u[1] == ' ' || u[1] == ':')) skip = 2;
-    m = parse_body(std::string_view(u).substr(skip), t.substr(skip));
+    if (t.size() > 1 && (t[1] == ' ' || t[1] == ':')) skip = 2;
+    m = parse_body(t.substr(skip));
     if (m.kind != MessageKind::unknown) {
-      m.unit = u[0] - '0';
+      m.unit = t[0] - '0';
       m.prefixed = true;
       return m;
     }
