@@ -18,6 +18,14 @@ std::string upper(std::string_view s) {
   return out;
 }
 
+// Replies carry spaces and their CR/LF around the text (digest §5), nothing else: a tab is no
+// character the manual prints.
+std::string_view trim_line(std::string_view s) {
+  const auto begin = s.find_first_not_of(" \r\n");
+  if (begin == std::string_view::npos) return {};
+  return s.substr(begin, s.find_last_not_of(" \r\n") - begin + 1);
+}
+
 bool is_digit(char c) {
   return c >= '0' && c <= '9';
 }
@@ -95,7 +103,7 @@ Message parse_body(std::string_view s) {
     // "<string>" ? — the string itself may contain anything but its closing quote.
     const auto close = s.rfind('"');
     if (close == 0) return m;
-    const std::string_view tail = trim_blanks(s.substr(close + 1));
+    const std::string_view tail = trim_line(s.substr(close + 1));
     if (tail != "?") return m;
     m.kind = MessageKind::reject;
     m.text = std::string(s.substr(1, close - 1));
@@ -148,7 +156,7 @@ Message parse_body(std::string_view s) {
         if (c == "L") n = 17;
         if (c == "P") n = 18;
         if (c == "U") n = 19;
-        if (!n) n = small_decimal(c);
+        if (!n && c.size() <= 2) n = small_decimal(c);  // 1-16 as printed
         if (n && *n >= 1 && *n <= 19) {
           m.kind = MessageKind::profile;
           m.key = axis + "C";
@@ -283,7 +291,7 @@ std::string_view to_string(MessageKind kind) {
 }
 
 Message parse_message(std::string_view line) {
-  const std::string_view t = trim_blanks(line);
+  const std::string_view t = trim_line(line);
   Message m;
   if (t.empty()) {
     m.kind = MessageKind::blank;

@@ -229,6 +229,10 @@ TEST(Cn0170Codec, LowerCaseHexDigitsAreGarbled) {
   // Letters the manual prints in upper case are no more lenient.
   EXPECT_EQ(parse_message("x=00C0E6B6h").kind, MessageKind::unknown);
   EXPECT_EQ(parse_message("m1").kind, MessageKind::unknown);
+  // Nor are characters around the text the manual does not print (a tab), or a profile number
+  // of three digits.
+  EXPECT_EQ(parse_message("\tX=00C0E6B6h").kind, MessageKind::unknown);
+  EXPECT_EQ(parse_message("XC=017").kind, MessageKind::unknown);
   // The same replies as printed are values.
   EXPECT_EQ(parse_message("1X=0014D303h").values[0], 0x14D303);
   EXPECT_EQ(parse_message("1 XP-00F97E0Ch").values[0], 0xF97E0C);
