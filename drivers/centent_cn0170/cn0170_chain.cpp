@@ -277,6 +277,15 @@ Plan plan_request(Chain& chain, const Options& options, int unit, const Request&
                                                      unit));
     return plan;
   }
+  // Queries still go to a unit in M3 (a discarded one times out; no value is made up), and so
+  // do H, Q and K (whose confirmation then says it is unconfirmed).
+  if (options.guard_program_mode && state.mode == 3 && !mode_change && moves_queue) {
+    plan.refused = refusal(kOperateMode, fmt::format("unit {} is in Operate Mode (M3): the "
+                                                     "request may be discarded, not executed; "
+                                                     "send M1 (immediate_mode) first",
+                                                     unit));
+    return plan;
+  }
   if (state.queue_full && moves_queue) {
     plan.refused = refusal(kQueueFull, fmt::format("unit {} warned that its queue is nearly "
                                                    "full (Q*); waiting for *Q",
@@ -398,6 +407,12 @@ bool Exchange::finish_ok() {
                               "not executed",
                               unit_, what_),
                   kStoredInProgram);
+  if (plan_.confirmation && confirmed_mode_ == 3 && !plan_.program_mode_ok)
+    return finish(Reply::Status::device_error,
+                  fmt::format("unit {} is in Operate Mode (M3): '{}' is not confirmed (a unit "
+                              "in M3 may discard the host's instructions); send M1 first",
+                              unit_, what_),
+                  kOperateMode);
   reply_ = Reply::of(Reply::Status::ok);
   if (plan_.read) {
     reply_.values = values_;

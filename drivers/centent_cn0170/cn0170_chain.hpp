@@ -55,6 +55,9 @@ inline constexpr int64_t kQueueFull = 2;        // Q* in force: instructions wou
 inline constexpr int64_t kProgramMode = 3;      // unit in M2: would be stored, not run
 inline constexpr int64_t kInvalidValue = 4;     // refused by the family before sending
 inline constexpr int64_t kStoredInProgram = 5;  // confirmation showed M2: command was stored
+// Unit in Operate Mode (M3): the host's instructions may be discarded (or left to its program),
+// so nothing is sent, and a confirmation showing M3 confirms nothing.
+inline constexpr int64_t kOperateMode = 6;
 
 // The gateway-local read "@counters" (README "Counters"): values in this order.
 inline constexpr std::string_view kCountersRequest = "@counters";

@@ -18,6 +18,14 @@ std::string upper(std::string_view s) {
   return out;
 }
 
+// Replies carry spaces and their CR/LF around the text (digest §5), nothing else: a tab is no
+// character the manual prints.
+std::string_view trim_line(std::string_view s) {
+  const auto begin = s.find_first_not_of(" \r\n");
+  if (begin == std::string_view::npos) return {};
+  return s.substr(begin, s.find_last_not_of(" \r\n") - begin + 1);
+}
+
 bool is_digit(char c) {
   return c >= '0' && c <= '9';
 }
@@ -26,11 +34,12 @@ bool is_hex(char c) {
   return is_digit(c) || (c >= 'A' && c <= 'F');
 }
 
-// "  0D485H" (after upper-casing): optional spaces, 1–9 hex digits, H. Values above 32 bits are
-// refused: no CN0170 register is wider.
+// "  0D485h": optional spaces, 1–9 hex digits, h (or H, §5). The manual prints the digits in
+// upper case only: a lower-case digit is a garbled character, not a hex digit. Values above 32
+// bits are refused: no CN0170 register is wider.
 std::optional<int64_t> hex_value(std::string_view s) {
   while (!s.empty() && s.front() == ' ') s.remove_prefix(1);
-  if (s.size() < 2 || s.back() != 'H') return std::nullopt;
+  if (s.size() < 2 || (s.back() != 'h' && s.back() != 'H')) return std::nullopt;
   s.remove_suffix(1);
   if (s.empty() || s.size() > 9) return std::nullopt;
   for (char c : s)
@@ -64,9 +73,9 @@ bool clock_reading(std::string_view s, char first, char second, std::vector<int6
   return true;
 }
 
-// The line without its unit prefix, upper-cased for matching; `original` keeps the case for
-// the text of a rejected string.
-Message parse_body(std::string_view s, std::string_view original) {
+// The line without its unit prefix. Replies are matched as the manual prints them: letters in
+// upper case, the hex suffix h (or H).
+Message parse_body(std::string_view s) {
   Message m;
   const auto value = [&](MessageKind kind, std::string key, std::string_view hex_part,
                          int64_t max) {
@@ -94,10 +103,10 @@ Message parse_body(std::string_view s, std::string_view original) {
     // "<string>" ? — the string itself may contain anything but its closing quote.
     const auto close = s.rfind('"');
     if (close == 0) return m;
-    const std::string_view tail = trim_blanks(s.substr(close + 1));
+    const std::string_view tail = trim_line(s.substr(close + 1));
     if (tail != "?") return m;
     m.kind = MessageKind::reject;
-    m.text = std::string(original.substr(1, close - 1));
+    m.text = std::string(s.substr(1, close - 1));
     return m;
   }
   if (s.size() == 4 && s[0] == '[' && s[1] == 'U' && is_digit(s[2]) && s[3] == ']') {
@@ -147,7 +156,7 @@ Message parse_body(std::string_view s, std::string_view original) {
         if (c == "L") n = 17;
         if (c == "P") n = 18;
         if (c == "U") n = 19;
-        if (!n) n = small_decimal(c);
+        if (!n && c.size() <= 2) n = small_decimal(c);  // 1-16 as printed
         if (n && *n >= 1 && *n <= 19) {
           m.kind = MessageKind::profile;
           m.key = axis + "C";
@@ -282,21 +291,20 @@ std::string_view to_string(MessageKind kind) {
 }
 
 Message parse_message(std::string_view line) {
-  const std::string_view t = trim_blanks(line);
+  const std::string_view t = trim_line(line);
   Message m;
   if (t.empty()) {
     m.kind = MessageKind::blank;
     return m;
   }
-  const std::string u = upper(t);
-  m = parse_body(u, t);
+  m = parse_body(t);
   if (m.kind != MessageKind::unknown) return m;
-  if (u[0] >= '1' && u[0] <= '9') {
+  if (t[0] >= '1' && t[0] <= '9') {
     std::size_t skip = 1;
-    if (u.size() > 1 && (u[1] == ' ' || u[1] == ':')) skip = 2;
-    m = parse_body(std::string_view(u).substr(skip), t.substr(skip));
+    if (t.size() > 1 && (t[1] == ' ' || t[1] == ':')) skip = 2;
+    m = parse_body(t.substr(skip));
     if (m.kind != MessageKind::unknown) {
-      m.unit = u[0] - '0';
+      m.unit = t[0] - '0';
       m.prefixed = true;
       return m;
     }

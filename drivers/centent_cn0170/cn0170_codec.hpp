@@ -72,9 +72,10 @@ struct Message {
   std::string text;  // the rejected string for reject; the line for unknown
 };
 
-// Lenient as the digest advises (§5): leading 0 and spaces in hex values, h or H, CR/LF and
+// Lenient where the digest advises (§5): leading 0 and spaces in hex values, h or H, CR/LF and
 // spaces around the line, an optional ' ' or ':' after the prefix digit, [Un]/Un with or
-// without a prefix.
+// without a prefix. Strict where the manual is not silent: letters and hex digits in upper case
+// as printed (a lower-case one is a garbled character: `001aD303h` is no register value).
 Message parse_message(std::string_view line);
 
 // A query the family knows how to match and decode.

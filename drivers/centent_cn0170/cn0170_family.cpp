@@ -324,16 +324,79 @@ asio::awaitable<Reply> CententFamily::read_replies(Link& link, cn0170::Exchange 
   co_return exchange.reply();
 }
 
+namespace {
+
+// One reply line of the proof: blank lines before it (the LF of a CR LF) and the LF after its CR
+// are part of it, so nothing of an answered step is left behind.
+std::size_t proof_line_length(std::string_view buffer) {
+  const auto begin = buffer.find_first_not_of("\r\n");
+  if (begin == std::string_view::npos) return 0;
+  const auto end = buffer.find_first_of("\r\n", begin);
+  if (end == std::string_view::npos) return 0;
+  return buffer[end] == '\r' && end + 1 < buffer.size() && buffer[end + 1] == '\n' ? end + 2
+                                                                                   : end + 1;
+}
+
+AlignmentStep rejected_string_step(std::string request, int unit, std::string rejected) {
+  AlignmentStep step;
+  step.request = std::move(request);
+  step.splitter = proof_line_length;
+  step.expected = fmt::format("'{}\"{}\" ?'", unit == 0 ? "" : std::to_string(unit), rejected);
+  step.matches = [unit, rejected](std::string_view frame) {
+    const cn0170::Message m = cn0170::parse_message(frame);
+    return m.kind == cn0170::MessageKind::reject && m.unit == unit && m.text == rejected;
+  };
+  return step;
+}
+
+}  // namespace
+
+std::optional<AlignmentProof> CententFamily::alignment_proof(NodeContext& node, const LinkTiming&) {
+  const int unit = node.address().number;
+  // The proof selects the unit on its own: the chain's selection is unknown after it, whatever
+  // happens.
+  chain_.forget_selection();
+  chain_.drain_before_next = true;
+  AlignmentProof proof;
+  proof.name = fmt::format("XY? -> '{0}\"XY?\" ?', YX? -> '{0}\"YX?\" ?'",
+                           unit == 0 ? "" : std::to_string(unit));
+  // XY? is the manual's own example of a rejected string (p.3); YX? is no instruction either.
+  // The leading CR lets a unit that reset take its auto-baud (its U<n> is drained).
+  std::string first = options_.leading_cr ? "\r" : "";
+  first += cn0170::encode_select(unit) + "XY?\r";
+  proof.steps.push_back(rejected_string_step(std::move(first), unit, "XY?"));
+  proof.steps.push_back(rejected_string_step("YX?\r", unit, "YX?"));
+  return proof;
+}
+
 asio::awaitable<std::optional<Reply>> CententFamily::set_up(Link& link, int unit,
                                                             const LinkTiming& timing) {
   auto& state = chain_.units[static_cast<std::size_t>(unit)];
-  const bool recheck_mode = options_.guard_program_mode && state.mode == 2;
+  const bool recheck_mode = options_.guard_program_mode && (state.mode == 2 || state.mode == 3);
   if (state.set_up && !recheck_mode) co_return std::nullopt;
   const Request mode_query{"M?", Request::Expect::values, NumberFormat::decimal};
   Reply mode = co_await run(link, unit, cn0170::plan_request(chain_, options_, unit, mode_query),
                             "M?", timing);
   if (mode.status != Reply::Status::ok) co_return mode;
   if (state.set_up) co_return std::nullopt;
+  if (state.mode == 3) {
+    // Power-up resumes the last mode (digest §3, §6 #3). The gateway runs its units in Immediate
+    // Mode: in M3 a unit may discard what the host sends, and its M3 would confirm commands that
+    // never ran. A program the unit runs on its own is left to it only while the gateway has not
+    // contacted it; run_program (M3;G) puts it back in M3 on purpose, and then motor commands
+    // are refused until immediate_mode.
+    const Request immediate{"M1", Request::Expect::ack, NumberFormat::decimal};
+    Reply r = co_await run(link, unit, cn0170::plan_request(chain_, options_, unit, immediate),
+                           "M1", timing);
+    if (r.status != Reply::Status::ok) {
+      chain_.log(4, fmt::format("unit {} is in Operate Mode (M3) and did not confirm M1: {}", unit,
+                                r.text));
+      co_return r;
+    }
+    chain_.log(5, fmt::format("unit {} was in Operate Mode (M3) at first contact, where it may "
+                              "discard the host's instructions: switched to Immediate Mode (M1)",
+                              unit));
+  }
   if (state.mode == 1 && options_.overflow != cn0170::Options::Overflow::leave) {
     const bool rts = options_.overflow == cn0170::Options::Overflow::rts;
     std::string command = options_.overflow_command;
@@ -360,10 +423,6 @@ asio::awaitable<std::optional<Reply>> CententFamily::set_up(Link& link, int unit
   } else if (state.mode == 2) {
     chain_.log(4, fmt::format("unit {} is in Program Mode (M2); motor and I/O requests are "
                               "refused until it leaves it",
-                              unit));
-  } else if (state.mode == 3) {
-    chain_.log(5, fmt::format("unit {} is in Operate Mode (M3); its overflow mode is left as it "
-                              "is",
                               unit));
   }
   state.set_up = true;

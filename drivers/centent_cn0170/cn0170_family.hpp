@@ -37,6 +37,10 @@ class CententFamily final : public ProtocolFamily {
   asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing) override;
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
+  // `.Un` then `XY?` -> `n"XY?" ?`, then `YX?` -> `n"YX?" ?`: a unit echoes a string it
+  // rejects (p.3), so each answer names the string just sent.
+  std::optional<AlignmentProof> alignment_proof(NodeContext& node,
+                                                const LinkTiming& timing) override;
 
   void set_log_sink(LogSink sink) { log_sink_ = std::move(sink); }
   void route_log(LogRoute route) override {

@@ -181,6 +181,12 @@ std::string normalize_command(std::string_view command) {
   return std::string(command);
 }
 
+bool single_mode_echo(char name, std::string_view command, std::string_view partial) {
+  const std::string line = encode_line(name, command);
+  const std::string_view sent = std::string_view(line).substr(0, line.size() - 1);
+  return partial == sent || (partial.size() == 1 && partial.front() == name);
+}
+
 std::string encode_line(char name, std::string_view command) {
   std::string out;
   out.reserve(command.size() + 2);

@@ -66,6 +66,12 @@ std::size_t line_length(std::string_view buf);
 // A line made of CR and LF only: a completion, possibly a late one from an earlier command.
 bool is_blank_line(std::string_view line);
 
+// What a unit in Single mode sends back to `<name><command>\n` (p.10-11): the name, and the
+// command if it has signed on, every character echoed but the LF, which is no terminator there
+// (CR is), so the line never ends. A party-line unit never echoes that without the LF; one such
+// echo may still be a cut line, so the family waits for it twice in a row.
+bool single_mode_echo(char name, std::string_view command, std::string_view partial);
+
 enum class EchoMatch { with_name, without_name, mismatch };
 // Compares an echo line (LF included) with what was sent. The manual does not say whether the
 // name is echoed (§2, §10.1), so both forms match; CRs before the echo (a late completion) are

@@ -265,6 +265,57 @@ Reply interpret_ims_reply(const NodeAddress& node, const Request& request,
   return interpret_ims_result(node, request, *result);
 }
 
+namespace {
+
+// One reply of the proof: blank lines, the echo line, and the result line unless the result
+// ended the echo's line. A line that is no echo of `command` is a frame of its own (a stray).
+std::size_t proof_reply_length(std::string_view buffer, char name, std::string_view command) {
+  std::size_t at = 0;
+  const auto next_line = [&]() -> std::optional<std::string_view> {
+    for (;;) {
+      const std::size_t n = ims::line_length(buffer.substr(at));
+      if (n == 0) return std::nullopt;
+      const std::string_view line = buffer.substr(at, n);
+      at += n;
+      if (!ims::is_blank_line(line)) return line;
+    }
+  };
+  const auto echo = next_line();
+  if (!echo) return 0;
+  const ims::EchoLine parsed = ims::parse_echo_line(name, command, *echo);
+  if (parsed.match == ims::EchoMatch::mismatch || parsed.result) return at;
+  return next_line() ? at : 0;
+}
+
+AlignmentStep query_step(const NodeAddress& node, std::string command) {
+  const char name = name_of(node);
+  AlignmentStep step;
+  step.request = ims::encode_line(name, command);
+  step.splitter = [name, command](std::string_view buffer) {
+    return proof_reply_length(buffer, name, command);
+  };
+  step.expected = fmt::format("the echo of '{}' and its result", command);
+  step.matches = [node, command](std::string_view frame) {
+    const Request request{command, Request::Expect::values, NumberFormat::decimal};
+    return interpret_ims_reply(node, request, frame).status == Reply::Status::ok;
+  };
+  return step;
+}
+
+}  // namespace
+
+std::optional<AlignmentProof> ImsPartyLineFamily::alignment_proof(NodeContext& context,
+                                                                  const LinkTiming&) {
+  const NodeAddress& node = context.address();
+  AlignmentProof proof;
+  proof.name = fmt::format("{0}^ -> ^ and a result, {0}Z -> Z and a result", node.text);
+  // Two queries with different echoes: a late reply to `^` taken for the first answer leaves
+  // the real one to the second step, whose echo must be `Z`.
+  proof.steps.push_back(query_step(node, "^"));
+  proof.steps.push_back(query_step(node, "Z"));
+  return proof;
+}
+
 NodeContextPtr ImsPartyLineFamily::bind_node(const NodeAddress& node, const Model& model) {
   Diagnostics reported;  // validate_model reported them; a model with errors never runs
   const auto v = check_model_options(model, name(), model_options(), reported);
@@ -296,6 +347,27 @@ asio::awaitable<void> ImsPartyLineFamily::drain(Link& link, const LinkTiming& ti
   }
   late_.stray(drained, Clock::now());
   link.discard_input();
+}
+
+Reply ImsPartyLineFamily::single_mode_reply(const NodeAddress& node, const Request& request,
+                                            Reply failure, std::string_view partial) {
+  const char name = name_of(node);
+  if (!ims::single_mode_echo(name, request.command, partial)) {
+    single_mode_echoes_[name] = 0;
+    return failure;
+  }
+  if (++single_mode_echoes_[name] < 2) return failure;
+  // The mode is the Party input's level at reset (p.5, 10): no command switches it.
+  const std::string what = fmt::format(
+      "unit {} answers as an indexer in Single mode: it echoed '{}' with the name and without "
+      "the LF, {} times in a row (in Single mode every character is echoed and only CR ends a "
+      "line, p.10-11; after a reset it waits for a Space and takes the first character as its "
+      "name). The mode is read from the Party input at reset: ground the Party input and "
+      "power-cycle the unit. Nothing the gateway sends is executed until then",
+      node.text, ims::printable(partial), single_mode_echoes_[name]);
+  if (single_mode_echoes_[name] == 2) log(4, what);
+  failure.text = what;
+  return failure;
 }
 
 asio::awaitable<void> ImsPartyLineFamily::after_failure(Link& link, const LinkTiming& timing,
@@ -460,6 +532,7 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
   }
   if (echo.failure) {
     if (echo.failure->status == Reply::Status::link_down) co_return *echo.failure;
+    echo.failure = single_mode_reply(node, request, *echo.failure, echo.partial);
     // A query's echo that stopped before its LF: the rest (its result) may still come.
     if (query && echo.failure->status == Reply::Status::garbled &&
         ims::parse_echo_line(name, request.command, echo.partial + "\n").match !=
@@ -470,6 +543,7 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
     co_return bad;
   }
 
+  single_mode_echoes_[name] = 0;
   const ims::EchoLine parsed = ims::parse_echo_line(name, request.command, echo.line);
   if (parsed.match == ims::EchoMatch::mismatch) late_.stray(echo.line, Clock::now());
   // A value after a non-query's echo is the rest of another unit's late line.

@@ -42,6 +42,10 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,
                                      const Request& request) override;
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
+  // `<name>^` answered by the echo of `^` and a result, then `<name>Z` by the echo of `Z` and a
+  // result: the echo names the command it answers, whatever the values.
+  std::optional<AlignmentProof> alignment_proof(NodeContext& node,
+                                                const LinkTiming& timing) override;
 
   const ims::ChainShadow& shadow() const { return shadow_; }
   const ims::UnitReadings& readings() const { return readings_; }
@@ -79,6 +83,11 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   ims::UnitReadings readings_;
   ims::LateReplies late_;
   std::map<char, bool> answering_;  // the unit's echo came on its last exchange
+  // Exchanges in a row whose echo looked like a unit in Single mode's (ims::single_mode_echo).
+  std::map<char, int> single_mode_echoes_;
+  // A Single mode echo (or more) in a row is what the unit does, not a glitch: the reply says so.
+  Reply single_mode_reply(const NodeAddress& node, const Request& request, Reply failure,
+                          std::string_view partial);
   LogSink log_;
 };
 

@@ -21,8 +21,14 @@ bool is_digit(char c) {
   return c >= '0' && c <= '9';
 }
 
+// As the manual prints hex (variables V0-VF, FCa codes 0-A): upper case only. A lower-case
+// letter is a garbled character, not a digit.
 bool is_hex_digit(char c) {
-  return is_digit(c) || (c >= 'A' && c <= 'F') || (c >= 'a' && c <= 'f');
+  return is_digit(c) || (c >= 'A' && c <= 'F');
+}
+
+bool is_upper_or_digit(char c) {
+  return is_digit(c) || (c >= 'A' && c <= 'Z');
 }
 
 char upper(char c) {
@@ -385,8 +391,8 @@ std::optional<std::vector<Decimal>> parse_numbers(std::string_view body, bool he
   // One label in front, as in "V1=25000" or "X: 12".
   {
     std::size_t i = 0;
-    if (i < body.size() && std::isalpha(static_cast<unsigned char>(body[i]))) {
-      while (i < body.size() && std::isalnum(static_cast<unsigned char>(body[i]))) ++i;
+    if (i < body.size() && body[i] >= 'A' && body[i] <= 'Z') {
+      while (i < body.size() && is_upper_or_digit(body[i])) ++i;
       if (i < body.size() && (body[i] == '=' || body[i] == ':'))
         body = trim_blanks(body.substr(i + 1));
     }
@@ -418,7 +424,7 @@ std::optional<std::vector<Decimal>> parse_numbers(std::string_view body, bool he
       if (is_digit(c))
         digit = c - '0';
       else if (hex && is_hex_digit(c))
-        digit = upper(c) - 'A' + 10;
+        digit = c - 'A' + 10;
       if (digit < 0) return std::nullopt;
       mantissa = mantissa * (hex ? 16 : 10) + digit;
       if (++digits > 18) return std::nullopt;
@@ -561,10 +567,6 @@ int64_t to_model_layout(int64_t word, StatusLayout layout) {
   return (word & ~int64_t{0x30f}) | busy | (fault << 1) | (set_a << 8) | (set_b << 9);
 }
 
-bool shows_outputs_layout(int64_t word) {
-  return (word & 4) != 0 && (word & 1) == 0;
-}
-
 std::string_view to_string(StatusForm form) {
   switch (form) {
     case StatusForm::decimal:
@@ -589,7 +591,7 @@ std::optional<StatusWord> parse_status_word(std::string_view body, std::optional
     w.evidence = StatusForm::binary;
     return w;
   }
-  if (!all([](char c) { return std::isxdigit(static_cast<unsigned char>(c)) != 0; })) {
+  if (!all(is_hex_digit)) {
     problem = fmt::format("'{}' is no status word (decimal, hex or 8/16 binary digits)", body);
     return std::nullopt;
   }

@@ -147,9 +147,6 @@ std::string_view to_string(StatusLayout layout);
 // A word a unit printed in `layout`, in the busy_first layout the models read: outputs' busy
 // and fault move to bits 0 and 1, its set points A and B to bits 8 and 9; bits 4-7 stay.
 int64_t to_model_layout(int64_t word, StatusLayout layout);
-// Whether a word can only be the outputs layout: bit 2 (busy there) without bit 0 (busy in the
-// other layout, which sets it with every bit 2 condition: a profile or an equation running).
-bool shows_outputs_layout(int64_t word);
 
 struct StatusWord {
   int64_t value = 0;

@@ -263,12 +263,51 @@ asio::awaitable<void> WhedcoFamily::resync(Link& link, const LinkTiming& timing)
   link.discard_input();
 }
 
+namespace {
+
+// One step of the proof: `line` sent, its answer read up to the prompt; `with_text` whether the
+// answer has text before the prompt (a value) or is the prompt alone.
+AlignmentStep proof_step(const std::string& line, EchoMode mode, bool with_text) {
+  AlignmentStep step;
+  step.request = line + whedco::kTerminator;
+  step.splitter = [line, mode](std::string_view buffer) {
+    return whedco::frame_length(buffer, line, mode);
+  };
+  step.matches = [line, mode, with_text](std::string_view frame) {
+    bool echoed = false;
+    std::string_view body = whedco::strip_echo(frame, line, echoed);
+    if ((mode == EchoMode::echo && !echoed) || (mode == EchoMode::non_echo && echoed)) return false;
+    if (has_control_bytes(frame)) return false;
+    const auto prompt = body.find(whedco::kPrompt);
+    if (prompt == std::string_view::npos || prompt + 1 != body.size()) return false;
+    return trim_blanks(body.substr(0, prompt)).empty() != with_text;
+  };
+  step.expected = with_text ? "a value before the '*' prompt" : "the '*' prompt alone";
+  return step;
+}
+
+}  // namespace
+
+std::optional<AlignmentProof> WhedcoFamily::alignment_proof(NodeContext& context,
+                                                            const LinkTiming&) {
+  const NodeAddress& node = context.address();
+  const EchoMode mode = echo_mode(node);
+  AlignmentProof proof;
+  proof.name = fmt::format("{}! -> '*', {}FC -> a value and '*'", node.number, node.number);
+  // A `!` anywhere in a line makes the unit ignore it (§5.17): the prompt alone comes back.
+  proof.steps.push_back(proof_step(whedco::sent_line(node.number, "!"), mode, false));
+  // FC answers in every state and format, with a value (non-echo) or text (echo).
+  proof.steps.push_back(proof_step(whedco::sent_line(node.number, "FC"), mode, true));
+  return proof;
+}
+
 const ModelOptionSpecs& WhedcoFamily::model_options() const {
   static const ModelOptionSpecs specs{
-      choice_option("status_layout", "auto", {"auto", "busy_first", "outputs"},
+      choice_option("status_layout", "busy_first", {"busy_first", "outputs"},
                     "bit order of RS status words (the manual's section 4.3.1 is missing): busy "
-                    "at bit 0 until a word shows bit 2 without bit 0 (auto), busy at bit 0, or "
-                    "the hardware outputs' order (set point A, B, busy, fault)"),
+                    "at bit 0 and fault at bit 1 (busy_first, the models' bits), or the hardware "
+                    "outputs' order (set point A, B, busy, fault). Not detected: bit 2 may be "
+                    "busy in one layout and another state (homed) in the other"),
   };
   return specs;
 }
@@ -278,9 +317,8 @@ NodeContextPtr WhedcoFamily::bind_node(const NodeAddress& node, const Model& mod
   const std::string layout =
       check_model_options(model, name(), model_options(), reported).text("status_layout");
   auto bound = std::make_shared<BoundNode>(node);
-  if (layout != "auto")
-    bound->pinned_layout =
-        layout == "outputs" ? whedco::StatusLayout::outputs : whedco::StatusLayout::busy_first;
+  bound->layout =
+      layout == "outputs" ? whedco::StatusLayout::outputs : whedco::StatusLayout::busy_first;
   return bound;
 }
 
@@ -289,7 +327,6 @@ asio::awaitable<void> WhedcoFamily::on_link_open(Link& link, const LinkTiming& t
   // part of a line from before.
   unit_ratios_.clear();
   contacted_.clear();
-  found_layouts_.clear();
   unit_functional_.clear();
   resync_ = Resync::void_and_drain;
   co_await resync(link, timing);
@@ -338,7 +375,7 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const BoundNode& bound
                               node.number, whedco::to_string(*findings_.status_form), x.line));
       }
       if (kind == QueryKind::status_word && r.status == Reply::Status::ok && !r.values.empty())
-        r.values[0] = model_layout(link, bound, x.line, r.values[0]);
+        r.values[0] = whedco::to_model_layout(r.values[0], bound.layout);
       co_return r;
     }
     case LinkRead::Status::timeout:
@@ -355,30 +392,6 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const BoundNode& bound
       co_return Reply::of(Reply::Status::link_down, read.error.message());
   }
   co_return Reply{};
-}
-
-// The models read status words with busy at bit 0 (busy_first). A unit whose words are laid out
-// like its hardware outputs (busy at bit 2) is found by the first word with bit 2 and without
-// bit 0 - under busy_first bit 2 (a profile or an equation running) never comes without busy -
-// and its words are rearranged from then on; a model's status_layout pins either layout.
-int64_t WhedcoFamily::model_layout(Link& link, const BoundNode& bound, const std::string& line,
-                                   int64_t word) {
-  const NodeAddress& node = bound.address();
-  whedco::StatusLayout layout = whedco::StatusLayout::busy_first;
-  if (bound.pinned_layout) {
-    layout = *bound.pinned_layout;
-  } else if (const auto found = found_layouts_.find(node.number); found != found_layouts_.end()) {
-    layout = found->second;
-  } else if (whedco::shows_outputs_layout(word)) {
-    layout = whedco::StatusLayout::outputs;
-    found_layouts_[node.number] = layout;
-    link.note(
-        fmt::format("whedco-cmc unit {}: status word {} (reply to '{}') has bit 2 without "
-                    "bit 0: its status words are laid out as {}; busy and fault are "
-                    "reported at bits 0 and 1 from now on",
-                    node.number, word, line, whedco::to_string(layout)));
-  }
-  return whedco::to_model_layout(word, layout);
 }
 
 asio::awaitable<Reply> WhedcoFamily::transact_node(Link& link, NodeContext& context,

@@ -35,6 +35,10 @@ class WhedcoFamily final : public ProtocolFamily {
   // The node's context carries its model's status_layout.
   NodeContextPtr bind_node(const NodeAddress& node, const Model& model) override;
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
+  // `4!` -> the prompt alone (a line with `!` is ignored, §5.17), then `4FC` -> a value or text
+  // before the prompt: in echo format each answer also repeats its own line.
+  std::optional<AlignmentProof> alignment_proof(NodeContext& node,
+                                                const LinkTiming& timing) override;
 
   // The communication format a node was configured with (NodeAddress::axis carries it: the
   // address of a CMC-0 has no axis letter).
@@ -44,15 +48,15 @@ class WhedcoFamily final : public ProtocolFamily {
   enum class Resync { none, void_line, void_and_drain };
   struct BoundNode : NodeContext {
     using NodeContext::NodeContext;
-    std::optional<whedco::StatusLayout> pinned_layout;  // model option status_layout; nullopt: auto
+    // Model option status_layout. Not detected: no word tells the layouts apart, as bit 2 may
+    // be busy in one and a lasting state (homed) in the other.
+    whedco::StatusLayout layout = whedco::StatusLayout::busy_first;
   };
 
   asio::awaitable<Reply> exchange(Link& link, const BoundNode& node, const std::string& command,
                                   Request::Expect expect, NumberFormat format,
                                   whedco::QueryKind kind, int unit_ratio, const LinkTiming& timing);
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
-  // A status word as the models read it (busy at bit 0), whatever the unit's layout.
-  int64_t model_layout(Link& link, const BoundNode& node, const std::string& line, int64_t word);
   // The first exchange with a unit since the port opened: reads FC, and clears the power-up
   // state (Power Failure, every axis faulted) with WB, as the manual asks after power-up.
   asio::awaitable<void> first_contact(Link& link, const BoundNode& node, const LinkTiming& timing);
@@ -61,8 +65,6 @@ class WhedcoFamily final : public ProtocolFamily {
   std::map<int, bool> contacted_;
   std::map<int, whedco::StatusForm> status_forms_;
   std::map<int, int64_t> unit_functional_;
-  // How each unit lays out its status words where no status_layout pins it: found per unit.
-  std::map<int, whedco::StatusLayout> found_layouts_;
   WhedcoFindings findings_;  // of the last exchange
   Resync resync_ = Resync::none;
 };

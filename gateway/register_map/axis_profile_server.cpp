@@ -53,6 +53,17 @@ bool status_bit(const Model& model, const NodeImage& node, const ProfileAxisDef&
   return (observed == s.value) != s.negate;
 }
 
+// Whether the point behind a status bit was read after `since` (a constant always is).
+bool status_read_since(const Model& model, const NodeImage& node, const ProfileAxisDef& axis,
+                       StatusBit bit, std::chrono::steady_clock::time_point since) {
+  const auto it = axis.status.find(bit);
+  if (it == axis.status.end() || it->second.constant) return true;
+  const int i = point_index(model, it->second.point);
+  if (i < 0) return true;
+  const auto& v = node.points[static_cast<std::size_t>(i)];
+  return v.valid && v.updated > since;
+}
+
 // The profile values a command passes to the model, and from which register.
 std::vector<std::pair<ProfileSetpoint, std::size_t>> inputs_of(ProfileCommand c) {
   switch (c) {
@@ -371,6 +382,7 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
   const auto executor = co_await asio::this_coro::executor;
   asio::steady_timer timer(executor);
   std::optional<std::chrono::steady_clock::time_point> jog_deadline;
+  std::chrono::steady_clock::time_point actions_ended{};
   for (;;) {
     timer.expires_after(kFollowInterval);
     co_await timer.async_wait(asio::as_tuple(asio::use_awaitable));
@@ -416,8 +428,17 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
     const AxisObservation seen = observe(unit, rt);
     if ((motion && seen.moving != jog) ||
         (power && seen.enabled != (rt.command == ProfileCommand::power_on))) {
-      if (!jog_deadline) jog_deadline = std::chrono::steady_clock::now() + kJogStartPatience;
-      if (std::chrono::steady_clock::now() < *jog_deadline) {
+      if (!jog_deadline) {
+        actions_ended = std::chrono::steady_clock::now();
+        jog_deadline = actions_ended + kJogStartPatience;
+      }
+      // Patience runs out only against a status read after the actions ended: a poll slower
+      // than the patience (a unit at 1200 baud) would otherwise end a jog done, and the axis
+      // Standstill, on a status read before the jog began.
+      const auto& node = image_.node(unit.node_index);
+      const bool read_since = status_read_since(
+          *unit.model, node, axis, power ? StatusBit::enabled : StatusBit::moving, actions_ended);
+      if (std::chrono::steady_clock::now() < *jog_deadline || !read_since) {
         --step;
         continue;
       }

@@ -29,6 +29,10 @@ Readings of the manual where it leaves room:
   CCW of where the axis powered up.
 - Velocity/acceleration defaults (undocumented) are the Getting Started values: XV=200,2000,
   XA=10000.
+- `--power-up-mode 3`: the unit powers up in Operate Mode (M3), as one does whose last mode
+  before power-off was M3 (power-up resumes it, p.5). Read: instructions the host sends in M3
+  are discarded (a program would run them on `G`); only `M?` and the mode changes `M1`, `M2`,
+  `M3` are obeyed.
 """
 import argparse
 import re
@@ -137,14 +141,14 @@ class Motor:
 
 
 class Unit:
-    def __init__(self, number):
+    def __init__(self, number, mode=1):
         self.number = number
-        self.power_up()
+        self.power_up(mode)
 
-    def power_up(self):
+    def power_up(self, mode):
         self.baud_state = "waiting"  # waiting for the auto-baud CR, "ok" or "wrong"
         self.motors = {"X": Motor("X"), "Y": Motor("Y")}
-        self.mode = 1
+        self.mode = mode
         self.outputs = {3: 0, 4: 0}
         self.replies = []
 
@@ -163,6 +167,8 @@ class Unit:
         if re.fullmatch(r"M[123]", up):
             self.mode = int(up[1])
             return
+        if self.mode == 3:
+            return  # discarded: in Operate Mode the program, not the host, drives the unit
         if re.fullmatch(r"M1\\[+-]", up):
             return
         if up == "Q":
@@ -291,9 +297,9 @@ class Unit:
 
 
 class Chain:
-    def __init__(self, pty, numbers):
+    def __init__(self, pty, numbers, mode):
         self.pty = pty
-        self.units = [Unit(n) for n in numbers]
+        self.units = [Unit(n, mode) for n in numbers]
         self.selected = 0
         self.buf = bytearray()
 
@@ -351,9 +357,10 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--link", required=True)
     ap.add_argument("--units", default="0")
+    ap.add_argument("--power-up-mode", type=int, default=1, choices=[1, 3])
     args = ap.parse_args()
     numbers = [int(n) for n in args.units.split(",") if n]
-    uc.serve(args.link, 9600, lambda pty: Chain(pty, numbers),
+    uc.serve(args.link, 9600, lambda pty: Chain(pty, numbers, args.power_up_mode),
              "centent: units %s on %s" % (args.units, args.link))
 
 

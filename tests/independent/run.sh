@@ -28,8 +28,11 @@ case $family in
     axis_family_bus copley "$dir/port" 200ms
     axis_args=(--distance 20000 --expect-homed)
     ;;
-  centent)
+  centent | centent.*)
+    # .power-up-m3: the unit powers up in Operate Mode (M3), where it discards the host's
+    # instructions (see centent_unit.py).
     unit=(centent_unit.py --units 0)
+    case $family in *power-up-m3*) unit+=(--power-up-mode 3) ;; esac
     axis_family_bus centent "$dir/port" 200ms 20ms
     axis_args=(--distance 1024000 --refused-target 20000000 --tolerance 4)
     ;;
@@ -48,11 +51,27 @@ case $family in
     ;;
   whedco | whedco.*)
     # .non-echo: the CMC-0's DIP switch SW2-5 at "non-echo" (factory: echo). .busy-first: the
-    # status words with busy at bit 0 (the manual's section 4.3.1 is missing; see whedco_unit.py).
+    # status words with busy at bit 0 (the manual's section 4.3.1 is missing; see whedco_unit.py);
+    # .busy-first-homed: and bit 2 = homed (a homed axis at rest reads 0x0614).
     unit=(whedco_unit.py --units 4 --axes XY --baud 38400)
     case $family in *non-echo*) unit+=(--non-echo) ;; esac
-    case $family in *busy-first*) unit+=(--status-bits busy-first) ;; esac
+    case $family in
+      *busy-first-homed*) unit+=(--status-bits busy-first-homed) ;;
+      *busy-first*) unit+=(--status-bits busy-first) ;;
+    esac
     axis_family_bus whedco "$dir/port" 200ms 20ms
+    case $family in
+      *busy-first*) ;;
+      *)
+        # The outputs layout is a choice of the model (status_layout), not detected: no word
+        # tells the layouts apart (drivers/whedco_cmc/README.md, "Status words").
+        mkdir "$dir/models"
+        sed 's/^model: whedco-cmc-xy$/model: whedco-cmc-xy-outputs\noptions: {status_layout: outputs}/' \
+          "$models/whedco-cmc-xy.yaml" >"$dir/models/whedco-cmc-xy-outputs.yaml"
+        bus=${bus//model: whedco-cmc-xy,/model: whedco-cmc-xy-outputs,}
+        models="[$models, $dir/models]"
+        ;;
+    esac
     axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
                --refused-target 2000000)
     ;;

@@ -24,6 +24,10 @@ terminal-oriented controller would plausibly make, and each is listed here:
   17 set points, 18 Busy, 19 Fault): bit 0 set point A, 1 set point B, 2 busy, 3 fault; RS bit 7
   Memory Lost. `--status-bits busy-first` presents the other layout a firmware might use (bit 0
   busy, bit 1 fault, axis bit 4 home input), the one config/models/whedco-cmc*.yaml assumes.
+  `--status-bits busy-first-homed` is that layout with more axis states: bit 2 homed (set by a
+  completed home search), bit 9 in position (at rest), bit 10 servo on; a homed axis at rest on
+  its switch reads 0x0614 = 1556, bit 2 set without bit 0, as a busy word of the outputs layout
+  would.
 - Non-echo `FC`: 8 Unit Functional, 0 Power Failure, 1 Axis Initialized, 2 Arithmetic
   Overflow (the excerpt lists these names without their numbers); axis codes as section 6.1.2.
 - Power-up: the CMC-0 and every axis report Power Failure (6.1.2: "the normal power-up fault
@@ -71,6 +75,7 @@ class ServoAxis:
         self.ae = False
         self.fault = 0  # Power Failure
         self.homing = False
+        self.homed = False
         self.home_value = 0
 
     def moving(self):
@@ -113,13 +118,13 @@ class Controller:
             return AXIS_FAULTS[code] if self.echo else "%X" % code
         if s == "RS":
             busy = any(ax.moving() for ax in self.axes.values())
-            return "%d" % self.status_word(busy, self.faulted(), False)
+            return "%d" % self.status_word(busy, self.faulted(), False, None)
         m = re.fullmatch(r"(RS|RP|RC|FE)([WXYZ])", s)
         if m and m.group(2) in self.axes:
             ax = self.axes[m.group(2)]
             if m.group(1) == "RS":
                 return "%d" % self.status_word(ax.moving(), ax.fault != 8,
-                                               ax.axis.home_input_high())
+                                               ax.axis.home_input_high(), ax)
             if m.group(1) == "FE":
                 return "0"
             return fmt_user(ax.position(), ax.ur)
@@ -207,6 +212,7 @@ class Controller:
             ax = self.axes[m.group(3)]
             if not ax.moving() and not self.faulted(ax):
                 ax.homing = True
+                ax.homed = False
                 ax.home_value = round(float(m.group(4)) * ax.ur) if m.group(4) else 0
                 if ax.axis.home_input_high():
                     self.home_found(ax)
@@ -233,9 +239,12 @@ class Controller:
             return "%d" % self.variables.get(m.group(1), 0)
         return "?"
 
-    def status_word(self, busy, fault, home):
-        if self.status_bits == "busy-first":
-            return (1 if busy else 0) | (2 if fault else 0) | (16 if home else 0)
+    def status_word(self, busy, fault, home, ax):
+        if self.status_bits.startswith("busy-first"):
+            word = (1 if busy else 0) | (2 if fault else 0) | (16 if home else 0)
+            if self.status_bits == "busy-first-homed" and ax is not None:
+                word |= (4 if ax.homed else 0) | (0 if busy else 0x200) | 0x400
+            return word
         return (4 if busy else 0) | (8 if fault else 0)
 
     def readback(self, name, letter):
@@ -277,6 +286,7 @@ class Controller:
         ax.axis.hard_stop()
         ax.axis.set_position(ax.home_value)
         ax.homing = ax.ae = False
+        ax.homed = True
 
     def axis_fault_byte(self):
         v = 0
@@ -353,7 +363,7 @@ def main():
     ap.add_argument("--axes", default="XY")
     ap.add_argument("--baud", type=int, default=38400)
     ap.add_argument("--non-echo", action="store_true", help="SW2-5 set to non-echo")
-    ap.add_argument("--status-bits", default="outputs", choices=["outputs", "busy-first"])
+    ap.add_argument("--status-bits", default="outputs", choices=["outputs", "busy-first", "busy-first-homed"])
     args = ap.parse_args()
     pty = uc.Pty(args.link, args.baud)
     controllers = [Controller(a, args.axes, not args.non_echo, args.status_bits)

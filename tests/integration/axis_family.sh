@@ -51,6 +51,16 @@ axis_family_bus() {
          limits: {x_target: $target, y_target: $target}}"
       units=41,42
       ;;
+    whedco-slow-poll)
+      # Whedco with the axis status polled every 3 s, slower than the profile's 2 s patience for a
+      # jog to show (as at the CMC's factory 1200 baud): jog_positive must not end done, nor the
+      # axis read Standstill, before a status read after the jog began shows it moving.
+      protocol=whedco-cmc baud=38400
+      timing="reply_timeout: ${reply:-50ms}, byte_timeout: ${byte:-10ms}"
+      nodes="      - {name: cmc_4, address: 4, model: whedco-cmc-xy, unit_id: 1, axis_units: {x: 41, y: 42},
+         limits: {x_target: $target, y_target: $target}, poll: {medium: 3s}}"
+      units=41
+      ;;
     whedco-cmc)
       protocol=whedco-cmc baud=38400
       timing="reply_timeout: ${reply:-50ms}, byte_timeout: ${byte:-10ms}"
@@ -134,7 +144,7 @@ axis_family_start() {
       sim=("$build/sim/centent/fieldgate-sim-centent" --units 0 --power-up)
       axis_args=(--distance 1024000 --refused-target 20000000 --tolerance 4 --no-device-error)
       ;;
-    whedco | whedco-cmc)
+    whedco | whedco-slow-poll | whedco-cmc)
       local axes=XY letters='41) a=X ;;'
       [ "$family" = whedco-cmc ] && axes=WXYZ letters='41) a=X ;; 42) a=Y ;; 43) a=W ;;'
       sim=("$build/sim/whedco/fieldgate-sim-whedco" --units 4 --axes "$axes" --baud 38400)

@@ -146,6 +146,34 @@ TEST_F(ChainTest, RejectedStringIsADeviceError) {
   EXPECT_TRUE(chain.drain_before_next);
 }
 
+// A garbled position reply is no value: the exchange fails, and the line must be proved again.
+TEST_F(ChainTest, LowerCaseHexPositionIsGarbled) {
+  const auto r = exchange(chain, options, 1, read("XP?"), {"1X=001aD303h\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::garbled) << r->text;
+  EXPECT_TRUE(r->values.empty());
+}
+
+// Under the reading that a unit in Operate Mode (M3) discards the instructions the host sends,
+// `M?` -> `M3` after a command is no confirmation that it ran.
+TEST_F(ChainTest, ConfirmationShowingOperateModeIsNoConfirmation) {
+  const auto r = exchange(chain, options, 1, command("X=1000"), {"1M3\r"});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, Reply::Status::device_error);
+  EXPECT_EQ(r->device_code, kOperateMode);
+  EXPECT_NE(r->text.find("Operate Mode (M3)"), std::string::npos) << r->text;
+  EXPECT_EQ(chain.units[1].mode, 3);
+  // Motor traffic is refused before it is sent; mode queries and M1 pass and are confirmed.
+  const auto refused = exchange(chain, options, 1, command("XH"), {});
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->device_code, kOperateMode);
+  EXPECT_FALSE(plan_request(chain, options, 1, read("M?")).refused);
+  const auto back = exchange(chain, options, 1, command("M1"), {"1M1\r"});
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->status, Reply::Status::ok) << back->text;
+  EXPECT_FALSE(plan_request(chain, options, 1, command("XH")).refused);
+}
+
 TEST_F(ChainTest, ConfirmationShowingProgramModeMeansStored) {
   const auto r = exchange(chain, options, 1, command("X=1000"), {"1M2\r"});
   ASSERT_TRUE(r);

@@ -215,6 +215,29 @@ TEST(Cn0170Codec, GarbageIsUnknown) {
   EXPECT_EQ(parse_message("\r\n").kind, MessageKind::blank);
 }
 
+// The manual prints register values in upper-case hex with a lower-case h (p.2, 35): a
+// lower-case digit is a garbled character (0x41 'A' read as 0x61 'a'), not a hex digit. Seen
+// served as values: 1X=001aD303h (true 0014D303) and 1 XP-00f97E0Ch.
+TEST(Cn0170Codec, LowerCaseHexDigitsAreGarbled) {
+  EXPECT_EQ(parse_message("1X=001aD303h").kind, MessageKind::unknown);
+  EXPECT_EQ(parse_message("1 XP-00f97E0Ch").kind, MessageKind::unknown);
+  EXPECT_EQ(parse_message("YV=0d485h").kind, MessageKind::unknown);
+  EXPECT_EQ(parse_message("XA=00bbh").kind, MessageKind::unknown);
+  EXPECT_EQ(parse_message("Y/X=8000000ah").kind, MessageKind::unknown);
+  EXPECT_EQ(parse_message("A\\X=c0h").kind, MessageKind::unknown);
+  EXPECT_EQ(parse_message("P= 3ch").kind, MessageKind::unknown);
+  // Letters the manual prints in upper case are no more lenient.
+  EXPECT_EQ(parse_message("x=00C0E6B6h").kind, MessageKind::unknown);
+  EXPECT_EQ(parse_message("m1").kind, MessageKind::unknown);
+  // Nor are characters around the text the manual does not print (a tab), or a profile number
+  // of three digits.
+  EXPECT_EQ(parse_message("\tX=00C0E6B6h").kind, MessageKind::unknown);
+  EXPECT_EQ(parse_message("XC=017").kind, MessageKind::unknown);
+  // The same replies as printed are values.
+  EXPECT_EQ(parse_message("1X=0014D303h").values[0], 0x14D303);
+  EXPECT_EQ(parse_message("1 XP-00F97E0Ch").values[0], 0xF97E0C);
+}
+
 TEST(Cn0170Codec, QueriesTheFamilyMatches) {
   EXPECT_EQ(classify_query("xp?")->key, "XP");  // letters are case-insensitive (p.2)
   EXPECT_EQ(classify_query("XP?")->value_count, 2);

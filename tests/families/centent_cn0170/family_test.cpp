@@ -244,6 +244,76 @@ TEST_F(FamilyOnChain, ProgramModeUnitIsGuarded) {
   EXPECT_EQ(call(1, "XP?").status, Reply::Status::ok);
 }
 
+// Power-up resumes the last mode. A unit found in Operate Mode (M3) may discard what the host
+// sends, and its M? -> M3 would confirm commands it never ran: first contact switches it to M1
+// and says so.
+TEST_F(FamilyOnChain, UnitFoundInOperateModeIsSwitchedToImmediateMode) {
+  start({0, 1});
+  chain_->handle(".U1\r", sim::SimClock::now());
+  chain_->handle("M3\r", sim::SimClock::now());
+  wire_.clear();
+  const Reply r = command(1, "X+100");
+  ASSERT_EQ(r.status, Reply::Status::ok) << r.text;
+  EXPECT_EQ(wire_.substr(0, wire_.find("X+100")),
+            "\r.U1\rM?\r\r.U1\rM1\rM?\r\r.U1\rM1\\-\rM?\r\r.U1\r");
+  EXPECT_EQ(chain_->unit_at(1).mode(), 1);
+  EXPECT_NE(log_.find("5 centent-cn0170 chain on test-pair: unit 1 was in Operate Mode (M3) at "
+                      "first contact"),
+            std::string::npos)
+      << log_;
+  // Put back in M3 on purpose (run_program), it gets no motor command until M1.
+  EXPECT_EQ(command(1, "M3").status, Reply::Status::ok);
+  const Reply refused = command(1, "X+100");
+  EXPECT_EQ(refused.status, Reply::Status::device_error);
+  EXPECT_EQ(refused.device_code, cn0170::kOperateMode);
+  EXPECT_EQ(call(1, "M?").values, std::vector<int64_t>{3});
+  EXPECT_EQ(command(1, "M1").status, Reply::Status::ok);
+  EXPECT_EQ(command(1, "X+100").status, Reply::Status::ok);
+}
+
+// --- Proof of alignment (drivers/alignment_proof.hpp) ---------------------------------------
+
+AlignmentResult prove(asio::io_context& io, Link& link, CententFamily& family,
+                      const NodeAddress& node, const LinkTiming& timing) {
+  const auto proof = family.alignment_proof(family.context_of(node), timing);
+  EXPECT_TRUE(proof);
+  if (!proof) return {};
+  return test::run(io, prove_alignment(link, *proof, timing, timing.byte_timeout, 3));
+}
+
+TEST_F(FamilyOnChain, AlignmentProofNamesTheStringsItSent) {
+  start({0, 1});
+  for (int unit : {0, 1}) {
+    const auto result = prove(io_, *link_, family_, nodes_.at(unit), timing_);
+    EXPECT_TRUE(result.proved) << result.why;
+    EXPECT_EQ(result.attempts, 1);
+    EXPECT_TRUE(result.strays.empty());
+  }
+  // The proof selected the unit itself: the next request selects it again.
+  wire_.clear();
+  EXPECT_EQ(call(0, "XP?").status, Reply::Status::ok);
+  EXPECT_NE(wire_.find(".U0\r"), std::string::npos) << wire_;
+}
+
+// A late reply still in the line after the quiet guard is drained ahead of the first answer.
+TEST_F(FamilyOnChain, AlignmentProofDrainsALateReply) {
+  start({0, 1});
+  chain_->control("emit", std::vector<std::string>{"1", "X=00000400h"}, sim::SimClock::now());
+  const auto result = prove(io_, *link_, family_, nodes_.at(1), timing_);
+  EXPECT_TRUE(result.proved) << result.why;
+  EXPECT_EQ(result.strays.size(), 1u);
+}
+
+// A late line equal to the first answer is taken for it; the second step then reads the real
+// first answer, fails, and the proof goes on until the answers come in step.
+TEST_F(FamilyOnChain, AlignmentProofIsNotFooledByALateCopyOfItsAnswer) {
+  start({0, 1});
+  chain_->control("emit", std::vector<std::string>{"1", "\"XY?\" ?"}, sim::SimClock::now());
+  const auto result = prove(io_, *link_, family_, nodes_.at(1), timing_);
+  EXPECT_TRUE(result.proved) << result.why;
+  EXPECT_EQ(result.attempts, 2);
+}
+
 TEST_F(FamilyOnChain, GarbageAndSilenceGivePreciseStatuses) {
   start({0, 1});
   ASSERT_EQ(call(1, "XP?").status, Reply::Status::ok);

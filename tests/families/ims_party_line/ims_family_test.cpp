@@ -7,9 +7,11 @@
 #include <boost/asio/use_future.hpp>
 
 #include <chrono>
+#include <deque>
 #include <thread>
 
 #include "drivers/ims_party_line/ims_chain.hpp"
+#include "drivers/ims_party_line/ims_codec.hpp"
 #include "drivers/ims_party_line/ims_family.hpp"
 #include "tests/families/ims_party_line/ims_chain_bench.hpp"
 
@@ -173,6 +175,116 @@ TEST_F(ImsTransact, GarbledAndTruncatedEchoesThenResynchronise) {
   EXPECT_EQ(transact('A', write("A8")).status, Reply::Status::ok);
   std::this_thread::sleep_for(ImsPartyLineFamily::late_window(timing_));
   for (char name : {'A', 'B', 'C'}) EXPECT_EQ(transact(name, read("Z")).status, Reply::Status::ok);
+}
+
+// --- Proof of alignment (drivers/alignment_proof.hpp) ---------------------------------------
+
+AlignmentResult prove(asio::io_context& io, Link& link, ImsPartyLineFamily& family, char name,
+                      const LinkTiming& timing) {
+  const auto proof = family.alignment_proof(family.context_of(unit(name)), timing);
+  EXPECT_TRUE(proof);
+  if (!proof) return {};
+  auto future = asio::co_spawn(io, prove_alignment(link, *proof, timing, timing.byte_timeout, 3),
+                               asio::use_future);
+  io.restart();
+  while (future.wait_for(0s) != std::future_status::ready) io.run_one_for(10ms);
+  return future.get();
+}
+
+TEST_F(ImsTransact, AlignmentProofOnEveryUnit) {
+  for (char name : {'A', 'B', 'C'}) {
+    const auto result = prove(io_, *link_, family_, name, timing_);
+    EXPECT_TRUE(result.proved) << name << ": " << result.why;
+    EXPECT_EQ(result.attempts, 1);
+    EXPECT_TRUE(result.strays.empty());
+  }
+  EXPECT_EQ(transport_->writes().back(), "CZ\n");
+  // An absent unit proves nothing.
+  EXPECT_FALSE(prove(io_, *link_, family_, 'D', timing_).proved);
+}
+
+// Canned bytes, one answer per write (the writes beyond them get silence).
+class ScriptedLine final : public test::FakeLine {
+ public:
+  ScriptedLine(asio::io_context& io, std::deque<std::string> answers)
+      : FakeLine(io, "scripted party line", 1e6 * 10 / 9600) {
+    set_far_end([this, answers = std::move(answers)](std::string_view) mutable {
+      if (answers.empty()) return;
+      deliver(answers.front());
+      answers.pop_front();
+    });
+  }
+};
+
+// A late reply still in the line after the guard is drained ahead of the first answer; a late
+// `^` reply taken for the first answer leaves the real one to the second step, whose echo must
+// be `Z`: it fails, and the next attempt comes in step.
+TEST(ImsAlignmentProof, LateRepliesAreDrainedOrMakeAStepFail) {
+  const LinkTiming timing{20ms, 5ms};
+  {
+    asio::io_context io;
+    ScriptedLine line(io, {"AZ\n   1000\r\nA^\n  0\r\n", "AZ\n   1000\r\n"});
+    Link link(line);
+    ImsPartyLineFamily family;
+    const auto result = prove(io, link, family, 'A', timing);
+    EXPECT_TRUE(result.proved) << result.why;
+    // The late Z reply, echo and result line, each a stray.
+    EXPECT_EQ(result.strays, (std::vector<std::string>{"AZ\n", "   1000\r\n"}));
+  }
+  {
+    asio::io_context io;
+    ScriptedLine line(
+        io, {"A^\n  1\r\nA^\n  0\r\n", "AZ\n   1000\r\n", "A^\n  0\r\n", "AZ\n   1000\r\n"});
+    Link link(line);
+    ImsPartyLineFamily family;
+    const auto result = prove(io, link, family, 'A', timing);
+    EXPECT_TRUE(result.proved) << result.why;
+    EXPECT_EQ(result.attempts, 2);
+  }
+}
+
+// A unit in Single mode (its Party input not grounded at reset) echoes every character of
+// `A^\n` but the LF, which is no terminator there, and executes nothing. The family says so
+// instead of only reporting garbled replies; no command switches the mode.
+TEST(ImsSingleMode, TheUnitIsNamedAsInSingleMode) {
+  EXPECT_TRUE(ims::single_mode_echo('A', "^", "A^"));
+  EXPECT_TRUE(ims::single_mode_echo('A', "^", "A"));  // after a reset: the name, until a Space
+  EXPECT_FALSE(ims::single_mode_echo('A', "^", "^"));
+  EXPECT_FALSE(ims::single_mode_echo('A', "Z", "A^"));
+  const LinkTiming timing{20ms, 5ms};
+  asio::io_context io;
+  ScriptedLine line(io, {"A^", "A^", "AZ", "A^\n  0\r\n"});
+  Link link(line);
+  ImsPartyLineFamily family;
+  std::vector<std::string> logged;
+  family.set_log_sink([&](int level, const std::string& text) {
+    if (level <= 4) logged.push_back(text);
+  });
+  const auto exchange = [&](const char* command) {
+    const Request request = read(command);  // outlives the coroutine, which holds a reference
+    const NodeAddress node = unit('A');
+    auto future =
+        asio::co_spawn(io, family.transact(link, node, request, timing), asio::use_future);
+    io.restart();
+    while (future.wait_for(0s) != std::future_status::ready) io.run_one_for(10ms);
+    return future.get();
+  };
+  Reply r = exchange("^");
+  EXPECT_EQ(r.status, Reply::Status::garbled);
+  EXPECT_EQ(r.text.find("Single mode"), std::string::npos) << "once may be a cut line";
+  r = exchange("^");
+  EXPECT_EQ(r.status, Reply::Status::garbled);
+  EXPECT_NE(r.text.find("unit A answers as an indexer in Single mode"), std::string::npos)
+      << r.text;
+  EXPECT_NE(r.text.find("ground the Party input"), std::string::npos) << r.text;
+  r = exchange("Z");
+  EXPECT_NE(r.text.find("3 times in a row"), std::string::npos) << r.text;
+  ASSERT_EQ(logged.size(), 1u) << "said once";
+  EXPECT_NE(logged[0].find("Single mode"), std::string::npos);
+  // A party-line echo ends the streak (once the results the cut echoes owed are written off).
+  std::this_thread::sleep_for(ImsPartyLineFamily::late_window(timing));
+  r = exchange("^");
+  EXPECT_EQ(r.status, Reply::Status::ok) << r.text;
 }
 
 TEST_F(ImsTransact, DuplicateNameGarblesOnlyThatName) {

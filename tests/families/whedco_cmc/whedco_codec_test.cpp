@@ -257,7 +257,10 @@ TEST(WhedcoReplies, NumbersWithSignPointLabelAndSpaces) {
   EXPECT_EQ(parse_numbers("V1=25000", false)->front().mantissa, 25000);
   EXPECT_EQ(parse_numbers("X: -7", false)->front().mantissa, -7);
   EXPECT_EQ(parse_numbers("A", true)->front().mantissa, 10);
-  EXPECT_EQ(parse_numbers("1f", true)->front().mantissa, 31);
+  EXPECT_EQ(parse_numbers("1F", true)->front().mantissa, 31);
+  // Hex as the manual prints it, in upper case: a lower-case letter is a garbled character.
+  EXPECT_FALSE(parse_numbers("1f", true));
+  EXPECT_FALSE(parse_numbers("v1=25000", false));  // labels as printed, in upper case
   EXPECT_TRUE(parse_numbers("", false)->empty());
   EXPECT_FALSE(parse_numbers("?", false));
   EXPECT_FALSE(parse_numbers("Illegal Command", false));

@@ -157,6 +157,9 @@ TEST(WhedcoStatusWord, FormsFromIndependentImplementations) {
   EXPECT_FALSE(whedco::parse_status_word("65536", {}, problem));
   EXPECT_FALSE(whedco::parse_status_word("1FFFF", {}, problem));
   EXPECT_FALSE(whedco::parse_status_word("12.5", {}, problem));
+  // Hex letters as printed, upper case: a lower-case one is garbled (0x0614 read as 0x06a4).
+  EXPECT_FALSE(whedco::parse_status_word("06a4", {}, problem));
+  EXPECT_FALSE(whedco::parse_status_word("6a4", StatusForm::hex, problem));
 }
 
 TEST(WhedcoStatusWord, FamilyRejectsAWordThatDoesNotFit) {
