@@ -28,6 +28,7 @@ Readings of the manual where it leaves room:
 """
 import argparse
 import re
+import time
 
 import unit_common as uc
 
@@ -116,7 +117,12 @@ class Card:
             return
         if cmd == "P" and not rest:
             text = "".join("%06X" % (round(self.axes[k].position()) & 0xFFFFFF) for k in ORDER)
-            self.ack("0" + text + ("\r" if self.p_reply_cr else ""))
+            self.ack("0" + text)
+            if self.p_reply_cr:
+                # The CR leaves the card a moment after the digits (a card's firmware, a USB
+                # adapter's latency): a host that stops at 18 digits reads it as the next answer.
+                time.sleep(0.015)
+                self.ack("\r")
             return
         if cmd in "AaMm":
             self.move(cmd, rest)
