@@ -1,5 +1,7 @@
 #include "drivers/techno_c/techno_family.hpp"
 
+#include "drivers/printable_bytes.hpp"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -122,11 +124,12 @@ techno::MotionContext TechnoFamily::motion_context(const BoundNode& node) {
 
 asio::awaitable<void> TechnoFamily::on_link_open(Link&, const LinkTiming&) {
   // The controller may have been power-cycled or moved by hand while the port was closed.
+  // defined_by_us is kept: it is evidence about the controller, not about the port, and a `4`
+  // after a reopen must still read as a lost definition (a motion is then not repeated).
   for (const auto& weak : bound_)
     if (const auto b = weak.lock()) {
       b->state = NodeState{};
       b->active = false;
-      b->defined_by_us = false;
     }
   co_return;
 }
@@ -399,6 +402,8 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, BoundNode& bound, cons
         take_leading_motion_error(bound.state, request, waited.read.frame, reply);
       if (c.kind != CommandKind::position && c.kind != CommandKind::peek)
         co_await check_single_handshake(link, c, reply, timing);
+      else
+        co_await take_optional_terminator(link, waited.read.frame, reply, timing);
       break;
     case LinkRead::Status::timeout:
       if (!waited.read.partial.empty()) {
@@ -486,6 +491,28 @@ void TechnoFamily::take_leading_motion_error(NodeState& state, const Request& re
   if (rest.status != Reply::Status::ok) return;
   state.motion_error = static_cast<unsigned char>(first);
   reply = std::move(rest);
+}
+
+// A query's reply ended by its digit count may still be followed by a CR (or CR LF): the
+// manual leaves that open (README). Every reading's trailing bytes are read here, until the byte
+// gap, so a late CR is never taken for the next request's answer; anything else is garbled.
+asio::awaitable<void> TechnoFamily::take_optional_terminator(Link& link, std::string_view frame,
+                                                             Reply& reply,
+                                                             const LinkTiming& timing) {
+  if (frame.empty() || frame.back() == '\n') co_return;
+  std::string extra;
+  for (;;) {
+    const LinkRead next = co_await link.read_frame(
+        techno::handshake_frame, LinkTiming{timing.byte_timeout, timing.byte_timeout});
+    if (next.status != LinkRead::Status::frame) break;
+    extra += next.frame;
+    if (extra.back() == '\n') break;
+  }
+  const std::string_view allowed = frame.back() == '\r' ? "\n" : "\r\n";
+  if (extra.empty() || extra == allowed || (allowed.size() == 2 && extra == "\r")) co_return;
+  reply = Reply::of(
+      Reply::Status::garbled,
+      fmt::format("reply '{}' followed by '{}'", printable_bytes(frame), printable_bytes(extra)));
 }
 
 asio::awaitable<void> TechnoFamily::check_single_handshake(Link& link, const Command& c,

@@ -111,6 +111,8 @@ class TechnoFamily final : public ProtocolFamily {
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
   void take_leading_motion_error(NodeState& state, const Request& request, std::string_view frame,
                                  Reply& reply);
+  asio::awaitable<void> take_optional_terminator(Link& link, std::string_view frame, Reply& reply,
+                                                 const LinkTiming& timing);
   asio::awaitable<void> check_single_handshake(Link& link, const techno::Command& c, Reply& reply,
                                                const LinkTiming& timing);
 

@@ -36,16 +36,22 @@ case $family in
     axis_family_bus centent "$dir/port" 200ms 20ms
     axis_args=(--distance 1024000 --refused-target 20000000 --tolerance 4)
     ;;
-  techno-c142 | techno-it116g | techno-c142.live | techno-it116g.live)
+  techno-c142 | techno-it116g | techno-c142.live | techno-it116g.live | techno-*.p-cr)
     # .live: the card answers @0P during a motion (the reading the manual leaves open, p.73).
+    # .p-cr: the card ends the @0P reply with a CR (the P reply's terminator is left open).
     variant=${family#techno-}
     queries=deferred
+    p_cr=()
+    if [ "${variant%.p-cr}" != "$variant" ]; then
+      variant=${variant%.p-cr}
+      p_cr=(--p-reply-cr)
+    fi
     if [ "${variant%.live}" != "$variant" ]; then
       variant=${variant%.live}
       queries=live
     fi
     family=techno-$variant
-    unit=(techno_unit.py --variant "$variant" --baud 19200 --queries "$queries")
+    unit=(techno_unit.py --variant "$variant" --baud 19200 --queries "$queries" "${p_cr[@]}")
     axis_family_bus "$family" "$dir/port" 200ms 20ms
     axis_args=(--distance 2000 --refused-target 9000000)
     ;;

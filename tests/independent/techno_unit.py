@@ -28,6 +28,7 @@ Readings of the manual where it leaves room:
 """
 import argparse
 import re
+import time
 
 import unit_common as uc
 
@@ -35,8 +36,9 @@ ORDER = "XYZ"
 
 
 class Card:
-    def __init__(self, variant, pty, live_queries):
+    def __init__(self, variant, pty, live_queries, p_reply_cr=False):
         self.variant = variant
+        self.p_reply_cr = p_reply_cr
         self.live_queries = live_queries
         self.pty = pty
         self.max_mask = 7 if variant == "c142" else 1
@@ -116,6 +118,11 @@ class Card:
         if cmd == "P" and not rest:
             text = "".join("%06X" % (round(self.axes[k].position()) & 0xFFFFFF) for k in ORDER)
             self.ack("0" + text)
+            if self.p_reply_cr:
+                # The CR leaves the card a moment after the digits (a card's firmware, a USB
+                # adapter's latency): a host that stops at 18 digits reads it as the next answer.
+                time.sleep(0.015)
+                self.ack("\r")
             return
         if cmd in "AaMm":
             self.move(cmd, rest)
@@ -290,9 +297,12 @@ def main():
     ap.add_argument("--queries", default="deferred", choices=["deferred", "live"],
                     help="deferred: `@0P` during a motion waits in the buffer (p.73, this "
                     "module's reading); live: it is answered at once (the other reading)")
+    ap.add_argument("--p-reply-cr", action="store_true",
+                    help="the `@0P` reply ends with a CR after its 18 digits (the manual leaves "
+                    "the terminator of the P reply open; issue 26)")
     args = ap.parse_args()
     pty = uc.Pty(args.link, args.baud)
-    card = Card(args.variant, pty, args.queries == "live")
+    card = Card(args.variant, pty, args.queries == "live", args.p_reply_cr)
     uc.log("techno: %s at %d baud on %s" % (args.variant, args.baud, args.link))
     uc.run(pty, uc.heard_only_at(pty, args.baud, "card", card.on_bytes), card.tick)
 
