@@ -61,5 +61,13 @@ asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProo
                                                  const LinkTiming& timing,
                                                  std::chrono::microseconds guard, int attempts,
                                                  std::size_t& owed);
+// The same with nothing owed before the proof (tests, tools).
+inline asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProof& proof,
+                                                        const LinkTiming& timing,
+                                                        std::chrono::microseconds guard,
+                                                        int attempts) {
+  std::size_t owed = 0;
+  co_return co_await prove_alignment(link, proof, timing, guard, attempts, owed);
+}
 
 }  // namespace fieldgate

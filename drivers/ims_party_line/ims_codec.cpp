@@ -265,6 +265,8 @@ EchoLine parse_echo_line(char name, std::string_view command, std::string_view l
         form == EchoMatch::with_name ? std::string_view(sent) : std::string_view(sent).substr(1);
     if (!body.starts_with(echo)) continue;
     const std::string_view rest = body.substr(echo.size());
+    // One CR at most ends a line (manual p.11): a second is no part of a reply.
+    if (rest.find('\r') != std::string_view::npos) continue;
     if (rest.find_first_not_of(' ') == std::string_view::npos) {
       out.match = form;
       out.rest = std::string(rest);

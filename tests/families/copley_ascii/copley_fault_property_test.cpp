@@ -114,7 +114,7 @@ TEST_P(CopleyFaultProperty, NoWriteConfirmedByAnotherReplyAndNoWrongValueServed)
   };
   std::vector<Write> writes;
   std::mt19937 random(run.seed);
-  for (int i = 1; i <= 40; ++i) {
+  for (int i = 1; i <= 24; ++i) {
     const int unit = 1 + static_cast<int>(random() % 3);
     // A unit taken offline by the faults is only probed now and then: wait for it, so that
     // writes reach devices rather than being refused at the gateway.
