@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "gateway/bus/wire_trace.hpp"
+#include "gateway/config/device_writes.hpp"
 #include "gateway/lifecycle/log.hpp"
 
 namespace fieldgate {
@@ -34,6 +35,13 @@ void log_when_no_bus(const GatewayConfig& config) {
       config.file);
 }
 
+// Writes no Modbus client asked for (writes_enabled does not stop them): in the journal.
+void log_device_writes(const GatewayConfig& config) {
+  for (const auto& bus : config.buses)
+    for (const auto& line : device_writes_on(bus.protocol, bus.device_writes))
+      log::notice("bus {}: writes to its devices on its own (device_writes) {}", bus.name, line);
+}
+
 }  // namespace
 
 Daemon::Daemon(std::string config_path, std::shared_ptr<const LoadedConfig> config,
@@ -50,6 +58,7 @@ Daemon::Daemon(std::string config_path, std::shared_ptr<const LoadedConfig> conf
   verdict_.config_file = config_path_;
   verdict_.config_id = config_fingerprint(config_path_);
   log_when_no_bus(config->gateway);
+  log_device_writes(config->gateway);
 }
 
 Daemon::~Daemon() = default;
@@ -113,6 +122,7 @@ void Daemon::reload() {
   }
   for (const auto& w : loaded->gateway.warnings) log::warning("{}", w);
   log_when_no_bus(loaded->gateway);
+  log_device_writes(loaded->gateway);
   const std::string summary =
       gateway_->apply(std::make_shared<const LoadedConfig>(std::move(*loaded)));
   ++verdict_.config_number;

@@ -5,6 +5,7 @@
 
 #include "drivers/protocol_family.hpp"
 #include "gateway/config/config_loader.hpp"
+#include "gateway/config/device_writes.hpp"
 #include "gateway/lifecycle/daemon.hpp"
 #include "gateway/lifecycle/log.hpp"
 #include "gateway/lifecycle/reload_command.hpp"
@@ -28,6 +29,9 @@ int run_check(const std::string& path) {
     units += config->map_of(l).units().size();
   std::cout << fmt::format("{}: ok ({} bus(es), {} node(s), {} unit ID(s))\n", path,
                            gateway.buses.size(), nodes, units);
+  for (const auto& bus : gateway.buses)
+    for (const auto& line : device_writes_on(bus.protocol, bus.device_writes))
+      std::cout << fmt::format("  bus {} writes to its devices on its own: {}\n", bus.name, line);
   if (gateway.listener_count() > 1)
     for (std::size_t l = 0; l < gateway.listener_count(); ++l) {
       const auto& m = gateway.listener_modbus(l);
