@@ -393,7 +393,7 @@ TEST_F(ConfigLoaderTest, ASwitchTheFamilyHonoursTurnsTheWriteOff) {
 TEST_F(ConfigLoaderTest, ASwitchTheFamilyDoesNotHonourIsRefused) {
   const std::string node = "      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n";
   auto e = load(bus(node, "    device_writes: {baud_switch: false}\n"));
-  EXPECT_NE(e.find("gw.yaml:5:34: error: bus b device_writes: baud_switch: false is not honoured "
+  EXPECT_NE(e.find("gw.yaml:6:34: error: bus b device_writes: baud_switch: false is not honoured "
                    "by the copley-ascii driver of this build"),
             std::string::npos)
       << e;
