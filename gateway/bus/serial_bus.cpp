@@ -19,6 +19,10 @@ namespace fieldgate {
 namespace {
 constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
 using Clock = std::chrono::steady_clock;
+// A link that lived less than this (or two probe intervals) before it was reopened was reopened
+// because nothing answered on it.
+constexpr auto kBriefLink = std::chrono::seconds(60);
+constexpr auto kReopenReminder = std::chrono::minutes(10);
 
 std::unique_ptr<ByteTransport> make_transport(asio::any_io_executor ex, const TransportConfig& t) {
   if (t.kind == TransportConfig::Kind::tcp)
@@ -466,12 +470,29 @@ asio::awaitable<void> SerialBus::open_link() {
     counters_.open_attempted = true;
     if (!ec) {
       counters_.link_up = true;
-      opened_at_ = Clock::now();
+      const auto now = Clock::now();
+      // A link reopened soon after its last opening, with no failure to open in between: the
+      // periodic reopen of a line where nothing answers. Once per kReopenReminder, not each time.
+      const bool churn = counters_.reconnects > 0 && !link_error_logged_ &&
+                         now - opened_at_ < std::max<Clock::duration>(
+                                                kBriefLink, 2 * config_.timing.probe_interval);
+      const bool remind = churn && now - open_noticed_at_ >= kReopenReminder;
+      opened_at_ = now;
       ++counters_.reconnects;
-      log::notice("bus {}: opened {}", config_.name, transport_->describe());
+      quiet_reopens_ = churn ? quiet_reopens_ + 1 : 0;
+      const auto level = churn && !remind ? log::Level::debug : log::Level::notice;
+      if (log::enabled(level))
+        log::write(level,
+                   remind ? fmt::format("bus {}: reopened {} {} time(s): nothing answers "
+                                        "(reminded every {} min)",
+                                        config_.name, transport_->describe(), quiet_reopens_,
+                                        kReopenReminder.count())
+                          : fmt::format("bus {}: opened {}", config_.name, transport_->describe()));
+      if (level == log::Level::notice) open_noticed_at_ = now;
       link_error_logged_ = false;
       co_await family_.on_link_open(link_, config_.timing.link);
-      for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
+      for (const auto& note : link_.take_notes())
+        if (log::enabled(level)) log::write(level, fmt::format("bus {}: {}", config_.name, note));
       for (auto& n : nodes_)
         if ((*n.image).state == NodeState::offline) n.next_probe = Clock::now();
       co_return;

@@ -104,6 +104,10 @@ class SerialBus final : public Bus {
   int polls_in_row_ = 0;
   int last_command_node_ = -1;
   bool link_error_logged_ = false;
+  // Reopens of a link that stayed up only briefly (nothing answers, so it is reopened every
+  // probe interval): logged at debug, with a notice every kReopenReminder.
+  int quiet_reopens_ = 0;
+  SteadyTime open_noticed_at_{};
   // False from a failed exchange until a proof of alignment passed: no reply is trusted meanwhile.
   bool aligned_ = true;
   bool alignment_failure_logged_ = false;

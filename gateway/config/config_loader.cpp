@@ -12,6 +12,7 @@
 #include <boost/asio/ip/address.hpp>
 
 #include "gateway/bus/poll_budget.hpp"
+#include "gateway/config/device_writes.hpp"
 #include "gateway/config/modbus_rtu_config.hpp"
 #include "gateway/sparkplug/sparkplug_config.hpp"
 #include "mapping/model_loader.hpp"
@@ -462,9 +463,10 @@ class ConfigParser {
         for (const auto& other : config.buses)
           if (other.name == *s) r_.error(*n, fmt::format("{}: bus name is already used", where));
       }
-    r_.reject_unknown_keys(
-        node, {"name", "protocol", "serial", "tcp", "can", "timing", "nodes", "listener", "trace"},
-        where);
+    r_.reject_unknown_keys(node,
+                           {"name", "protocol", "serial", "tcp", "can", "timing", "nodes",
+                            "listener", "trace", "device_writes"},
+                           where);
     bus_listener_ = resolve_listener(node["listener"], config, where, 0);
     if (node["trace"]) bus.trace = r_.boolean(node["trace"], where + " trace").value_or(false);
     if (auto p = r_.require(node, "protocol", where)) {
@@ -518,6 +520,7 @@ class ConfigParser {
                                           where, bus.protocol));
     }
     if (node["timing"]) parse_timing(node["timing"], bus.timing, where + " timing", has_can);
+    parse_device_writes(node["device_writes"], bus, where);
     if (auto nodes = r_.require(node, "nodes", where);
         nodes && r_.expect_sequence(*nodes, where + " nodes")) {
       for (const auto& n : *nodes) parse_node(n, bus, config, where);
@@ -551,6 +554,51 @@ class ConfigParser {
       if (n.model && models.insert(n.model.get()).second)
         bus.signature += "\n--- model " + n.model->name + "\n" + file_text(n.model->mark.file);
     config.buses.push_back(std::move(bus));
+  }
+
+  // After the timing: some switches are settings of the timing too (nmt_start: start_nodes).
+  void parse_device_writes(const YAML::Node& node, BusConfig& bus, const std::string& where) {
+    // On where the settings make the family write at all.
+    bus.device_writes = default_device_writes(bus.protocol);
+    const auto settle = [&](const char* name, bool writes) {
+      if (bus.device_writes.count(name)) bus.device_writes[name] = writes;
+    };
+    settle("nmt_start", bus.timing.start_nodes);
+    settle("heartbeat_producer", bus.timing.heartbeat_timeout.count() > 0);
+    settle("baud_switch", bus.transport.serial.baud != 0 && bus.transport.serial.baud != 9600);
+    if (!node) return;
+    const std::string what = where + " device_writes";
+    if (!r_.expect_map(node, what)) return;
+    for (const auto& entry : node) {
+      const auto name = entry.first.as<std::string>();
+      const auto* spec = find_device_write(bus.protocol, name);
+      if (!spec) {
+        std::string known;
+        for (const auto& [n, on] : bus.device_writes) known += (known.empty() ? "" : ", ") + n;
+        r_.error(entry.first,
+                 fmt::format("{}: '{}' is no write of protocol {} (its writes: {})", what, name,
+                             bus.protocol, known.empty() ? "none" : known));
+        continue;
+      }
+      const auto on = r_.boolean(entry.second, what + " " + name);
+      if (!on) continue;
+      if (!*on && !spec->honoured_off && bus.device_writes[name]) {
+        r_.error(entry.second,
+                 fmt::format("{}: {}: false is not honoured by the {} driver of this build: it "
+                             "would still write {}",
+                             what, name, bus.protocol, spec->what));
+        continue;
+      }
+      if (name == "nmt_start") {
+        if (*on && !bus.timing.start_nodes) {
+          r_.error(entry.second,
+                   fmt::format("{}: nmt_start: true needs timing.start_nodes: true", what));
+          continue;
+        }
+        bus.timing.start_nodes = *on;
+      }
+      bus.device_writes[name] = *on;
+    }
   }
 
   static std::string file_text(const std::string& path) {

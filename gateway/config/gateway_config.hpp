@@ -108,6 +108,9 @@ struct BusConfig {
   BusTiming timing;
   std::vector<NodeConfig> nodes;
   bool trace = false;  // wire trace on from the start (gateway/bus/wire_trace.hpp)
+  // The writes the family makes on its own (gateway/config/device_writes.hpp), each with its
+  // switch from `device_writes:` (on unless switched off). The family must leave out those off.
+  std::map<std::string, bool> device_writes;
   SourceMark mark;
   // The bus's YAML and the text of the models it uses: equal signatures across a reload mean
   // the bus can keep running untouched.

@@ -1,8 +1,11 @@
 #include "gateway/lifecycle/daemon.hpp"
 
+#include <unistd.h>
+
 #include <iostream>
 
 #include "gateway/bus/wire_trace.hpp"
+#include "gateway/config/device_writes.hpp"
 #include "gateway/lifecycle/log.hpp"
 
 namespace fieldgate {
@@ -19,14 +22,43 @@ std::shared_ptr<const LoadedConfig> load_config_or_report(const std::string& pat
   return std::make_shared<const LoadedConfig>(std::move(*loaded));
 }
 
-Daemon::Daemon(std::string config_path, std::shared_ptr<const LoadedConfig> config)
+namespace {
+
+// The shipped configuration has no bus, so a fresh install polls and writes nothing until the
+// site has written its own: say so, or the silence looks like a fault.
+void log_when_no_bus(const GatewayConfig& config) {
+  if (!config.buses.empty()) return;
+  log::notice(
+      "{}: no field bus configured: no serial port or CAN interface is opened and nothing is "
+      "written to any device; write the site's buses there (examples in "
+      "/usr/share/doc/fieldgate/examples) and reload",
+      config.file);
+}
+
+// Writes no Modbus client asked for (writes_enabled does not stop them): in the journal.
+void log_device_writes(const GatewayConfig& config) {
+  for (const auto& bus : config.buses)
+    for (const auto& line : device_writes_on(bus.protocol, bus.device_writes))
+      log::notice("bus {}: writes to its devices on its own (device_writes) {}", bus.name, line);
+}
+
+}  // namespace
+
+Daemon::Daemon(std::string config_path, std::shared_ptr<const LoadedConfig> config,
+               std::optional<std::filesystem::path> runtime_dir)
     : config_path_(std::move(config_path)),
-      gateway_(std::make_unique<Gateway>(io_, std::move(config))),
+      gateway_(std::make_unique<Gateway>(io_, config)),
       notifier_(
-          io_.get_executor(), [this] { return gateway_->status_line(); },
+          io_.get_executor(), [this] { return status_line(); },
           [this] { return gateway_->all_buses_attempted(); }),
       signals_(io_, SIGINT, SIGTERM, SIGHUP) {
   signals_.add(SIGUSR2);
+  if (runtime_dir) verdict_path_ = *runtime_dir / kVerdictFileName;
+  verdict_.pid = static_cast<long>(::getpid());
+  verdict_.config_file = config_path_;
+  verdict_.config_id = config_fingerprint(config_path_);
+  log_when_no_bus(config->gateway);
+  log_device_writes(config->gateway);
 }
 
 Daemon::~Daemon() = default;
@@ -38,6 +70,8 @@ int Daemon::run() {
     log::error("modbus: cannot listen: {}", e.code().message());
     return 1;
   }
+  log::notice("{} in force: {}", verdict_.in_force(), config_path_);
+  publish_verdict();
   notifier_.start();
   wait_for_signal();
   io_.run();
@@ -69,21 +103,53 @@ void Daemon::wait_for_signal() {
 void Daemon::reload() {
   log::notice("SIGHUP: reloading {}", config_path_);
   notifier_.reloading();
+  ++verdict_.reload;
+  verdict_.messages.clear();
+  const std::string fingerprint = config_fingerprint(config_path_);
   Diagnostics diagnostics;
   auto loaded = load_gateway_config(config_path_, diagnostics);
   if (!loaded) {
-    for (const auto& e : diagnostics.errors())
+    for (const auto& e : diagnostics.errors()) {
       log::error("reload rejected: {}: {}", to_string(e.mark), e.message);
-    log::error("reload rejected: {} error(s); the running configuration stays in force",
-               diagnostics.errors().size());
+      verdict_.messages.push_back(fmt::format("{}: {}", to_string(e.mark), e.message));
+    }
+    log::error("reload rejected: {} error(s); {} stays in force", diagnostics.errors().size(),
+               verdict_.in_force());
+    verdict_.result = ReloadVerdict::Result::rejected;
+    publish_verdict();
     notifier_.reloaded();
     return;
   }
   for (const auto& w : loaded->gateway.warnings) log::warning("{}", w);
+  log_when_no_bus(loaded->gateway);
+  log_device_writes(loaded->gateway);
   const std::string summary =
       gateway_->apply(std::make_shared<const LoadedConfig>(std::move(*loaded)));
-  log::notice("reloaded: {}", summary);
+  ++verdict_.config_number;
+  verdict_.config_id = fingerprint;
+  verdict_.result = ReloadVerdict::Result::accepted;
+  verdict_.messages.push_back(summary);
+  log::notice("reloaded: {} in force: {}", verdict_.in_force(), summary);
+  publish_verdict();
   notifier_.reloaded();
+}
+
+void Daemon::publish_verdict() {
+  if (!verdict_path_) return;
+  std::string error;
+  if (write_verdict_file(*verdict_path_, verdict_, error)) {
+    verdict_write_failed_ = false;
+  } else if (!verdict_write_failed_) {
+    verdict_write_failed_ = true;
+    log::warning("{}: `fieldgate reload` cannot learn the verdict", error);
+  }
+}
+
+std::string Daemon::status_line() const {
+  std::string text = verdict_.in_force();
+  if (verdict_.result == ReloadVerdict::Result::rejected)
+    text += fmt::format(" (reload #{} refused)", verdict_.reload);
+  return text + "; " + gateway_->status_line();
 }
 
 }  // namespace fieldgate

@@ -5,8 +5,11 @@
 
 #include "drivers/protocol_family.hpp"
 #include "gateway/config/config_loader.hpp"
+#include "gateway/config/device_writes.hpp"
 #include "gateway/lifecycle/daemon.hpp"
 #include "gateway/lifecycle/log.hpp"
+#include "gateway/lifecycle/reload_command.hpp"
+#include "gateway/lifecycle/reload_verdict.hpp"
 #include "gateway/modbus/modbus_rtu_port.hpp"
 #include "gateway/register_map/profile_units_document.hpp"
 #include "mapping/register_map_document.hpp"
@@ -26,6 +29,9 @@ int run_check(const std::string& path) {
     units += config->map_of(l).units().size();
   std::cout << fmt::format("{}: ok ({} bus(es), {} node(s), {} unit ID(s))\n", path,
                            gateway.buses.size(), nodes, units);
+  for (const auto& bus : gateway.buses)
+    for (const auto& line : device_writes_on(bus.protocol, bus.device_writes))
+      std::cout << fmt::format("  bus {} writes to its devices on its own: {}\n", bus.name, line);
   if (gateway.listener_count() > 1)
     for (std::size_t l = 0; l < gateway.listener_count(); ++l) {
       const auto& m = gateway.listener_modbus(l);
@@ -74,6 +80,9 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "fieldgate " FIELDGATE_VERSION_TEXT);
   app.add_option("-c,--config", config_path, "gateway configuration (YAML)")->capture_default_str();
   app.add_flag("-v,--verbose", verbose, "log debug detail");
+  std::string runtime_dir;
+  app.add_option("--runtime-dir", runtime_dir,
+                 "where the reload verdict is written (default: $RUNTIME_DIRECTORY)");
   auto* check = app.add_subcommand("check", "validate a configuration without opening any port");
   std::string check_path = FIELDGATE_DEFAULT_CONFIG;
   check->add_option("config", check_path, "gateway configuration (YAML)")->capture_default_str();
@@ -88,7 +97,24 @@ int main(int argc, char** argv) {
   auto* models = app.add_subcommand("models", "list the protocol families and their model options");
   std::string models_family;
   models->add_option("--options", models_family, "describe this family's model options");
+  auto* reload = app.add_subcommand(
+      "reload", "check the running daemon's configuration, reload it, and wait for its verdict");
+  ReloadOptions reload_options;
+  reload->add_option("--pid", reload_options.pid, "the daemon's pid (systemd: $MAINPID)");
+  reload->add_option("--runtime-dir", reload_options.runtime_dir,
+                     "the daemon's runtime directory (default: $RUNTIME_DIRECTORY)");
+  reload->add_flag("!--no-check", reload_options.check_first,
+                   "send SIGHUP even when the file does not pass the check");
+  double reload_timeout = 30;
+  reload->add_option("--timeout", reload_timeout, "seconds to wait for the verdict")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
+  if (*reload) {
+    reload_options.timeout =
+        std::chrono::milliseconds(static_cast<long long>(reload_timeout * 1000));
+    return run_reload(reload_options);
+  }
   if (*models) return run_models(models_family);
   if (*map && map_profile) {
     std::cout << write_axis_profile_document();
@@ -118,6 +144,6 @@ int main(int argc, char** argv) {
     std::cerr << "nothing was started\n";
     return 1;
   }
-  Daemon daemon(config_path, std::move(config));
+  Daemon daemon(config_path, std::move(config), runtime_directory(runtime_dir));
   return daemon.run();
 }

@@ -346,3 +346,70 @@ TEST_F(ConfigLoaderTest, CententOptionsAgreeWithinAChainOnly) {
 
 }  // namespace
 }  // namespace fieldgate
+
+namespace fieldgate {
+namespace {
+
+// The writes a bus makes to its devices on its own are listed in its configuration, on where
+// its settings make the family write at all.
+TEST_F(ConfigLoaderTest, DeviceWritesAreListedWithTheirDefaults) {
+  std::optional<LoadedConfig> c;
+  const std::string node = "      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n";
+  ASSERT_EQ(load(bus(node), &c), "");
+  EXPECT_EQ(c->gateway.buses.at(0).device_writes,
+            (std::map<std::string, bool>{{"baud_switch", true}}));
+  ASSERT_EQ(load("buses:\n  - name: b\n    protocol: copley-ascii\n    serial: {device: /dev/null, "
+                 "baud: 9600}\n    nodes:\n" +
+                     node,
+                 &c),
+            "");
+  EXPECT_EQ(c->gateway.buses.at(0).device_writes.at("baud_switch"), false);  // nothing to switch
+  ASSERT_EQ(load(can_bus("    can: {interface: vcan0}\n",
+                         "    timing: {heartbeat_timeout: 500ms, start_nodes: true}\n"),
+                 &c),
+            "");
+  EXPECT_EQ(c->gateway.buses.at(0).device_writes,
+            (std::map<std::string, bool>{{"heartbeat_producer", true}, {"nmt_start", true}}));
+  ASSERT_EQ(load(can_bus("    can: {interface: vcan0}\n"), &c), "");
+  EXPECT_EQ(c->gateway.buses.at(0).device_writes,
+            (std::map<std::string, bool>{{"heartbeat_producer", false}, {"nmt_start", false}}));
+}
+
+TEST_F(ConfigLoaderTest, ASwitchTheFamilyHonoursTurnsTheWriteOff) {
+  std::optional<LoadedConfig> c;
+  ASSERT_EQ(
+      load(can_bus("    can: {interface: vcan0}\n",
+                   "    timing: {start_nodes: true}\n    device_writes: {nmt_start: false}\n"),
+           &c),
+      "");
+  EXPECT_FALSE(c->gateway.buses.at(0).timing.start_nodes);
+  EXPECT_FALSE(c->gateway.buses.at(0).device_writes.at("nmt_start"));
+  const auto e =
+      load(can_bus("    can: {interface: vcan0}\n", "    device_writes: {nmt_start: true}\n"));
+  EXPECT_NE(e.find("nmt_start: true needs timing.start_nodes: true"), std::string::npos) << e;
+}
+
+// A switch the driver does not honour yet is an error, never a silent promise.
+TEST_F(ConfigLoaderTest, ASwitchTheFamilyDoesNotHonourIsRefused) {
+  const std::string node = "      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n";
+  auto e = load(bus(node, "    device_writes: {baud_switch: false}\n"));
+  EXPECT_NE(e.find("gw.yaml:6:34: error: bus b device_writes: baud_switch: false is not honoured "
+                   "by the copley-ascii driver of this build"),
+            std::string::npos)
+      << e;
+  // Where the family would not write anyway, off is simply true.
+  EXPECT_EQ(load("buses:\n  - name: b\n    protocol: copley-ascii\n    serial: {device: /dev/null, "
+                 "baud: 9600}\n    device_writes: {baud_switch: false}\n    nodes:\n" +
+                 node),
+            "");
+  e = load(bus(node, "    device_writes: {heartbeat_producer: false}\n"));
+  EXPECT_NE(e.find("'heartbeat_producer' is no write of protocol copley-ascii (its writes: "
+                   "baud_switch)"),
+            std::string::npos)
+      << e;
+  e = load(bus(node, "    device_writes: [baud_switch]\n"));
+  EXPECT_NE(e.find("bus b device_writes"), std::string::npos) << e;
+}
+
+}  // namespace
+}  // namespace fieldgate
