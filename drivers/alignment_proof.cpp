@@ -25,13 +25,13 @@ enum class Outcome {
 class Attempt {
  public:
   Attempt(Link& link, const AlignmentProof& proof, bool reversed, const LinkTiming& timing,
-          AlignmentResult& result, std::size_t& owed)
+          AlignmentResult& result, AlignmentDebt& debt)
       : link_(link),
         proof_(proof),
         reversed_(reversed),
         timing_(timing),
         result_(result),
-        owed_(owed) {}
+        debt_(debt) {}
 
   asio::awaitable<Outcome> run() {
     const std::size_t count = proof_.steps.size();
@@ -41,7 +41,7 @@ class Attempt {
         result_.why = "cannot send: " + ec.message();
         co_return Outcome::failed;
       }
-      ++owed_;
+      debt_.add();
       for (int read_count = 0;; ++read_count) {
         auto frame = co_await read(step);
         if (!frame) co_return Outcome::failed;
@@ -61,12 +61,12 @@ class Attempt {
       result_.why = "bytes followed the last answer";
       co_return Outcome::failed;
     }
-    if (owed_ == 0) co_return Outcome::proved;
+    if (debt_.owed == 0) co_return Outcome::proved;
     // Replies are owed: a device answers in order, so if the answers just read were stale ones,
     // this attempt's own follow. Read them; the last `count` frames must be the pattern again.
     const bool clean = strays_ == 0;
     std::vector<std::string> last;
-    while (owed_ > 0) {
+    while (debt_.owed > 0) {
       auto frame = co_await read(this->step(count - 1));
       if (!frame) {
         if (clean && result_.why.rfind("no reply", 0) == 0) co_return Outcome::clean_but_owing;
@@ -94,7 +94,7 @@ class Attempt {
   asio::awaitable<std::optional<std::string>> read(const AlignmentStep& step) {
     const auto read = co_await link_.read_frame(step.splitter, timing_);
     if (read.status == LinkRead::Status::frame) {
-      if (owed_ > 0) --owed_;
+      if (debt_.owed > 0) --debt_.owed;
       co_return read.frame;
     }
     if (!read.partial.empty()) stray(read.partial);
@@ -117,7 +117,7 @@ class Attempt {
   bool reversed_;
   const LinkTiming& timing_;
   AlignmentResult& result_;
-  std::size_t& owed_;
+  AlignmentDebt& debt_;
   int strays_ = 0;
 };
 
@@ -126,13 +126,12 @@ class Attempt {
 asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProof& proof,
                                                  const LinkTiming& timing,
                                                  std::chrono::microseconds guard, int attempts,
-                                                 std::size_t& owed) {
+                                                 AlignmentDebt& debt) {
   AlignmentResult result;
-  bool previous_clean_but_owing = false;
   while (result.attempts < attempts) {
     ++result.attempts;
     const bool reversed = proof.reversible && result.attempts % 2 == 0;
-    Attempt attempt(link, proof, reversed, timing, result, owed);
+    Attempt attempt(link, proof, reversed, timing, result, debt);
     const Outcome outcome = co_await attempt.run();
     if (outcome == Outcome::proved) {
       result.proved = true;
@@ -142,26 +141,26 @@ asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProo
     if (outcome == Outcome::clean_but_owing) {
       // Twice in a row every answer came in order, nothing else arrived, and what is owed never
       // came: those replies were lost (a request the device never heard), not late.
-      if (previous_clean_but_owing) {
-        result.lost = owed;
-        owed = 0;
+      if (debt.clean_but_owing) {
+        result.lost = debt.owed;
+        debt.clear();
         result.proved = true;
         result.why.clear();
         co_return result;
       }
-      previous_clean_but_owing = true;
+      debt.clean_but_owing = true;
     } else {
-      previous_clean_but_owing = false;
+      debt.clean_but_owing = false;
     }
     const auto drained = co_await link.resync(guard, 10 * guard);
     if (!drained.drained.empty()) {
       result.strays.push_back(drained.drained);
       // Whole frames among the drained bytes are owed replies arriving.
       std::string_view rest = drained.drained;
-      while (!rest.empty() && owed > 0) {
+      while (!rest.empty() && debt.owed > 0) {
         const std::size_t n = proof.steps.front().splitter(rest);
         if (n == 0 || n > rest.size()) break;
-        --owed;
+        --debt.owed;
         rest.remove_prefix(n);
       }
     }

@@ -2,6 +2,7 @@
 
 #include <boost/asio/awaitable.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <functional>
 #include <string>
@@ -39,6 +40,17 @@ struct AlignmentProof {
   bool reversible = true;
 };
 
+// What the line may still owe, kept by the bus between proofs: replies to requests that got none
+// (capped: a device that was away owes nothing for what it never heard, and one that was busy
+// owes a few), and whether the last attempt got exactly its answers while replies stayed owed.
+struct AlignmentDebt {
+  static constexpr std::size_t kMaxOwed = 4;
+  std::size_t owed = 0;
+  bool clean_but_owing = false;
+  void add() { owed = std::min(owed + 1, kMaxOwed); }
+  void clear() { *this = AlignmentDebt{}; }
+};
+
 struct AlignmentResult {
   bool proved = false;
   int attempts = 0;
@@ -60,14 +72,14 @@ struct AlignmentResult {
 asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProof& proof,
                                                  const LinkTiming& timing,
                                                  std::chrono::microseconds guard, int attempts,
-                                                 std::size_t& owed);
+                                                 AlignmentDebt& debt);
 // The same with nothing owed before the proof (tests, tools).
 inline asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProof& proof,
                                                         const LinkTiming& timing,
                                                         std::chrono::microseconds guard,
                                                         int attempts) {
-  std::size_t owed = 0;
-  co_return co_await prove_alignment(link, proof, timing, guard, attempts, owed);
+  AlignmentDebt debt;
+  co_return co_await prove_alignment(link, proof, timing, guard, attempts, debt);
 }
 
 }  // namespace fieldgate

@@ -296,7 +296,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     }
     // A request that got no reply at all may still be answered.
     if (reply.status == Reply::Status::timeout && link_.stats().bytes_received == received_before)
-      ++owed_replies_;
+      debt_.add();
     if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled)
       co_await resync(n, reply);
     if (!aligned_ && !(accept_no_reply && reply.status == Reply::Status::timeout))
@@ -370,16 +370,16 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
     auto proof = family_.alignment_proof(*n->family_context, n->timing);
     if (!proof) {
       aligned_ = true;  // the family's replies prove themselves
-      owed_replies_ = 0;
+      debt_.clear();
       drained_before_proof_.clear();
       co_return;
     }
     ++counters_.alignment_proofs;
     // Whole replies drained while the line went quiet were owed ones arriving.
-    for (std::string_view rest = drained_before_proof_; !rest.empty() && owed_replies_ > 0;) {
+    for (std::string_view rest = drained_before_proof_; !rest.empty() && debt_.owed > 0;) {
       const std::size_t length = proof->steps.front().splitter(rest);
       if (length == 0 || length > rest.size()) break;
-      --owed_replies_;
+      --debt_.owed;
       rest.remove_prefix(length);
     }
     drained_before_proof_.clear();
@@ -387,8 +387,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
     const auto guard = guard_time(n->timing, link_.char_time_us());
     // An offline node gets one attempt: it is most likely absent, and others may prove the line.
     const int attempts = n->image->state == NodeState::offline ? 1 : 2;
-    const auto result =
-        co_await prove_alignment(link_, *proof, n->timing, guard, attempts, owed_replies_);
+    const auto result = co_await prove_alignment(link_, *proof, n->timing, guard, attempts, debt_);
     trace_collecting_ = false;
     trace_transaction(*n, result.proved ? "proof" : "proof failed");
     counters_.stray_replies += result.strays.size();
@@ -414,7 +413,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
                   result.attempts);
       aligned_ = true;
       alignment_failure_logged_ = false;
-      owed_replies_ = 0;
+      debt_.clear();
       co_return;
     }
     ++counters_.alignment_failures;
@@ -490,6 +489,9 @@ asio::awaitable<void> SerialBus::open_link() {
                           : fmt::format("bus {}: opened {}", config_.name, transport_->describe()));
       if (level == log::Level::notice) open_noticed_at_ = now;
       link_error_logged_ = false;
+      // A reopened port starts with nothing owed (what the old one was owed is discarded).
+      debt_.clear();
+      drained_before_proof_.clear();
       co_await family_.on_link_open(link_, config_.timing.link);
       for (const auto& note : link_.take_notes())
         if (log::enabled(level)) log::write(level, fmt::format("bus {}: {}", config_.name, note));

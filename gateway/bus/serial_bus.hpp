@@ -112,7 +112,7 @@ class SerialBus final : public Bus {
   bool aligned_ = true;
   bool alignment_failure_logged_ = false;
   // Replies the line may still owe: requests that got none (drivers/alignment_proof.hpp).
-  std::size_t owed_replies_ = 0;
+  AlignmentDebt debt_;
   std::string drained_before_proof_;  // what resync drained since the last proof
   // Wire trace: during a transaction the link's bytes wait here for its outcome.
   struct TracedBytes {

@@ -102,7 +102,9 @@ class ServiceTest : public ::testing::Test {
 
 TEST_F(ServiceTest, ReadyWatchdogStatusReloadingStopping) {
   ASSERT_TRUE(wait_until([&] { return notify_->count("READY=1") == 1; }));
-  EXPECT_EQ(notify_->count("STATUS=buses up 1/1"), 1) << "READY carries the summary";
+  // The summary names the configuration in force first (issue 31), then the buses.
+  EXPECT_EQ(notify_->count("buses up 1/1"), 1) << "READY carries the summary";
+  EXPECT_EQ(notify_->count("STATUS=config #1 ("), 1) << "the status names the configuration";
   // WATCHDOG_USEC=200ms: a ping at least every 100 ms from the event loop.
   ASSERT_TRUE(wait_until([&] { return notify_->count("WATCHDOG=1") >= 5; }, 3s));
   plant_->daemon().signal(SIGHUP);
@@ -167,7 +169,8 @@ TEST_F(ServiceTest, BadReloadKeepsTheRunningConfiguration) {
   EXPECT_NE(log.find("gateway.yaml:12:31: node amp9 address: Copley node ID must be 0..127"),
             std::string::npos)
       << log;
-  EXPECT_NE(log.find("the running configuration stays in force"), std::string::npos);
+  EXPECT_NE(log.find("config #1 ("), std::string::npos);
+  EXPECT_NE(log.find(") stays in force"), std::string::npos);
   EXPECT_TRUE(client_->read_input(2, 0, 2).ok());
   EXPECT_EQ(client_->read_input(9, 0, 2).exception, 0x0A);  // the rejected unit does not exist
   EXPECT_TRUE(plant_->daemon().running());

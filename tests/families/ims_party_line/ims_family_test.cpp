@@ -234,7 +234,8 @@ TEST(ImsAlignmentProof, LateRepliesAreDrainedOrMakeAStepFail) {
   {
     asio::io_context io;
     ScriptedLine line(
-        io, {"A^\n  1\r\nA^\n  0\r\n", "AZ\n   1000\r\n", "A^\n  0\r\n", "AZ\n   1000\r\n"});
+        // The second attempt runs the steps in reverse order (Z, then ^).
+        io, {"A^\n  1\r\nA^\n  0\r\n", "AZ\n   1000\r\n", "AZ\n   1000\r\n", "A^\n  0\r\n"});
     Link link(line);
     ImsPartyLineFamily family;
     const auto result = prove(io, link, family, 'A', timing);

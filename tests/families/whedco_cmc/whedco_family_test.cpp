@@ -227,9 +227,10 @@ TEST(WhedcoAlignmentProof, LateRepliesAreDrainedOrMakeAStepFail) {
   }
   {
     asio::io_context io;
+    // The second attempt runs the steps in reverse order (4FC, then 4!).
     test::LineTransport transport(io, test::LineTransport::scripted({"*"
                                                                      "*",
-                                                                     "0\r\n*", "*", "0\r\n*"}));
+                                                                     "0\r\n*", "0\r\n*", "*"}));
     Link link(transport);
     WhedcoFamily family;
     const auto result = prove(io, link, family, node("4/non-echo"));
