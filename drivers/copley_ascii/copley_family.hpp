@@ -29,7 +29,6 @@ class CopleyFamily final : public ProtocolFamily {
   std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const override;
 
  private:
-  unsigned link_baud_ = 0;  // the host side's rate once the link is open; 0 = unknown (TCP)
   bool gateway_wants_axis_ = false;  // the gateway amplifier answered only the `.a` form
   char gateway_axis_ = 0;            // the first axis letter configured on node 0, if any
 };

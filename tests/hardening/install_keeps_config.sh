@@ -7,7 +7,7 @@ build=$1
 root=$(mktemp -d)
 trap 'rm -rf "$root"' EXIT
 DESTDIR="$root" cmake --install "$build" >/dev/null
-config=$(find "$root" -name fieldgate.yaml -path '*/fieldgate/*')
+config=$(find "$root" -name fieldgate.yaml -path '*/etc/fieldgate/*')
 [ -n "$config" ] || { echo "FAIL: no fieldgate.yaml installed"; exit 1; }
 [ -f "$config.example" ] || { echo "FAIL: no fieldgate.yaml.example installed"; exit 1; }
 echo "ok: first install created ${config#"$root"} and its .example"
