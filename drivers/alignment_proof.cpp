@@ -35,6 +35,7 @@ class Attempt {
 
   asio::awaitable<Outcome> run() {
     const std::size_t count = proof_.steps.size();
+    const std::size_t owed_before = debt_.owed;
     for (std::size_t i = 0; i < count; ++i) {
       const auto& step = this->step(i);
       if (auto ec = co_await link_.send(step.request)) {
@@ -62,6 +63,14 @@ class Attempt {
       co_return Outcome::failed;
     }
     if (debt_.owed == 0) co_return Outcome::proved;
+    // Stale replies fewer than the steps cannot form the pattern: each answer differs from the
+    // one before it, so a stale frame taken for one step leaves the next step reading the real
+    // answer of the step before. What is still owed then never comes (a device answers in
+    // order, and its answers to this attempt have arrived): it was lost.
+    if (owed_before < count) {
+      result_.lost += debt_.owed;
+      co_return Outcome::proved;
+    }
     // Replies are owed: a device answers in order, so if the answers just read were stale ones,
     // this attempt's own follow. Read them; the last `count` frames must be the pattern again.
     const bool clean = strays_ == 0;
@@ -134,6 +143,7 @@ asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProo
     Attempt attempt(link, proof, reversed, timing, result, debt);
     const Outcome outcome = co_await attempt.run();
     if (outcome == Outcome::proved) {
+      debt.clear();
       result.proved = true;
       result.why.clear();
       co_return result;

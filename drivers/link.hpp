@@ -79,6 +79,7 @@ class Link {
                                      std::chrono::microseconds limit);
   // Bytes received but not consumed by a frame (left over after the last reply).
   std::size_t buffered() const { return buffer_.size(); }
+  std::string_view buffered_bytes() const { return buffer_; }
   // Waits without touching the line (inter-frame gap, pacing).
   asio::awaitable<void> pause(std::chrono::microseconds duration);
 

@@ -7,6 +7,8 @@
 #include <map>
 #include <mutex>
 
+#include "drivers/printable_bytes.hpp"
+
 namespace fieldgate {
 
 using cn0170::Message;
@@ -304,7 +306,16 @@ asio::awaitable<Reply> CententFamily::read_replies(Link& link, cn0170::Exchange 
   for (int i = 0; i < kMaxLinesPerExchange; ++i) {
     const LinkRead read = co_await link.read_frame(kLineSplitter, timing);
     if (read.status == LinkRead::Status::frame) {
-      if (exchange.on_line(read.frame)) break;
+      if (exchange.on_line(read.frame)) {
+        const auto instead = co_await take_line_end(link, read.frame, timing);
+        chain_.owe(exchange.unit(), exchange.owes(),
+                   exchange.paid_debt_since().value_or(std::chrono::steady_clock::now()));
+        if (instead)
+          co_return Reply::of(Reply::Status::garbled,
+                              fmt::format("'{}' where the LF of a CR LF was due",
+                                          printable_bytes(*instead)));
+        co_return exchange.reply();
+      }
       continue;
     }
     if (read.status == LinkRead::Status::timeout) {
@@ -322,6 +333,27 @@ asio::awaitable<Reply> CententFamily::read_replies(Link& link, cn0170::Exchange 
   chain_.owe(exchange.unit(), exchange.owes(),
              exchange.paid_debt_since().value_or(std::chrono::steady_clock::now()));
   co_return exchange.reply();
+}
+
+asio::awaitable<std::optional<std::string>> CententFamily::take_line_end(
+    Link& link, std::string_view last_frame, const LinkTiming& timing) {
+  if (last_frame.empty() || last_frame.back() != '\r') co_return std::nullopt;
+  const FrameSplitter one_byte = [](std::string_view buffer) -> std::size_t {
+    return buffer.empty() ? 0 : 1;
+  };
+  if (link.buffered() > 0) {
+    if (link.buffered_bytes().front() != '\n') co_return std::nullopt;  // the bus sees it
+    const LinkTiming no_wait{std::chrono::microseconds(0), std::chrono::microseconds(0)};
+    co_await link.read_frame(one_byte, no_wait);
+    crlf_line_ends_ = true;
+    co_return std::nullopt;
+  }
+  // A CR-only chain is not kept waiting: its next line may lead with a blank one.
+  if (!crlf_line_ends_) co_return std::nullopt;
+  const LinkTiming gap{timing.byte_timeout, timing.byte_timeout};
+  const LinkRead read = co_await link.read_frame(one_byte, gap);
+  if (read.status != LinkRead::Status::frame || read.frame == "\n") co_return std::nullopt;
+  co_return read.frame;
 }
 
 namespace {

@@ -6,6 +6,7 @@
 #include <boost/asio/experimental/channel.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
+#include <chrono>
 #include <utility>
 
 #include "drivers/protocol_family.hpp"
@@ -28,6 +29,7 @@ struct PendingCommand {
   void abandon() { done.try_send(asio::error::operation_aborted, Reply{}); }
 
   int node = 0;  // the node's position on its bus, where one queue serves every node
+  std::chrono::steady_clock::time_point queued_at = std::chrono::steady_clock::now();
   Request request;
   CommandOptions options;
   asio::experimental::channel<void(boost::system::error_code, Reply)> done;

@@ -294,6 +294,8 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
       reply = Reply::of(Reply::Status::garbled, fmt::format("stray bytes followed the reply ({})",
                                                             to_string(reply.status)));
     }
+    if (reply.status == Reply::Status::ok || reply.status == Reply::Status::device_error)
+      last_answered_ = &n;
     // A request that got no reply at all may still be answered.
     if (reply.status == Reply::Status::timeout && link_.stats().bytes_received == received_before)
       debt_.add();
@@ -360,13 +362,26 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
     aligned_ = false;
     co_return;
   }
-  // The failed node first; a proof addressed to an absent node fails, so then any other node
-  // that answers.
-  std::vector<NodeRuntime*> candidates{&failed};
+  // The failed node first while it counts as present: in step again, its own backlog is through.
+  // An offline node is most likely absent and its proof would only time out, so then the node
+  // that answered last comes first, the offline one after every node that may answer.
+  std::vector<NodeRuntime*> candidates;
+  const auto add = [&](NodeRuntime* n) {
+    if (n && std::find(candidates.begin(), candidates.end(), n) == candidates.end())
+      candidates.push_back(n);
+  };
+  const bool failed_present = failed.image->state != NodeState::offline;
+  if (failed_present) add(&failed);
+  if (last_answered_ && last_answered_->image->state != NodeState::offline) add(last_answered_);
   for (auto& n : nodes_)
-    if (&n != &failed && n.image->state != NodeState::offline) candidates.push_back(&n);
+    if (n.image->state != NodeState::offline) add(&n);
+  add(&failed);
+  // Attempts are bounded per call, so a command queued behind a proof on a bad line waits for a
+  // few reply timeouts, not for every node's attempts: a Modbus client's own timeout is near.
+  int attempts_left = kProofAttemptsPerCall;
   std::string why;
   for (auto* n : candidates) {
+    if (attempts_left <= 0) break;
     auto proof = family_.alignment_proof(*n->family_context, n->timing);
     if (!proof) {
       aligned_ = true;  // the family's replies prove themselves
@@ -386,9 +401,10 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
     trace_collecting_ = trace_.enabled();
     const auto guard = guard_time(n->timing, link_.char_time_us());
     // An offline node gets one attempt: it is most likely absent, and others may prove the line.
-    const int attempts = n->image->state == NodeState::offline ? 1 : 2;
+    const int attempts = std::min(attempts_left, n->image->state == NodeState::offline ? 1 : 2);
     const auto result = co_await prove_alignment(link_, *proof, n->timing, guard, attempts, debt_);
     trace_collecting_ = false;
+    attempts_left -= std::max(result.attempts, 1);
     trace_transaction(*n, result.proved ? "proof" : "proof failed");
     counters_.stray_replies += result.strays.size();
     if (!result.strays.empty()) {
@@ -421,6 +437,16 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
     if (result.why.find("never went quiet") != std::string::npos) break;
   }
   aligned_ = false;
+  // Nothing is sent before a later proof passes. A command that has already waited through
+  // proofs learns it now, rather than after the proofs of the polls ahead of it: a Modbus
+  // client's timeout is near. A newer one keeps its place and gets a proof of its own.
+  const auto now = Clock::now();
+  std::erase_if(commands_, [&](const std::shared_ptr<PendingCommand>& cmd) {
+    if (now - cmd->queued_at < kCommandPatience) return false;
+    cmd->answer(Reply::of(Reply::Status::unreachable,
+                          "line not in step (no proof of alignment passed), not sent"));
+    return true;
+  });
   if (!alignment_failure_logged_)
     log::warning(
         "bus {}: cannot prove the line in step ({}); no reply is trusted and nothing is "

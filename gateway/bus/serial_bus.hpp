@@ -68,6 +68,8 @@ class SerialBus final : public Bus {
   static constexpr int kCommandsPerPoll = 1;
   // Polls running late before a waiting command gets the line.
   static constexpr int kPollsPerCommand = 3;
+  static constexpr int kProofAttemptsPerCall = 3;
+  static constexpr std::chrono::milliseconds kCommandPatience{1000};
 
   asio::awaitable<void> open_link();
   asio::awaitable<Reply> transact(NodeRuntime& node, const Request& request, int retries,
@@ -114,6 +116,7 @@ class SerialBus final : public Bus {
   // Replies the line may still owe: requests that got none (drivers/alignment_proof.hpp).
   AlignmentDebt debt_;
   std::string drained_before_proof_;  // what resync drained since the last proof
+  NodeRuntime* last_answered_ = nullptr;  // the node whose reply was last taken, for proofs
   // Wire trace: during a transaction the link's bytes wait here for its outcome.
   struct TracedBytes {
     SteadyTime at;
