@@ -58,16 +58,15 @@ class Attempt {
         }
       }
     }
-    if (link_.buffered() > 0) {
-      result_.why = "bytes followed the last answer";
-      co_return Outcome::failed;
-    }
-    if (debt_.owed == 0) co_return Outcome::proved;
     // Stale replies fewer than the steps cannot form the pattern: each answer differs from the
     // one before it, so a stale frame taken for one step leaves the next step reading the real
     // answer of the step before. What is still owed then never comes (a device answers in
     // order, and its answers to this attempt have arrived): it was lost.
-    if (owed_before < count) {
+    if (debt_.owed == 0 || owed_before < count) {
+      if (link_.buffered() > 0) {
+        result_.why = "bytes followed the last answer";
+        co_return Outcome::failed;
+      }
       result_.lost += debt_.owed;
       co_return Outcome::proved;
     }
