@@ -51,7 +51,8 @@ constexpr DiagnosticLayout kDiagnostics[] = {
     {DiagnosticField::errors, "diag.errors", ValueType::uint32,
      "device error replies and garbled replies"},
     {DiagnosticField::last_device_error, "diag.last_device_error", ValueType::uint16,
-     "last error code the device replied"},
+     "last error code the device replied (0xffff: wider than 16 bits, see "
+     "diag.last_device_error_code)"},
     {DiagnosticField::action_status, "diag.action_status", ValueType::uint16,
      "0 idle, 1 busy, 2 done, 3 error"},
     {DiagnosticField::action_code, "diag.action_code", ValueType::uint16, "last action started"},
@@ -68,6 +69,8 @@ constexpr DiagnosticLayout kDiagnostics[] = {
     {DiagnosticField::unreachable, "diag.unreachable", ValueType::uint32,
      "transactions a forwarding device answered 'node unreachable' (Copley e 32); not in "
      "timeouts"},
+    {DiagnosticField::last_device_error_code, "diag.last_device_error_code", ValueType::uint32,
+     "last error code the device replied, all 32 bits (a CANopen SDO abort code)"},
 };
 
 RegisterEntry make_entry(RegisterEntry::Kind kind, uint16_t address, ValueType type,

@@ -100,6 +100,17 @@ std::vector<PointUpdate> NodePoints::from_object(uint16_t index, uint8_t sub,
   return updates;
 }
 
+std::vector<PointUpdate> NodePoints::absent_values(uint16_t index, uint8_t sub) const {
+  std::vector<PointUpdate> updates;
+  for (std::size_t p = 0; p < sources_.size(); ++p) {
+    const auto& src = sources_[p];
+    if (src && src->kind == PointSource::Kind::sdo && src->object && src->object->index == index &&
+        src->object->sub == sub)
+      updates.push_back({static_cast<int>(p), 0});
+  }
+  return updates;
+}
+
 std::vector<PointUpdate> NodePoints::local_values(const NodeStatus& status) const {
   std::vector<PointUpdate> updates;
   for (const int p : local_points_) {

@@ -64,6 +64,9 @@ class NodePoints {
   // own poll.
   std::vector<PointUpdate> from_object(uint16_t index, uint8_t sub,
                                        std::span<const uint8_t> bytes) const;
+  // The values of the points read by SDO from an object the node does not have: 0 (for a
+  // VISIBLE_STRING, the empty string). TPDO points keep what their PDO brings.
+  std::vector<PointUpdate> absent_values(uint16_t index, uint8_t sub) const;
   // The local points' values from what the gateway consumed; the NMT state has none before a
   // heartbeat.
   std::vector<PointUpdate> local_values(const NodeStatus& status) const;

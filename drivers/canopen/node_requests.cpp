@@ -8,6 +8,8 @@ namespace fieldgate::canopen {
 
 namespace {
 
+// Syslog level of NodeHost::log.
+constexpr int kNotice = 5;
 // Pause between the uploads of a `wait` step.
 constexpr auto kWaitInterval = std::chrono::milliseconds(10);
 
@@ -32,6 +34,31 @@ void NodeRequests::store_object(uint16_t index, uint8_t sub, std::span<const uin
 
 asio::awaitable<Reply> NodeRequests::upload(const ObjectAddress& object, int retries,
                                             TimePoint now) {
+  co_return co_await upload(object, retries, now, false);
+}
+
+asio::awaitable<Reply> NodeRequests::poll(const ObjectAddress& object, int retries, TimePoint now) {
+  finished_at = now;
+  if (absent_.contains(object.index, object.sub)) co_return Reply::of(Reply::Status::ok);
+  co_return co_await upload(object, retries, now, true);
+}
+
+Reply NodeRequests::object_absent(const ObjectAddress& object, uint32_t code, TimePoint at) {
+  if (absent_.add(object.index, object.sub))
+    host_.log(kNotice, fmt::format("node {}: no object 0x{:04X}:{} (SDO abort 0x{:08X}: {}): "
+                                   "not polled any more, its points read {}",
+                                   id_, object.index, object.sub, code, abort_text(code),
+                                   object.type == DataType::visible_string ||
+                                           object.type == DataType::octet_string
+                                       ? "as an empty string (0)"
+                                       : "0"));
+  host_.object_absent(points_.absent_values(object.index, object.sub), at);
+  // A definite answer from a node that is there; not a device error of a command.
+  return Reply::of(Reply::Status::ok);
+}
+
+asio::awaitable<Reply> NodeRequests::upload(const ObjectAddress& object, int retries, TimePoint now,
+                                            bool polled) {
   Reply reply;
   auto started = now;
   for (int attempt = 0; attempt <= retries; ++attempt) {
@@ -45,6 +72,11 @@ asio::awaitable<Reply> NodeRequests::upload(const ObjectAddress& object, int ret
     auto result = co_await sdo_.run(first, host_.port(), finished_at);
     if (!result) co_return Reply::of(Reply::Status::link_down, "bus link is down");
     host_.transfer_done(std::chrono::duration<double>(finished_at - started).count());
+    if (polled && result->status == SdoResult::Status::server_abort &&
+        says_absent(result->abort_code)) {
+      reply = object_absent(object, result->abort_code, finished_at);
+      break;
+    }
     note_abort(*result);
     reply = upload_reply(object, *result);
     if (reply.status == Reply::Status::ok)
@@ -57,6 +89,10 @@ asio::awaitable<Reply> NodeRequests::upload(const ObjectAddress& object, int ret
 }
 
 asio::awaitable<Reply> NodeRequests::download(const Operation& op, TimePoint now) {
+  co_return co_await download(op, now, true);
+}
+
+asio::awaitable<Reply> NodeRequests::download(const Operation& op, TimePoint now, bool by_command) {
   std::vector<uint8_t> data;
   if (op.text)
     data.assign(op.text->begin(), op.text->end());
@@ -75,7 +111,7 @@ asio::awaitable<Reply> NodeRequests::download(const Operation& op, TimePoint now
   // Confirmed: the points of this object hold the written value until their next poll.
   if (reply.status == Reply::Status::ok) {
     store_object(op.object.index, op.object.sub, written, finished_at);
-    if (nmt_.on_downloaded(op.object, op.value, finished_at)) host_.heartbeat_rearmed();
+    if (nmt_.on_downloaded(op.object, op.value, finished_at, by_command)) host_.heartbeat_rearmed();
   }
   co_return reply;
 }
@@ -139,7 +175,7 @@ asio::awaitable<void> NodeRequests::configure_heartbeat(TimePoint now) {
   op.kind = Operation::Kind::write;
   op.object = kHeartbeatObject;
   op.value = nmt_.producer_ms();
-  const Reply r = co_await download(op, now);
+  const Reply r = co_await download(op, now, false);
   nmt_.configured(r, op.value, finished_at);
 }
 

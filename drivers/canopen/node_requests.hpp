@@ -13,6 +13,7 @@
 #include <optional>
 #include <vector>
 
+#include "drivers/canopen/absent_objects.hpp"
 #include "drivers/canopen/canopen_request.hpp"
 #include "drivers/canopen/node_points.hpp"
 #include "drivers/canopen/node_supervision.hpp"
@@ -35,6 +36,9 @@ class RequestHost : public NodeHost {
   virtual void store(const std::vector<PointUpdate>& updates, TimePoint at) = 0;
   // A confirmed write re-armed the heartbeat consumer.
   virtual void heartbeat_rearmed() = 0;
+  // A polled object is absent from the node: its points take these values at `at` and are
+  // polled no more (not counted in the data age).
+  virtual void object_absent(const std::vector<PointUpdate>& updates, TimePoint at) = 0;
   // An urgent command waits: a running `wait` step gives way to it.
   virtual bool urgent_pending() const = 0;
   // Sleeps until `when`, or until the worker is woken.
@@ -63,11 +67,21 @@ class NodeRequests {
   // arrived in finished_at: one clock reading per transfer, which matters where reading the
   // clock is a system call (User-Mode Linux).
   asio::awaitable<Reply> upload(const ObjectAddress& object, int retries, TimePoint now);
+  // A command's download: a written 0x1017 is the node's producer time from then on.
   asio::awaitable<Reply> download(const Operation& op, TimePoint now);
+  // A poll's upload: an object the node turns out not to have (AbsentObjects) is logged once,
+  // its points read 0 (an empty string), and it is not uploaded again until the node boots.
+  asio::awaitable<Reply> poll(const ObjectAddress& object, int retries, TimePoint now);
+  AbsentObjects& absent_objects() { return absent_; }
 
   TimePoint finished_at{};  // when the last transfer ended
 
  private:
+  asio::awaitable<Reply> upload(const ObjectAddress& object, int retries, TimePoint now,
+                                bool polled);
+  asio::awaitable<Reply> download(const Operation& op, TimePoint now, bool by_command);
+  // A poll found `object` absent (abort `code`): marked, logged once, its points set.
+  Reply object_absent(const ObjectAddress& object, uint32_t code, TimePoint at);
   asio::awaitable<Reply> wait_for(const Operation& op);
   // Bring-up (CiA 302): the heartbeat producer time the consumer expects, written to 0x1017.
   asio::awaitable<void> configure_heartbeat(TimePoint now);
@@ -84,6 +98,7 @@ class NodeRequests {
   NodeSupervision& nmt_;
   const NodePoints& points_;
   RequestHost& host_;
+  AbsentObjects absent_;
 };
 
 }  // namespace fieldgate::canopen

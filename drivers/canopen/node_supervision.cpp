@@ -39,8 +39,14 @@ std::string NodeSupervision::who() const {
 }
 
 uint16_t NodeSupervision::producer_ms() const {
+  if (chosen_producer_ms_) return *chosen_producer_ms_;
   const auto ms = milliseconds(timing_.heartbeat_timeout) / kHeartbeatMultiplier;
   return static_cast<uint16_t>(std::clamp<int64_t>(ms, 1, 0xFFFF));
+}
+
+std::chrono::microseconds NodeSupervision::consumer_time() const {
+  if (!chosen_producer_ms_ || *chosen_producer_ms_ == 0) return timing_.heartbeat_timeout;
+  return std::chrono::milliseconds(*chosen_producer_ms_) * kHeartbeatMultiplier;
 }
 
 NodeSupervision::Duty NodeSupervision::duty(bool reachable) const {
@@ -63,9 +69,7 @@ void NodeSupervision::bring_up(bool start) {
   pre_operational_check_ = false;
   stuck_error_register_.reset();
   status_.stays_pre_operational = false;
-  next_guard_ = TimePoint::max();
-  guarding_since_.reset();
-  guard_answered_ = false;
+  stop_guarding();
   host_.wake_worker();
 }
 
@@ -104,8 +108,9 @@ void NodeSupervision::on_heartbeat(uint8_t state, TimePoint now) {
       if (!heartbeat_seen_) {
         heartbeat_seen_ = true;
         status_.liveness = Liveness::heartbeat;
+        stop_guarding();  // the heartbeat tells the NMT state now
       }
-      heartbeat_deadline_ = now + timing_.heartbeat_timeout;
+      heartbeat_deadline_ = now + consumer_time();
     }
     const auto presence = host_.presence();
     if (presence == Presence::offline) {
@@ -156,15 +161,34 @@ void NodeSupervision::on_emergency(const Emergency& e) {
   host_.refresh_local_points(host_.now());
 }
 
-bool NodeSupervision::on_downloaded(const ObjectAddress& object, int64_t value, TimePoint at) {
+bool NodeSupervision::on_downloaded(const ObjectAddress& object, int64_t value, TimePoint at,
+                                    bool by_command) {
   if (!consumer() || object.index != kHeartbeatObject.index || object.sub != kHeartbeatObject.sub)
     return false;
+  if (by_command) {
+    chosen_producer_ms_ = static_cast<uint16_t>(std::clamp<int64_t>(value, 0, 0xFFFF));
+    host_.log(kNotice,
+              value > 0
+                  ? fmt::format("node {} heartbeat producer time 0x1017 written by a command: "
+                                "{} ms; consumer time {} ms from now on",
+                                who(), value, milliseconds(consumer_time()))
+                  : fmt::format("node {} heartbeat producer time 0x1017 written by a command: "
+                                "0 (no heartbeat); liveness by SDO from now on",
+                                who()));
+  }
   // A new producer time (ours or a PLC's): a heartbeat must follow within the consumer time, or
   // the node is one without (a PLC wrote 0): SDO liveness, never a false loss.
   heartbeat_seen_ = false;
   written_producer_ms_ = value;
   status_.liveness = Liveness::sdo;
-  heartbeat_deadline_ = at + timing_.heartbeat_timeout;
+  if (value == 0) {
+    watch_by_sdo(at);  // no heartbeat is to come
+    return true;
+  }
+  heartbeat_deadline_ = at + consumer_time();
+  // A heartbeat is to come: node guarding stops (it starts again if none comes). Its answers
+  // share the heartbeat's COB-ID and would be taken for the heartbeat.
+  stop_guarding();
   return true;
 }
 
@@ -186,14 +210,13 @@ TimePoint NodeSupervision::check_heartbeat(TimePoint now) {
               fmt::format("node {} sent no heartbeat within {} ms of its producer time 0x1017 "
                           "being set to {} ms; liveness by SDO from now on (offline after {} SDO "
                           "timeouts)",
-                          who(), milliseconds(timing_.heartbeat_timeout), written_producer_ms_,
+                          who(), milliseconds(consumer_time()), written_producer_ms_,
                           timing_.offline_after));
     return TimePoint::max();
   }
   if (now >= heartbeat_deadline_) {
     offline_by_heartbeat_ = true;
-    host_.go_offline(
-        fmt::format("no heartbeat within {} ms", milliseconds(timing_.heartbeat_timeout)));
+    host_.go_offline(fmt::format("no heartbeat within {} ms", milliseconds(consumer_time())));
     return TimePoint::max();
   }
   return heartbeat_deadline_;
@@ -203,9 +226,11 @@ void NodeSupervision::configured(const Reply& r, int64_t producer, TimePoint fin
   switch (r.status) {
     case Reply::Status::ok:  // on_downloaded() armed the consumer
       configure_pending_ = false;
-      host_.log(kInfo, fmt::format("node {} heartbeat producer time 0x1017 set to {} ms "
-                                   "(consumer {} ms)",
-                                   who(), producer, milliseconds(timing_.heartbeat_timeout)));
+      host_.log(kInfo,
+                fmt::format("node {} heartbeat producer time 0x1017 set to {} ms "
+                            "({}consumer {} ms)",
+                            who(), producer, chosen_producer_ms_ ? "chosen by a command; " : "",
+                            milliseconds(consumer_time())));
       break;
     case Reply::Status::device_error:
     case Reply::Status::garbled:
@@ -255,7 +280,7 @@ void NodeSupervision::report_pre_operational(const Reply& r) {
 }
 
 std::optional<CanFrame> NodeSupervision::guard(TimePoint now) {
-  if (!guard_answered_ && now - *guarding_since_ >= timing_.heartbeat_timeout) {
+  if (!guard_answered_ && now - *guarding_since_ >= consumer_time()) {
     next_guard_ = TimePoint::max();
     host_.log(
         kWarning,
@@ -264,12 +289,19 @@ std::optional<CanFrame> NodeSupervision::guard(TimePoint now) {
     host_.nmt_state_forgotten();
     return std::nullopt;
   }
-  next_guard_ = now + std::chrono::milliseconds(producer_ms());
+  // Every producer time the consumer expects (a chosen 0 guards at the configured rate).
+  next_guard_ = now + consumer_time() / kHeartbeatMultiplier;
   CanFrame rtr;
   rtr.id = cob::heartbeat + id_;
   rtr.len = 1;
   rtr.rtr = true;
   return rtr;
+}
+
+void NodeSupervision::stop_guarding() {
+  next_guard_ = TimePoint::max();
+  guarding_since_.reset();
+  guard_answered_ = false;
 }
 
 void NodeSupervision::watch_by_sdo(TimePoint now) {

@@ -82,8 +82,12 @@ class NodeSupervision {
   NodeStatus& status() { return status_; }
   const NodeStatus& status() const { return status_; }
   bool consumer() const { return timing_.heartbeat_timeout.count() > 0; }
-  // The heartbeat producer time the consumer expects: a third of the consumer time.
+  // The heartbeat producer time the bus writes at bring-up: the one a command chose for this
+  // node (a PLC's confirmed write of 0x1017), else a third of the configured consumer time.
   uint16_t producer_ms() const;
+  // The consumer time for this node: three producer times where a command chose the producer
+  // time, else the configured heartbeat_timeout.
+  std::chrono::microseconds consumer_time() const;
 
   // What the node's worker does next, before commands and polls.
   enum class Duty { none, configure, start, report_pre_operational, guard };
@@ -99,8 +103,9 @@ class NodeSupervision {
 
   void on_heartbeat(uint8_t state, TimePoint now);
   void on_emergency(const Emergency& emcy);
-  // A confirmed download; true where it re-armed the heartbeat consumer (0x1017 written).
-  bool on_downloaded(const ObjectAddress& object, int64_t value, TimePoint at);
+  // A confirmed download, by a command or by the bus's own bring-up; true where it re-armed the
+  // heartbeat consumer (0x1017 written). A command's producer time is the node's from then on.
+  bool on_downloaded(const ObjectAddress& object, int64_t value, TimePoint at, bool by_command);
   // The error register as last read or sent: NMT start again when it cleared on a node that
   // stayed pre-operational with an error.
   void error_register_seen(uint8_t reg);
@@ -121,6 +126,7 @@ class NodeSupervision {
 
  private:
   void watch_by_sdo(TimePoint now);
+  void stop_guarding();
   std::string who() const;  // "drive (2)"
 
   uint8_t id_;
@@ -133,8 +139,11 @@ class NodeSupervision {
   // heartbeat follows, a passing deadline means the node produces none (SDO liveness), after
   // that it means the heartbeat was lost (offline).
   TimePoint heartbeat_deadline_ = TimePoint::max();
-  bool heartbeat_seen_ = false;        // since the producer time was configured
-  int64_t written_producer_ms_ = 0;    // the producer time last written
+  bool heartbeat_seen_ = false;      // since the producer time was configured
+  int64_t written_producer_ms_ = 0;  // the producer time last written
+  // The producer time a command wrote: bring-up writes it again and the consumer follows it, so
+  // a PLC's choice is neither overwritten nor taken for a lost heartbeat.
+  std::optional<uint16_t> chosen_producer_ms_;
   bool offline_by_heartbeat_ = false;  // its heartbeat stopped; probed by SDO meanwhile
   bool configure_pending_ = false;     // 0x1017 to write (before NMT start)
   bool start_pending_ = false;         // NMT start to send

@@ -104,6 +104,14 @@ struct CanBus::NodeRuntime final : RequestHost {
     if (!updates.empty()) bus.notify(*this);
   }
   void heartbeat_rearmed() override { bus.supervisor_wake_.cancel(); }
+  void object_absent(const std::vector<PointUpdate>& updates, SteadyTime at) override {
+    for (const auto& u : updates) {
+      const auto p = static_cast<std::size_t>(u.point);
+      image->points[p] = {u.value, at, true};
+      if (p < image->polled.size()) image->polled[p] = false;
+    }
+    if (!updates.empty()) bus.notify(*this);
+  }
   bool urgent_pending() const override { return urgent_waiting; }
   asio::awaitable<void> pause_until(SteadyTime when) override {
     co_await bus.sleep_until(wake, when);
@@ -122,6 +130,7 @@ struct CanBus::NodeRuntime final : RequestHost {
   NodeRequests requests;  // commands, polls, probes and bring-up as transfers
   TpdoFreshness tpdos;    // the TPDOs that spare polls their transfer
   std::deque<std::shared_ptr<PendingCommand>> commands;
+  std::vector<bool> polled;  // by model point: a poll item reads it (objects absent or not)
   bool urgent_waiting = false;
   SteadyTime next_probe{};
 };
@@ -181,6 +190,12 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
       if (period.count() <= 0) continue;
       if (const auto job = n.points.poll_job(p)) add_target(*job, static_cast<int>(p), period);
     }
+    // The data age covers the polled points only (a write-only point is never read).
+    n.polled.assign(model.points.size(), false);
+    for (const auto& item : plan_.items())
+      if (item.node == index)
+        for (const auto& t : item.targets) n.polled[static_cast<std::size_t>(t.point)] = true;
+    n.image->polled = n.polled;
     nodes_.push_back(std::move(rt));
     ++index;
   }
@@ -415,7 +430,14 @@ void CanBus::dispatch(const CanFrame& frame, SteadyTime now) {
       break;
     case FrameRole::heartbeat:
       trace_frame(frame, TraceDirection::rx, now, {});
-      if (auto hb = parse_heartbeat(frame)) n.nmt.on_heartbeat(hb->state, now);
+      if (auto hb = parse_heartbeat(frame)) {
+        if (hb->state == nmt_state::boot_up && !n.requests.absent_objects().empty()) {
+          // Restarted: perhaps with other firmware. Absent objects are polled again.
+          n.requests.absent_objects().clear();
+          n.image->polled = n.polled;
+        }
+        n.nmt.on_heartbeat(hb->state, now);
+      }
       break;
     case FrameRole::emergency:
       trace_frame(frame, TraceDirection::rx, now, {});
@@ -593,8 +615,8 @@ asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, S
   // Due again a period after it was started, so a poll that is due sooner than its transfer
   // takes runs straight after it.
   plan_.completed(item_index, now);
-  // upload() stores the value in every point of the object, the targets among them.
-  co_await n.requests.upload(info.object, config_.timing.retries, now);
+  // poll() stores the value in every point of the object, the targets among them.
+  co_await n.requests.poll(info.object, config_.timing.retries, now);
 }
 
 asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {

@@ -40,7 +40,13 @@ int64_t ProcessImage::diagnostic(int index, DiagnosticField field, SteadyTime no
     case DiagnosticField::errors:
       return clamp32(n.counters.errors);
     case DiagnosticField::last_device_error:
-      return static_cast<uint16_t>(n.counters.last_device_error);
+      // A code that does not fit is not cut to its low half (0x06020000 would read 0, "no
+      // error"): 0xffff says "see last_device_error_code".
+      return n.counters.last_device_error > 0xffff
+                 ? 0xffff
+                 : static_cast<uint16_t>(n.counters.last_device_error);
+    case DiagnosticField::last_device_error_code:
+      return static_cast<uint32_t>(n.counters.last_device_error);
     case DiagnosticField::action_status:
       return static_cast<uint16_t>(n.action.status);
     case DiagnosticField::action_code:

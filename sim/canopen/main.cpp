@@ -59,6 +59,10 @@ int main(int argc, char** argv) {
   bool no_guarding = false;
   app.add_flag("--no-node-guarding", no_guarding,
                "ignore node guarding requests (RTR on 0x700+id)");
+  bool no_device_name = false;
+  app.add_flag("--no-device-name", no_device_name,
+               "no manufacturer device name 0x1008 (optional in CiA 301; uploads are aborted "
+               "with 0x06020000)");
   app.add_option("--power-up-error", config.power_up_error,
                  "error code the nodes power up with (error register set, drive in Fault, EMCY "
                  "after boot-up), e.g. 0x5000; cleared by a CiA 402 fault reset")
@@ -79,6 +83,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   config.sdo_timeout = std::chrono::milliseconds(sdo_timeout_ms);
   config.node_guarding = !no_guarding;
+  config.device_name_object = !no_device_name;
 
   std::vector<std::uint8_t> ids;
   try {

@@ -109,7 +109,8 @@ void Node::build_od() {
     computed(0x1003, sub, "standard error field", [this, sub]() -> std::uint32_t {
       return sub <= error_history_.size() ? error_history_[sub - 1] : 0;
     });
-  od_.add_string(0x1008, 0, "manufacturer device name", device_name_);
+  if (config_.device_name_object)
+    od_.add_string(0x1008, 0, "manufacturer device name", device_name_);
   od_.add_string(0x1009, 0, "manufacturer hardware version", hardware_version_);
   od_.add_string(0x100A, 0, "manufacturer software version", software_version_);
   od_.add_const<std::uint32_t>(0x1014, 0, "COB-ID EMCY", cob::emcy + id_);

@@ -62,6 +62,9 @@ struct NodeConfig {
   std::uint16_t tpdo_inhibit_100us = 100;  // 0x1800:3 default (10 ms)
   std::chrono::milliseconds sdo_timeout{1000};
   std::string device_name = "fieldgate sim CiA 402 drive";
+  // 0x1008 is optional in CiA 301; without it an upload is aborted with 0x06020000 (CANopenNode's
+  // canopend ships without one).
+  bool device_name_object = true;
   std::string hardware_version = "sim";
   std::string software_version = "fieldgate-sim-canopen 0.1";
   std::uint32_t vendor_id = 0x00F1E1D6;

@@ -241,6 +241,21 @@ TEST_F(CanBusTest, AbortIsADeviceErrorWithItsCode) {
   r = submit(0, "read 0x1234:0 UNSIGNED8");
   EXPECT_EQ(r.device_code, 0x06020000);
   EXPECT_NE(r.text.find("object does not exist"), std::string::npos) << r.text;
+  // The diagnostic block serves the whole code (its low half, 0, would read "no error").
+  const ProcessImage diagnostics(bus_->node_images());
+  const auto now = std::chrono::steady_clock::now();
+  EXPECT_EQ(diagnostics.diagnostic(0, DiagnosticField::last_device_error_code, now), 0x06020000);
+  EXPECT_EQ(diagnostics.diagnostic(0, DiagnosticField::last_device_error, now), 0xffff);
+  const auto* code = config_->map_of(0).unit(1)->find(Table::input_registers, 1021);
+  ASSERT_NE(code, nullptr);
+  EXPECT_EQ(code->name, "diag.last_device_error_code");
+  EXPECT_EQ(code->address, 1021);
+  EXPECT_EQ(code->count, 2);
+  // The fields before it keep their registers.
+  EXPECT_EQ(config_->map_of(0).unit(1)->find(Table::input_registers, 1010)->name,
+            "diag.last_device_error");
+  EXPECT_EQ(config_->map_of(0).unit(1)->find(Table::input_registers, 1019)->name,
+            "diag.unreachable");
   r = submit(0, "write controlword 70000");  // rendered out of range: refused, not sent
   EXPECT_EQ(r.status, Reply::Status::device_error);
   EXPECT_EQ(r.device_code, 0x06090030);
@@ -567,6 +582,106 @@ TEST_F(CanBusTest, ConfirmedWriteIsThePointsValue) {
   EXPECT_TRUE(stays_online(0, 1s)) << image(0).counters.last_error_text;
   EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::sdo);
   EXPECT_EQ(wire_count("602#4017100000000000"), polls);  // no poll of it meanwhile (10 s class)
+}
+
+// A PLC's producer time is the node's: the consumer follows it (three producer times), and the
+// bus's bring-up writes it again instead of its own.
+TEST_F(CanBusTest, ProducerTimeAPlcWroteIsFollowedNotOverwritten) {
+  start("2", kCia301Node);
+  ASSERT_TRUE(run_until([&] {
+    return point(0, "nmt_state") == 5 &&
+           bus_->node_status(0).liveness == CanBus::Liveness::heartbeat;
+  }));
+  capture_log();
+  ASSERT_EQ(submit(0, "write heartbeat_time 1000").status, Reply::Status::ok);
+  const auto writes = wire_count("602#2B171000.*");
+  // Longer than the configured 300 ms consumer time, three times over.
+  EXPECT_TRUE(stays_online(0, 2500ms)) << image(0).counters.last_error_text;
+  EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::heartbeat);
+  EXPECT_EQ(wire_count("702#R"), 0u) << "guarded as a node without heartbeat";
+  EXPECT_EQ(wire_count("602#2B171000.*"), writes) << wire_text();
+  EXPECT_EQ(point(0, "heartbeat_time"), 1000);
+  // The link goes and comes back: configured again with the PLC's 1000 ms, not 100 ms.
+  wire_->down = true;
+  ASSERT_TRUE(run_until([&] { return offline(0); }, 2s));
+  const auto from = wire_->wire.size();
+  wire_->down = false;
+  ASSERT_TRUE(run_until([&] { return wire_count("602#2B171000E8030000", from) == 1; }, 3s))
+      << wire_text();
+  EXPECT_EQ(wire_count(kHeartbeatWrite, from), 0u);
+  EXPECT_TRUE(stays_online(0, 2500ms)) << image(0).counters.last_error_text;
+  test::expect_contains(captured_log(),
+                        {"node dev (2) heartbeat producer time 0x1017 written by a command: 1000 "
+                         "ms; consumer time 3000 ms from now on",
+                         "node dev (2) heartbeat producer time 0x1017 set to 1000 ms (chosen by a "
+                         "command; consumer 3000 ms)"});
+}
+
+// Node guarding stands in for a heartbeat; once one is configured again, it stops.
+TEST_F(CanBusTest, NodeGuardingStopsWhenAHeartbeatIsConfiguredAgain) {
+  start("2", kCia301Node);
+  ASSERT_TRUE(run_until([&] { return point(0, "nmt_state") == 5; }));
+  ASSERT_EQ(submit(0, "write heartbeat_time 0").status, Reply::Status::ok);
+  ASSERT_TRUE(run_until([&] { return wire_count("702#R") >= 2; }, 2s)) << wire_text();
+  ASSERT_EQ(submit(0, "write heartbeat_time 100").status, Reply::Status::ok);
+  ASSERT_TRUE(
+      run_until([&] { return bus_->node_status(0).liveness == CanBus::Liveness::heartbeat; }, 2s));
+  run_until([] { return false; }, 100ms);  // a request already on its way
+  const auto guards = wire_count("702#R");
+  EXPECT_TRUE(stays_online(0, 1s)) << image(0).counters.last_error_text;
+  EXPECT_EQ(wire_count("702#R"), guards) << wire_text();
+  EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::heartbeat);
+  EXPECT_EQ(point(0, "nmt_state"), 5);
+}
+
+// CiA 301 makes 0x1008 optional (canopend has none). The device's abort marks it absent: its
+// points read 0 (the empty name), so every read-only point has a value and a PLC's one read of
+// them all succeeds; it is polled no more, and its abort leaves a command's abort readable.
+TEST_F(CanBusTest, ObjectTheDeviceLacksLeavesItsNeighboursReadable) {
+  auto nc = as_shipped();
+  nc.device_name_object = false;
+  capture_log();
+  start("2",
+        "      - {name: dev, address: 2, model: canopen-cia301, unit_id: 1, "
+        "poll: {identity: 200ms}}\n",
+        kTiming, nc);
+  const std::string name_upload = "602#4008100000000000";
+  ASSERT_TRUE(run_until([&] { return wire_count("582#8008100000000206") == 1; })) << wire_text();
+  const Model& model = *config_->gateway.buses[0].nodes[0].model;
+  ASSERT_TRUE(run_until([&] {
+    for (const auto& p : model.points)
+      if (!p.writable() && !point(0, p.name)) return false;
+    return true;
+  })) << wire_text();
+  for (int field = 0; field < 8; ++field)
+    EXPECT_EQ(point(0, "device_name_" + std::to_string(field)), 0);
+  EXPECT_EQ(point(0, "sdo_abort_code"), 0);
+  EXPECT_EQ(image(0).counters.last_device_error, 0);
+  EXPECT_EQ(image(0).counters.errors, 0u);
+  const ProcessImage diagnostics(bus_->node_images());
+  EXPECT_NE(
+      diagnostics.diagnostic(0, DiagnosticField::data_age_ms, std::chrono::steady_clock::now()),
+      0xffffffff);
+  // A command's abort stays in the diagnostics over several identity periods.
+  const auto r = submit(0, "write 0x1000:0 UNSIGNED32 5");
+  EXPECT_EQ(r.device_code, 0x06010002) << r.text;  // read only
+  const auto vendor_reads = wire_count("602#4018100100000000");
+  run_until([] { return false; }, 1s);
+  EXPECT_GE(wire_count("602#4018100100000000"), vendor_reads + 3) << "identity polls go on";
+  EXPECT_EQ(wire_count(name_upload), 1u) << "absent, yet polled again";
+  EXPECT_EQ(point(0, "sdo_abort_code"), 0x06010002);
+  EXPECT_EQ(image(0).counters.last_device_error, 0x06010002);
+  EXPECT_TRUE(online(0));
+  const std::string said =
+      "node 2: no object 0x1008:0 (SDO abort 0x06020000: object does not exist in the object "
+      "dictionary): not polled any more, its points read as an empty string (0)";
+  const auto log = captured_log();
+  test::expect_contains(log, {said});
+  EXPECT_EQ(log.find(said), log.rfind(said)) << "said more than once";
+  // After a restart the device may have it: asked once more.
+  sim_->execute("power-off 2");
+  sim_->execute("power-on 2");
+  EXPECT_TRUE(run_until([&] { return wire_count(name_upload) == 2; }, 2s)) << wire_text();
 }
 
 TEST_F(CanBusTest, EveryPollClassRunsAcrossOnlineTransitions) {

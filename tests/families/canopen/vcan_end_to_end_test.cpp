@@ -1,6 +1,7 @@
 // End to end on a kernel vcan0: the fieldgate daemon with a CAN bus, fieldgate-sim-canopen with
 // two CiA 402 drives as they ship (0x1017 = 0) and a second simulator with a device that powers
-// up with an error and refuses NMT start while it lasts, a libmodbus client as the PLC and
+// up with an error and refuses NMT start while it lasts, a third with a device without the
+// optional device name 0x1008 (as canopend ships), a libmodbus client as the PLC and
 // candump as the foreign observer. Runs inside scripts/vcan-run; the tests share one plant (one
 // virtual machine boot) and run in order.
 #include <gtest/gtest.h>
@@ -44,6 +45,13 @@ class VcanEndToEnd : public ::testing::Test {
       p->error = "second simulator did not start: " + p->faulted_sim->log();
       return;
     }
+    // Without the optional device name 0x1008, as CANopenNode's canopend ships.
+    p->nameless_sim = std::make_unique<test::CanopenSim>(
+        p->dir, "5", "nameless-sim", std::vector<std::string>{"--no-device-name"});
+    if (!p->nameless_sim->wait_ready()) {
+      p->error = "third simulator did not start: " + p->nameless_sim->log();
+      return;
+    }
     const auto config = p->dir / "gw.yaml";
     std::ofstream(config) << "modbus:\n  listen: 127.0.0.1:0\n"
                           << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
@@ -57,6 +65,8 @@ class VcanEndToEnd : public ::testing::Test {
                           << "      - {name: axis3, address: 3, model: canopen-cia402, unit_id: 2, "
                              "poll: {fast: 50ms, identity: 1s}}\n"
                           << "      - {name: dev4, address: 4, model: canopen-cia301, unit_id: 3, "
+                             "poll: {identity: 1s}}\n"
+                          << "      - {name: dev5, address: 5, model: canopen-cia301, unit_id: 4, "
                              "poll: {identity: 1s}}\n";
     Diagnostics d;
     auto loaded = load_gateway_config(config.string(), d);
@@ -137,6 +147,7 @@ class VcanEndToEnd : public ::testing::Test {
     std::unique_ptr<test::Candump> candump;
     std::unique_ptr<test::CanopenSim> sim;
     std::unique_ptr<test::CanopenSim> faulted_sim;
+    std::unique_ptr<test::CanopenSim> nameless_sim;
     std::unique_ptr<RegisterMap> map;
     std::unique_ptr<test::ChildProcess> daemon;
     std::unique_ptr<ModbusClient> client;
@@ -227,13 +238,34 @@ TEST_F(VcanEndToEnd, ExpeditedWriteOfAPointExactFrames) {
   EXPECT_EQ(p->client->read_holding(1, addr, 1).values.at(0), 150);
 }
 
+TEST_F(VcanEndToEnd, DeviceWithoutDeviceNameIsReadInOneRequest) {
+  ASSERT_TRUE(wait_until([] { return online(4); }, 30s));
+  // Input registers 0-31, every read-only point of canopen-cia301, in one request as a PLC reads
+  // them: the absent 0x1008 reads as the empty name instead of failing the read with 0x0B.
+  EXPECT_TRUE(wait_until([] { return p->client->read_input(4, 0, 32).ok(); }, 10s))
+      << p->daemon->log();
+  const auto name = address(4, Table::input_registers, "device_name_0");
+  const auto r = p->client->read_input(4, name, 16);
+  ASSERT_TRUE(r.ok());
+  for (const auto v : r.values) EXPECT_EQ(v, 0);
+  EXPECT_NE(input_u32(4, "diag.data_age"), 0xffffffffu);
+  std::this_thread::sleep_for(3s);  // three identity periods
+  EXPECT_EQ(p->candump->count("605#4008100000000000"), 1u) << "absent, yet polled again";
+  EXPECT_EQ(input_u32(4, "sdo_abort_code"), 0u);
+  EXPECT_EQ(input_u32(4, "diag.last_device_error_code"), 0u);
+  EXPECT_NE(p->daemon->log().find("node 5: no object 0x1008:0 (SDO abort 0x06020000"),
+            std::string::npos)
+      << p->daemon->log();
+}
+
 TEST_F(VcanEndToEnd, AbortIsException04WithTheCodeReadable) {
   const auto mode = address(1, Table::holding_registers, "modes_of_operation");
   const auto r = p->client->write_single(1, mode, 3);  // profile velocity: not in the simulator
   EXPECT_EQ(r.exception, kModbusDeviceFailure);
   EXPECT_TRUE(wait_until([] { return input_u32(1, "sdo_abort_code") == 0x06090030u; }));
-  // The diagnostic block's 16-bit register keeps the abort code's low word.
-  EXPECT_EQ(input(1, "diag.last_device_error"), 0x0030);
+  // The diagnostic block has the whole code; its 16-bit register says it is wider.
+  EXPECT_EQ(input_u32(1, "diag.last_device_error_code"), 0x06090030u);
+  EXPECT_EQ(input(1, "diag.last_device_error"), 0xffff);
   EXPECT_TRUE(wait_until([] { return p->candump->count("582#8060600030000906") >= 1; }))
       << p->candump->text();
   EXPECT_TRUE(online(1));  // an abort is an answer
