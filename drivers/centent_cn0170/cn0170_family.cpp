@@ -311,9 +311,9 @@ asio::awaitable<Reply> CententFamily::read_replies(Link& link, cn0170::Exchange 
         chain_.owe(exchange.unit(), exchange.owes(),
                    exchange.paid_debt_since().value_or(std::chrono::steady_clock::now()));
         if (instead)
-          co_return Reply::of(Reply::Status::garbled,
-                              fmt::format("'{}' where the LF of a CR LF was due",
-                                          printable_bytes(*instead)));
+          co_return Reply::of(
+              Reply::Status::garbled,
+              fmt::format("'{}' where the LF of a CR LF was due", printable_bytes(*instead)));
         co_return exchange.reply();
       }
       continue;

@@ -70,8 +70,7 @@ class CententFamily final : public ProtocolFamily {
   // The LF of a CR LF line end belongs to the reply it ends: taken when it is there and, once
   // the chain has been seen ending lines with CR LF, awaited for the byte gap. Returns a byte
   // that came in its place (the reply is then not to be trusted).
-  asio::awaitable<std::optional<std::string>> take_line_end(Link& link,
-                                                            std::string_view last_frame,
+  asio::awaitable<std::optional<std::string>> take_line_end(Link& link, std::string_view last_frame,
                                                             const LinkTiming& timing);
 
   cn0170::Chain chain_;
@@ -79,7 +78,7 @@ class CententFamily final : public ProtocolFamily {
   cn0170::Options options_;
   bool options_bound_ = false;
   LogSink log_sink_;
-  bool routed_ = false;  // the sink names the bus: lines need not name the device
+  bool routed_ = false;          // the sink names the bus: lines need not name the device
   bool crlf_line_ends_ = false;  // a reply line was seen ending in CR LF
 };
 

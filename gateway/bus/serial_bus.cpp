@@ -419,11 +419,12 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
     if (!transport_->is_open()) break;
     // One lost reply is what every poll of an absent node leaves: not worth a warning each time.
     if (result.lost > 0)
-      log::write(result.lost > 1 ? log::Level::warning : log::Level::debug, fmt::format(
-          "bus {}: {} repl{} never came and {} taken as lost (the device did not hear "
-          "the request)",
-          config_.name, result.lost, result.lost == 1 ? "y" : "ies",
-          result.lost == 1 ? "is" : "are"));
+      log::write(
+          result.lost > 1 ? log::Level::warning : log::Level::debug,
+          fmt::format("bus {}: {} repl{} never came and {} taken as lost (the device did not hear "
+                      "the request)",
+                      config_.name, result.lost, result.lost == 1 ? "y" : "ies",
+                      result.lost == 1 ? "is" : "are"));
     if (result.proved) {
       if (!aligned_ || alignment_failure_logged_)
         log::info("bus {}: line in step again ({}, {} attempt(s))", config_.name, proof->name,

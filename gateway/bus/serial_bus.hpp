@@ -115,7 +115,7 @@ class SerialBus final : public Bus {
   bool alignment_failure_logged_ = false;
   // Replies the line may still owe: requests that got none (drivers/alignment_proof.hpp).
   AlignmentDebt debt_;
-  std::string drained_before_proof_;  // what resync drained since the last proof
+  std::string drained_before_proof_;      // what resync drained since the last proof
   NodeRuntime* last_answered_ = nullptr;  // the node whose reply was last taken, for proofs
   // Wire trace: during a transaction the link's bytes wait here for its outcome.
   struct TracedBytes {
