@@ -38,7 +38,7 @@ class Attempt {
     const std::size_t owed_before = debt_.owed;
     for (std::size_t i = 0; i < count; ++i) {
       const auto& step = this->step(i);
-      if (auto ec = co_await link_.send(step.request)) {
+      if (auto ec = co_await send(step)) {
         result_.why = "cannot send: " + ec.message();
         co_return Outcome::failed;
       }
@@ -98,6 +98,15 @@ class Attempt {
  private:
   const AlignmentStep& step(std::size_t i) const {
     return proof_.steps[reversed_ ? proof_.steps.size() - 1 - i : i];
+  }
+  asio::awaitable<std::error_code> send(const AlignmentStep& step) {
+    if (step.char_gap.count() == 0) co_return co_await link_.send(step.request);
+    const std::string_view request = step.request;
+    for (std::size_t i = 0; i < request.size(); ++i) {
+      if (i > 0) co_await link_.pause(step.char_gap);
+      if (auto ec = co_await link_.send(request.substr(i, 1))) co_return ec;
+    }
+    co_return std::error_code{};
   }
   asio::awaitable<std::optional<std::string>> read(const AlignmentStep& step) {
     const auto read = co_await link_.read_frame(step.splitter, timing_);

@@ -27,6 +27,9 @@ struct AlignmentStep {
   // True when a frame is exactly this step's known answer.
   std::function<bool(std::string_view frame)> matches;
   std::string expected;  // what the answer is, for logs
+  // Non-zero: the request goes one character at a time, this far apart (a unit whose UART
+  // overruns on back-to-back characters, as an IMS indexer stepping fast).
+  std::chrono::microseconds char_gap{0};
 };
 
 struct AlignmentProof {

@@ -313,6 +313,12 @@ std::optional<AlignmentProof> ImsPartyLineFamily::alignment_proof(NodeContext& c
   // the real one to the second step, whose echo must be `Z`.
   proof.steps.push_back(query_step(node, "^"));
   proof.steps.push_back(query_step(node, "Z"));
+  if (shadow_.fast()) {
+    // A unit stepping fast overruns on back-to-back characters (manual p.14): the proof is
+    // paced like every other line, by time here (its echo is part of the answer): 5 ms leaves
+    // the echo of each character time to come back even at 9600 baud.
+    for (auto& step : proof.steps) step.char_gap = std::chrono::milliseconds(5);
+  }
   return proof;
 }
 

@@ -262,12 +262,13 @@ void SerialBus::record(NodeRuntime& n, const Reply& reply, bool poll) {
 asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& request, int retries,
                                            bool accept_no_reply, bool poll) {
   Reply reply;
-  if (!aligned_) co_await prove_aligned(n);
+  if (!aligned_) co_await prove_aligned(n, true);
   if (!aligned_ && transport_->is_open()) {
     // Nothing is sent while the line is out of step: its reply could not be told from a late one.
+    // Not the node's failure (the failed proofs are counted against the nodes they went to):
+    // its values just age.
     reply = Reply::of(Reply::Status::unreachable,
                       "line not in step (no proof of alignment passed), not sent");
-    record(n, reply, poll);
     co_return reply;
   }
   for (int attempt = 0; attempt <= retries; ++attempt) {
@@ -297,10 +298,10 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     if (reply.status == Reply::Status::ok || reply.status == Reply::Status::device_error)
       last_answered_ = &n;
     // A request that got no reply at all may still be answered.
-    if (reply.status == Reply::Status::timeout && link_.stats().bytes_received == received_before)
-      debt_.add();
+    const bool heard = link_.stats().bytes_received != received_before;
+    if (reply.status == Reply::Status::timeout && !heard) debt_.add();
     if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled)
-      co_await resync(n, reply);
+      co_await resync(n, reply, heard);
     if (!aligned_ && !(accept_no_reply && reply.status == Reply::Status::timeout))
       break;  // no retry on a line out of step
     if (accept_no_reply && reply.status == Reply::Status::timeout) {
@@ -327,7 +328,7 @@ void SerialBus::trace_transaction(const NodeRuntime& n, std::string_view outcome
   traced_.clear();
 }
 
-asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
+asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed, bool heard) {
   if (!transport_->is_open()) co_return;
   trace_collecting_ = trace_.enabled();
   const auto found = co_await family_.resync_after_failure(link_, n.timing);
@@ -354,28 +355,35 @@ asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed) {
     aligned_ = false;
     co_return;
   }
-  co_await prove_aligned(n);
+  co_await prove_aligned(n, heard || !found.drained.empty());
 }
 
-asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
+asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) {
   if (!transport_->is_open()) {
     aligned_ = false;
     co_return;
   }
-  // The failed node first while it counts as present: in step again, its own backlog is through.
-  // An offline node is most likely absent and its proof would only time out, so then the node
-  // that answered last comes first, the offline one after every node that may answer.
+  // Nodes that have answered (online, or faulted: answering but refusing polls) come first: the
+  // failed one if it sent something (in step again, its own backlog is through), then the one
+  // that answered last, then the others. Then nodes not heard from yet, then a failed node that
+  // fell silent (it may be gone), offline ones last: a proof addressed to an absent node only
+  // times out, and its unanswered requests would be owed on the line.
   std::vector<NodeRuntime*> candidates;
   const auto add = [&](NodeRuntime* n) {
     if (n && std::find(candidates.begin(), candidates.end(), n) == candidates.end())
       candidates.push_back(n);
   };
-  const bool failed_present = failed.image->state != NodeState::offline;
-  if (failed_present) add(&failed);
-  if (last_answered_ && last_answered_->image->state != NodeState::offline) add(last_answered_);
+  const auto answering = [](const NodeRuntime* n) {
+    return n && (n->image->state == NodeState::online || n->image->state == NodeState::faulted);
+  };
+  if (heard && answering(&failed)) add(&failed);
+  if (answering(last_answered_) && (heard || last_answered_ != &failed)) add(last_answered_);
   for (auto& n : nodes_)
-    if (n.image->state != NodeState::offline) add(&n);
+    if (answering(&n) && (heard || &n != &failed)) add(&n);
+  for (auto& n : nodes_)
+    if (n.image->state == NodeState::starting && (heard || &n != &failed)) add(&n);
   add(&failed);
+  for (auto& n : nodes_) add(&n);
   // Attempts are bounded per call, so a command queued behind a proof on a bad line waits for a
   // few reply timeouts, not for every node's attempts: a Modbus client's own timeout is near.
   int attempts_left = kProofAttemptsPerCall;
@@ -400,9 +408,14 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
     drained_before_proof_.clear();
     trace_collecting_ = trace_.enabled();
     const auto guard = guard_time(n->timing, link_.char_time_us());
-    // An offline node gets one attempt: it is most likely absent, and others may prove the line.
-    const int attempts = std::min(attempts_left, n->image->state == NodeState::offline ? 1 : 2);
-    const auto result = co_await prove_alignment(link_, *proof, n->timing, guard, attempts, debt_);
+    // A node that has not answered gets one attempt: it may be absent, and others may prove it.
+    const int attempts = std::min(attempts_left, answering(n) ? 2 : 1);
+    // The proof does not rely on its timeout (its answers are known and counted): twice the
+    // node's, so a device slowed for a moment (a loaded host, a busy unit) is not taken for a
+    // line out of step and its commands refused.
+    LinkTiming patient = n->timing;
+    patient.reply_timeout *= 2;
+    const auto result = co_await prove_alignment(link_, *proof, patient, guard, attempts, debt_);
     trace_collecting_ = false;
     attempts_left -= std::max(result.attempts, 1);
     trace_transaction(*n, result.proved ? "proof" : "proof failed");
@@ -436,6 +449,13 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed) {
     }
     ++counters_.alignment_failures;
     why = fmt::format("node {}: {}", n->config->name, result.why);
+    // The node was sent the proof and did not answer it as it must: its failure, so a line that
+    // is never proved takes its nodes offline rather than leaving them online with aging values.
+    record(*n,
+           Reply::of(
+               result.why.starts_with("no reply") ? Reply::Status::timeout : Reply::Status::garbled,
+               "proof of alignment failed: " + result.why),
+           false);
     if (result.why.find("never went quiet") != std::string::npos) break;
   }
   aligned_ = false;

@@ -76,10 +76,13 @@ class SerialBus final : public Bus {
                                   bool accept_no_reply, bool poll);
   std::shared_ptr<PendingCommand> take_command();
   // After a timeout, a garbled reply or stray bytes: the family drains the line until quiet.
-  asio::awaitable<void> resync(NodeRuntime& node, const Reply& failed);
+  // `heard`: bytes came back in the failed exchange.
+  asio::awaitable<void> resync(NodeRuntime& node, const Reply& failed, bool heard);
   // Runs the family's proof of alignment (the node first, then any node not offline) and
   // records whether the line is in step.
-  asio::awaitable<void> prove_aligned(NodeRuntime& node);
+  // `node`: the node of the failed exchange (or of the next request); `heard`: whether it sent
+  // anything in that exchange (a garbled or late reply), as opposed to silence.
+  asio::awaitable<void> prove_aligned(NodeRuntime& node, bool heard);
   asio::awaitable<void> run_poll(std::size_t item_index);
   void record(NodeRuntime& node, const Reply& reply, bool poll);
   void record_latency(double seconds);

@@ -14,8 +14,10 @@ std::shared_ptr<const LoadedConfig> load_config_or_report(const std::string& pat
   Diagnostics diagnostics;
   auto loaded = load_gateway_config(path, diagnostics);
   if (!loaded) {
-    std::cerr << diagnostics.to_text();
-    std::cerr << fmt::format("{}: {} error(s)\n", path, diagnostics.errors().size());
+    // At err in the journal (ExecStartPre=, ExecReload= and the daemon), one entry each.
+    for (const auto& e : diagnostics.errors())
+      log::error("{}: error: {}", to_string(e.mark), e.message);
+    log::error("{}: {} error(s)", path, diagnostics.errors().size());
     return nullptr;
   }
   for (const auto& w : loaded->gateway.warnings) log::warning("{}", w);

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "gateway/lifecycle/daemon.hpp"
+#include "gateway/lifecycle/log.hpp"
 #include "gateway/lifecycle/reload_verdict.hpp"
 
 namespace fieldgate {
@@ -17,8 +18,9 @@ namespace {
 
 constexpr auto kPollEvery = std::chrono::milliseconds(50);
 
+// Under systemd (ExecReload=) stderr is the journal: a refusal is filed at err, not at info.
 int refuse(const std::string& why) {
-  std::cerr << "fieldgate reload: " << why << "\n";
+  log::error("fieldgate reload: {}", why);
   return 1;
 }
 
@@ -42,8 +44,7 @@ int run_reload(const ReloadOptions& options) {
     return refuse(fmt::format("{} was written by pid {}, not by {}", path.string(), before->pid,
                               options.pid));
   if (options.check_first && !load_config_or_report(before->config_file)) {
-    std::cerr << fmt::format("fieldgate reload: refused: {} stays in force\n", before->in_force());
-    return 1;
+    return refuse(fmt::format("refused: {} stays in force", before->in_force()));
   }
   if (::kill(static_cast<pid_t>(pid), SIGHUP) != 0)
     return refuse(fmt::format("cannot signal pid {}: {}", pid, std::strerror(errno)));
@@ -61,12 +62,11 @@ int run_reload(const ReloadOptions& options) {
   if (verdict->pid != pid)
     return refuse(
         fmt::format("the verdict is from pid {}, not {}: the daemon restarted", verdict->pid, pid));
-  for (const auto& m : verdict->messages) std::cerr << "fieldgate reload: " << m << "\n";
-  if (verdict->result != ReloadVerdict::Result::accepted) {
-    std::cerr << fmt::format("fieldgate reload: rejected by the daemon: {} stays in force\n",
-                             verdict->in_force());
-    return 1;
-  }
+  const bool accepted = verdict->result == ReloadVerdict::Result::accepted;
+  for (const auto& m : verdict->messages)
+    log::write(accepted ? log::Level::notice : log::Level::error, "fieldgate reload: " + m);
+  if (!accepted)
+    return refuse(fmt::format("rejected by the daemon: {} stays in force", verdict->in_force()));
   std::cout << fmt::format("fieldgate reload: {} in force\n", verdict->in_force());
   return 0;
 }

@@ -25,6 +25,7 @@ constexpr std::string_view kGenericHelp =
     "garbage N        answer the next N requests with random bytes\n"
     "truncate N       answer the next N requests with half a reply and no terminator\n"
     "delay MS         wait MS milliseconds more before every reply (0 = off)\n"
+    "swallow TEXT     run the next request containing TEXT, but lose its reply\n"
     "chaos SEED LATE% DROP% GARBLE% TRUNCATE% LATE_MS\n"
     "                 random faults on every reply (executed all the same): late by LATE_MS,\n"
     "                 dropped, garbled, truncated; chaos off ends it\n"
@@ -123,6 +124,13 @@ std::string ControlChannel::execute(std::string_view line) {
       return "ok delay " + std::to_string(*n);
     }
     return "error: usage: delay MS";
+  }
+  if (verb == "swallow") {
+    if (arguments.empty()) return "error: usage: swallow TEXT (part of a request)";
+    std::string text;
+    for (const auto& a : arguments) text += (text.empty() ? "" : " ") + a;
+    faults_.swallow_reply_to = text;
+    return "ok swallow " + text;
   }
   if (verb == "chaos") {
     if (arguments.size() == 1 && arguments[0] == "off") {

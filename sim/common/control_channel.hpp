@@ -18,6 +18,9 @@ struct FaultInjection {
   unsigned garbage_replies = 0;    // the next N replies become random bytes
   unsigned truncated_replies = 0;  // the next N replies lose their second half and terminator
   std::chrono::milliseconds reply_delay{0};  // added before every reply
+  // The next request containing this text is executed and its reply lost on the way (the
+  // device ran it; the host hears nothing). Empty: off.
+  std::string swallow_reply_to;
   // Random faults on every reply while `chaos` is on (percentages; the request is still
   // executed): late by `late`, dropped, garbled, truncated. Seeded, so a failing run repeats.
   struct Chaos {
@@ -43,7 +46,7 @@ std::optional<long long> parse_control_integer(std::string_view text);
 // Line commands on the simulator's stdin, one reply line each on stdout, so a test can inject
 // faults at runtime and knows when a command has taken effect.
 //
-// Generic commands:  silence on|off, garbage N, truncate N, delay MS,
+// Generic commands:  silence on|off, garbage N, truncate N, delay MS, swallow TEXT,
 //                    chaos SEED LATE% DROP% GARBLE% TRUNCATE% LATE_MS | chaos off, help, quit.
 // Everything else goes to the family handler.
 class ControlChannel {

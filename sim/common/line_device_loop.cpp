@@ -191,9 +191,14 @@ void LineExchange::send(SimTime now, std::string_view request, std::string_view 
       chaos_fault = "truncated";
     }
   }
+  if (!faults_.swallow_reply_to.empty() &&
+      request.find(faults_.swallow_reply_to) != std::string_view::npos) {
+    faults_.swallow_reply_to.clear();
+    chaos_fault = "swallowed";
+  }
   journal(now, request, reply, chaos_fault);
-  if (chaos_fault == "dropped") {
-    log(now, "tx (dropped)", bytes);
+  if (chaos_fault == "dropped" || chaos_fault == "swallowed") {
+    log(now, chaos_fault == "dropped" ? "tx (dropped)" : "tx (swallowed)", bytes);
     return;
   }
   if (chaos_fault == "garbled") {

@@ -383,29 +383,18 @@ def run_single(host, broker, gw):
           r is not None and value(r[1], "Command/Result") == "failed"
           and "0x03" in value(r[1], "Command/Detail"), r and value(r[1], "Command/Detail"))
 
-    # A command that gets no reply may have run: its outcome is 'unknown', never failed.
+    # A command that gets no reply may have run: its outcome is 'unknown', never failed. The
+    # amplifier runs it and its reply is lost (a silent line would refuse it unsent: the gateway
+    # cannot prove the line in step, and 'failed' would then be right).
     mark = host.count()
-    gw.control("silence on")
+    gw.control("swallow s r0x24 0")
     host.command(topic("DCMD", e, dev), [("desired_state", 2, 0)])
     # The node may die meanwhile: then its next DBIRTH carries the result.
     r = host.wait_any([topic("DDATA", e, dev), topic("DBIRTH", e, dev)],
                       lambda p: value(p, "Command/Metric") == "desired_state", after=mark, timeout=5)
-    if r is None:
-        gw.control("silence off")
-        r = host.wait(topic("DBIRTH", e, dev), lambda p: value(p, "Command/Metric") == "desired_state",
-                      after=mark)
-        check("DCMD without a reply ends 'unknown' (seen in the DBIRTH after the silence)",
-              r is not None and value(r[1], "Command/Result") == "unknown",
-              r and (value(r[1], "Command/Result"), value(r[1], "Command/Detail")))
-    else:
-        check("DCMD without a reply ends 'unknown'",
-              value(r[1], "Command/Result") == "unknown",
-              (value(r[1], "Command/Result"), value(r[1], "Command/Detail")))
-    gw.control("silence off")
-    for d in gw.nodes:
-        if host.find(topic("DDEATH", e, d), after=mark):
-            check(f"{d} is born again after the silence",
-                  host.wait(topic("DBIRTH", e, d), after=mark) is not None)
+    check("DCMD without a reply ends 'unknown'",
+          r is not None and value(r[1], "Command/Result") == "unknown",
+          r and (value(r[1], "Command/Result"), value(r[1], "Command/Detail")))
 
     # Rebirth on command: same bdSeq, seq from 0, births of every device again.
     mark = host.count()

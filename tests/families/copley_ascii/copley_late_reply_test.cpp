@@ -38,13 +38,14 @@ TEST_F(CopleyLateReply, RefusedWritesAreNeverConfirmedByALateReply) {
         << "round " << i << ": exception " << refused.exception;
   }
   EXPECT_EQ(successes, 0);
-  // The late replies were drained, counted and logged, not used. With every reply late, no
-  // proof of alignment passes (issue 26): after the first failure nothing more is sent, so the
-  // writes are refused at the gateway ("line not in step") rather than sent into a line whose
-  // replies would belong to other requests.
+  // The late replies were drained, counted and logged, not used: a write either timed out
+  // (outcome unknown) and the proof of alignment that followed read its late reply as a stray
+  // one, or it was refused at the gateway because no proof passed ("line not in step").
   const std::string log = plant_->daemon().log();
   EXPECT_NE(log.find("drained"), std::string::npos);
-  EXPECT_NE(log.find("cannot prove the line in step"), std::string::npos);
+  EXPECT_TRUE(log.find("outcome unknown") != std::string::npos ||
+              log.find("cannot prove the line in step") != std::string::npos)
+      << log;
 }
 
 // The same sequence while the amplifiers answer within the timeout: refusals are reported as
