@@ -108,7 +108,9 @@ TEST_F(ImsEndToEnd, MissingNameGoesOfflineWithoutSlowingTheOthers) {
   EXPECT_EQ(client_->write_single(4, kCommand, kMoveAbsolute).exception, kTargetFailed);
   EXPECT_EQ(client_->read_input(4, kDiagOnline, 1).values, std::vector<uint16_t>{0});
 
-  // While D is probed (one reply timeout per probe interval), the others keep their poll rate.
+  // While D is probed, the others keep their poll rate, less what each probe costs the line:
+  // its reply timeout, the guard, and a proof of alignment through another unit (two short
+  // exchanges, about 25 ms at 9600) before the line is trusted again.
   std::this_thread::sleep_for(500ms);
   const auto start = std::chrono::steady_clock::now();
   uint32_t before[4];
@@ -122,7 +124,7 @@ TEST_F(ImsEndToEnd, MissingNameGoesOfflineWithoutSlowingTheOthers) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   for (int unit : {1, 2, 3}) {
     const double rate = (transactions(unit) - before[unit]) / seconds;
-    EXPECT_GE(rate, 0.85 * kPollsPerSecond) << "unit " << unit;
+    EXPECT_GE(rate, 0.8 * kPollsPerSecond) << "unit " << unit;
   }
   // A poll is at most a fast period late, plus one probe of D and one exchange of each axis.
   const auto budget = 200ms + kReplyTimeout + 3 * 25ms;
