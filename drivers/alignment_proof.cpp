@@ -14,13 +14,9 @@ namespace {
 // producing frames that are not the answer is not coming into step.
 constexpr int kMaxStraysPerStep = 16;
 
-enum class Outcome {
-  proved,
-  failed,
-  // Every step got its known answer and nothing else came, yet replies are still owed: either
-  // those answers were stale ones of earlier identical requests, or earlier requests were lost.
-  clean_but_owing,
-};
+// An attempt's end: proved (nothing), or how it did not.
+using Outcome = std::optional<AttemptEnd>;
+constexpr Outcome kProved = std::nullopt;
 
 class Attempt {
  public:
@@ -31,30 +27,30 @@ class Attempt {
         reversed_(reversed),
         timing_(timing),
         result_(result),
-        debt_(debt) {}
+        debt_(debt),
+        owed_before_(debt.owed) {}
 
   asio::awaitable<Outcome> run() {
     const std::size_t count = proof_.steps.size();
-    const std::size_t owed_before = debt_.owed;
     for (std::size_t i = 0; i < count; ++i) {
       const auto& step = this->step(i);
       if (auto ec = co_await send(step)) {
-        result_.why = "cannot send: " + ec.message();
-        co_return Outcome::failed;
+        why_ = "cannot send: " + ec.message();
+        co_return AttemptEnd::not_sent;
       }
       debt_.add();
       for (int read_count = 0;; ++read_count) {
         auto frame = co_await read(step);
-        if (!frame) co_return Outcome::failed;
+        if (!frame) co_return read_end_;
         if (step.matches(*frame)) break;
         stray(std::move(*frame));
         // Later steps follow an answered step: anything but their own answer means the line is
         // still out of step (or a stray equalled the previous answer).
         if (i > 0 || read_count + 1 >= kMaxStraysPerStep) {
-          result_.why = fmt::format("'{}' to '{}' where {} was expected",
-                                    printable_bytes(result_.strays.back()),
-                                    printable_bytes(step.request), step.expected);
-          co_return Outcome::failed;
+          why_ = fmt::format("'{}' to '{}' where {} was expected",
+                             printable_bytes(result_.strays.back()), printable_bytes(step.request),
+                             step.expected);
+          co_return AttemptEnd::wrong_reply;
         }
       }
     }
@@ -62,13 +58,10 @@ class Attempt {
     // one before it, so a stale frame taken for one step leaves the next step reading the real
     // answer of the step before. What is still owed then never comes (a device answers in
     // order, and its answers to this attempt have arrived): it was lost.
-    if (debt_.owed == 0 || owed_before < count) {
-      if (link_.buffered() > 0) {
-        result_.why = "bytes followed the last answer";
-        co_return Outcome::failed;
-      }
+    if (debt_.owed == 0 || owed_before_ < count) {
+      if (link_.buffered() > 0) co_return bytes_followed();
       result_.lost += debt_.owed;
-      co_return Outcome::proved;
+      co_return kProved;
     }
     // Replies are owed: a device answers in order, so if the answers just read were stale ones,
     // this attempt's own follow. Read them; the last `count` frames must be the pattern again.
@@ -77,23 +70,26 @@ class Attempt {
     while (debt_.owed > 0) {
       auto frame = co_await read(this->step(count - 1));
       if (!frame) {
-        if (clean && result_.why.rfind("no reply", 0) == 0) co_return Outcome::clean_but_owing;
-        co_return Outcome::failed;
+        if (clean && read_end_ == AttemptEnd::no_reply) co_return AttemptEnd::clean_but_owing;
+        co_return read_end_;
       }
       last.push_back(*frame);
       stray(std::move(*frame));
     }
     if (last.size() < count) {
-      result_.why = "too few replies after stale answers";
-      co_return Outcome::failed;
+      why_ = "too few replies after stale answers";
+      co_return AttemptEnd::wrong_reply;
     }
     for (std::size_t i = 0; i < count; ++i)
       if (!this->step(i).matches(last[last.size() - count + i])) {
-        result_.why = "the replies owed after stale answers were not the proof's";
-        co_return Outcome::failed;
+        why_ = "the replies owed after stale answers were not the proof's";
+        co_return AttemptEnd::wrong_reply;
       }
-    co_return link_.buffered() > 0 ? Outcome::failed : Outcome::proved;
+    if (link_.buffered() > 0) co_return bytes_followed();
+    co_return kProved;
   }
+
+  const std::string& why() const { return why_; }
 
  private:
   const AlignmentStep& step(std::size_t i) const {
@@ -111,11 +107,17 @@ class Attempt {
   asio::awaitable<std::optional<std::string>> read(const AlignmentStep& step) {
     const auto read = co_await link_.read_frame(step.splitter, timing_);
     if (read.status == LinkRead::Status::frame) {
+      ++frames_read_;
       if (debt_.owed > 0) --debt_.owed;
       co_return read.frame;
     }
     if (!read.partial.empty()) stray(read.partial);
-    result_.why = fmt::format(
+    // Silence after more frames than were owed: one of them was this attempt's answer, wrong.
+    read_end_ = read.status == LinkRead::Status::timeout && read.partial.empty() &&
+                        frames_read_ <= owed_before_
+                    ? AttemptEnd::no_reply
+                    : AttemptEnd::wrong_reply;
+    why_ = fmt::format(
         "{} to '{}' where {} was expected",
         read.status == LinkRead::Status::timeout
             ? (read.partial.empty() ? std::string("no reply")
@@ -123,6 +125,10 @@ class Attempt {
             : std::string("an overlong or failed read"),
         printable_bytes(step.request), step.expected);
     co_return std::nullopt;
+  }
+  AttemptEnd bytes_followed() {
+    why_ = "bytes followed the last answer";
+    return AttemptEnd::wrong_reply;
   }
   void stray(std::string bytes) {
     ++strays_;
@@ -135,10 +141,26 @@ class Attempt {
   const LinkTiming& timing_;
   AlignmentResult& result_;
   AlignmentDebt& debt_;
+  const std::size_t owed_before_;
+  std::size_t frames_read_ = 0;
   int strays_ = 0;
+  AttemptEnd read_end_ = AttemptEnd::no_reply;  // how the last failed read ended
+  std::string why_;
 };
 
 }  // namespace
+
+std::size_t AlignmentDebt::settle(std::string_view drained, const FrameSplitter& splitter) {
+  std::size_t paid = 0;
+  while (!drained.empty() && owed > 0) {
+    const std::size_t length = splitter(drained);
+    if (length == 0 || length > drained.size()) break;
+    --owed;
+    ++paid;
+    drained.remove_prefix(length);
+  }
+  return paid;
+}
 
 asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProof& proof,
                                                  const LinkTiming& timing,
@@ -150,13 +172,15 @@ asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProo
     const bool reversed = proof.reversible && result.attempts % 2 == 0;
     Attempt attempt(link, proof, reversed, timing, result, debt);
     const Outcome outcome = co_await attempt.run();
-    if (outcome == Outcome::proved) {
+    if (outcome == kProved) {
       debt.clear();
       result.proved = true;
       result.why.clear();
       co_return result;
     }
-    if (outcome == Outcome::clean_but_owing) {
+    result.failures.push_back({*outcome, attempt.why()});
+    result.why = attempt.why();
+    if (*outcome == AttemptEnd::clean_but_owing) {
       // Twice in a row every answer came in order, nothing else arrived, and what is owed never
       // came: those replies were lost (a request the device never heard), not late.
       if (debt.clean_but_owing) {
@@ -173,16 +197,10 @@ asio::awaitable<AlignmentResult> prove_alignment(Link& link, const AlignmentProo
     const auto drained = co_await link.resync(guard, 10 * guard);
     if (!drained.drained.empty()) {
       result.strays.push_back(drained.drained);
-      // Whole frames among the drained bytes are owed replies arriving.
-      std::string_view rest = drained.drained;
-      while (!rest.empty() && debt.owed > 0) {
-        const std::size_t n = proof.steps.front().splitter(rest);
-        if (n == 0 || n > rest.size()) break;
-        --debt.owed;
-        rest.remove_prefix(n);
-      }
+      debt.settle(drained.drained, proof.steps.front().splitter);
     }
     if (!drained.quiet) {
+      result.never_quiet = true;
       result.why += "; the line never went quiet";
       co_return result;
     }

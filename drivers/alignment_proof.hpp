@@ -52,14 +52,34 @@ struct AlignmentDebt {
   bool clean_but_owing = false;
   void add() { owed = std::min(owed + 1, kMaxOwed); }
   void clear() { *this = AlignmentDebt{}; }
+  // Whole frames among bytes drained while waiting for quiet are owed replies arriving: each
+  // pays one. Returns how many did.
+  std::size_t settle(std::string_view drained, const FrameSplitter& splitter);
+};
+
+// How an attempt that did not prove the line ended.
+enum class AttemptEnd {
+  no_reply,     // a step's request got nothing at all within the timeout
+  wrong_reply,  // something came that was not the known answer (stray, garbled, partial, extra)
+  not_sent,     // the request could not be written
+  // Every answer came in order and nothing else, but replies are still owed: not a failure of
+  // the device (see prove_alignment).
+  clean_but_owing,
+};
+
+struct FailedAttempt {
+  AttemptEnd end;
+  std::string why;
 };
 
 struct AlignmentResult {
   bool proved = false;
   int attempts = 0;
-  std::vector<std::string> strays;  // replies (or partial bytes) read and thrown away
-  std::size_t lost = 0;             // owed replies given up as lost (see prove_alignment)
-  std::string why;                  // what the last failed attempt saw
+  std::vector<std::string> strays;      // replies (or partial bytes) read and thrown away
+  std::size_t lost = 0;                 // owed replies given up as lost (see prove_alignment)
+  std::vector<FailedAttempt> failures;  // every attempt that did not prove the line, in order
+  bool never_quiet = false;  // after a failed attempt the line kept talking: the proof gave up
+  std::string why;           // what the last failed attempt saw
 };
 
 // Runs the proof up to `attempts` times. The first step's request may be answered after stray

@@ -9,6 +9,7 @@
 #include "drivers/printable_bytes.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/tcp_transport.hpp"
+#include "gateway/bus/bus_turn.hpp"
 #include "gateway/bus/node_image_setup.hpp"
 #include "gateway/bus/pending_command.hpp"
 #include "gateway/bus/reply_accounting.hpp"
@@ -281,7 +282,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     trace_collecting_ = trace_.enabled();
     reply = co_await family_.transact_node(link_, *n.family_context, request, n.timing);
     trace_collecting_ = false;
-    // The trace's outcome names (README "Wire trace"), as CAN buses give them.
+    // The trace's outcome names (docs/wire-trace.md), as CAN buses give them.
     trace_transaction(n,
                       reply.status == Reply::Status::garbled ? "garbled" : to_string(reply.status));
     record_latency(std::chrono::duration<double>(Clock::now() - started).count());
@@ -399,12 +400,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
     }
     ++counters_.alignment_proofs;
     // Whole replies drained while the line went quiet were owed ones arriving.
-    for (std::string_view rest = drained_before_proof_; !rest.empty() && debt_.owed > 0;) {
-      const std::size_t length = proof->steps.front().splitter(rest);
-      if (length == 0 || length > rest.size()) break;
-      --debt_.owed;
-      rest.remove_prefix(length);
-    }
+    debt_.settle(drained_before_proof_, proof->steps.front().splitter);
     drained_before_proof_.clear();
     trace_collecting_ = trace_.enabled();
     const auto guard = guard_time(n->timing, link_.char_time_us());
@@ -438,6 +434,17 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
                       "the request)",
                       config_.name, result.lost, result.lost == 1 ? "y" : "ies",
                       result.lost == 1 ? "is" : "are"));
+    // Each attempt the node did not answer as it must is an exchange that failed with it, even
+    // when a later attempt proves the line: a garbled echo is counted wherever it lands.
+    for (const auto& failure : result.failures) {
+      if (failure.end == AttemptEnd::clean_but_owing || failure.end == AttemptEnd::not_sent)
+        continue;
+      record(*n,
+             Reply::of(failure.end == AttemptEnd::no_reply ? Reply::Status::timeout
+                                                           : Reply::Status::garbled,
+                       "proof of alignment failed: " + failure.why),
+             false);
+    }
     if (result.proved) {
       if (!aligned_ || alignment_failure_logged_)
         log::info("bus {}: line in step again ({}, {} attempt(s))", config_.name, proof->name,
@@ -449,14 +456,9 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
     }
     ++counters_.alignment_failures;
     why = fmt::format("node {}: {}", n->config->name, result.why);
-    // The node was sent the proof and did not answer it as it must: its failure, so a line that
-    // is never proved takes its nodes offline rather than leaving them online with aging values.
-    record(*n,
-           Reply::of(
-               result.why.starts_with("no reply") ? Reply::Status::timeout : Reply::Status::garbled,
-               "proof of alignment failed: " + result.why),
-           false);
-    if (result.why.find("never went quiet") != std::string::npos) break;
+    // The failed attempts were recorded above against the node they went to, so a line that is
+    // never proved takes its nodes offline rather than leaving them online with aging values.
+    if (result.never_quiet) break;
   }
   aligned_ = false;
   // Nothing is sent before a later proof passes. A command that has already waited through
@@ -580,39 +582,23 @@ asio::awaitable<void> SerialBus::run() {
     auto due = plan_.pick(now, [&](int local) {
       return nodes_[static_cast<std::size_t>(local)].image->state != NodeState::offline;
     });
-    std::optional<std::size_t> probe;
-    SteadyTime probe_when = SteadyTime::max();
+    BusTurnInput in;
+    in.now = now;
+    in.commands_queued = !commands_.empty();
+    if (due) in.poll = BusTurnInput::Poll{due->item, due->when, plan_.item(due->item).period};
     for (auto& n : nodes_) {
       if ((*n.image).state != NodeState::offline) continue;
-      if (n.next_probe < probe_when) {
-        if (auto item = plan_.probe_item(n.index)) {
-          probe = item;
-          probe_when = n.next_probe;
-        }
-      }
+      if (!in.probe || n.next_probe < in.probe->when)
+        if (auto item = plan_.probe_item(n.index))
+          in.probe = BusTurnInput::Poll{*item, n.next_probe, plan_.item(*item).period};
     }
-    std::optional<std::size_t> chosen;
-    SteadyTime when = SteadyTime::max();
-    if (due) {
-      chosen = due->item;
-      when = due->when;
-    }
-    if (probe && probe_when < when) {
-      chosen = probe;
-      when = probe_when;
-    }
-    // Commands go first, but back-to-back commands leave every other transaction to a due
-    // poll, and a poll running late (by a tenth of its period) gets up to kPollsPerCommand
-    // transactions per command: clients flooding one unit cannot slow the polling of the
-    // others, and commands still get through when polls overload the line.
-    const bool poll_due = chosen && when <= now;
-    bool command_first = !commands_.empty();
-    if (command_first && poll_due) {
-      const bool late = now - when > plan_.item(*chosen).period / 10;
-      command_first =
-          late ? polls_in_row_ >= kPollsPerCommand : commands_in_row_ < kCommandsPerPoll;
-    }
-    if (command_first) {
+    in.commands_in_row = commands_in_row_;
+    in.polls_in_row = polls_in_row_;
+    in.all_nodes_offline = all_nodes_offline_now();
+    in.link_opened = opened_at_;
+    in.probe_interval = config_.timing.probe_interval;
+    const BusTurn turn = next_bus_turn(in);
+    if (turn.kind == BusTurn::Kind::command) {
       auto cmd = take_command();
       ++commands_in_row_;
       polls_in_row_ = 0;
@@ -639,19 +625,17 @@ asio::awaitable<void> SerialBus::run() {
       continue;
     }
     commands_in_row_ = 0;
-    if (chosen && when <= now) {
+    if (turn.kind == BusTurn::Kind::reopen_link) {
       ++polls_in_row_;
-      // Nothing on the link answers (a power-cycled controller back at its power-up rate, a
-      // re-plugged adapter): reopen it, so the family's link-open procedure runs again.
-      if (chosen == probe && all_nodes_offline_now() &&
-          now - opened_at_ >= config_.timing.probe_interval) {
-        transport_->close();
-        continue;
-      }
-      co_await run_poll(*chosen);
+      transport_->close();
       continue;
     }
-    wake_.expires_at(when);
+    if (turn.kind == BusTurn::Kind::poll) {
+      ++polls_in_row_;
+      co_await run_poll(turn.item);
+      continue;
+    }
+    wake_.expires_at(turn.until);
     co_await wake_.async_wait(use_tuple);
   }
   while (!commands_.empty()) {

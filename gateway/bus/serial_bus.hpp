@@ -64,10 +64,6 @@ class SerialBus final : public Bus {
     int poll_items = 0;     // distinct poll requests of the node
     int refused_polls = 0;  // polls in a row the node answered with a device error
   };
-  // Back-to-back commands before a due poll gets the line.
-  static constexpr int kCommandsPerPoll = 1;
-  // Polls running late before a waiting command gets the line.
-  static constexpr int kPollsPerCommand = 3;
   static constexpr int kProofAttemptsPerCall = 3;
   static constexpr std::chrono::milliseconds kCommandPatience{1000};
 

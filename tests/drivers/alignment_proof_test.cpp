@@ -32,16 +32,26 @@ class InOrderDevice {
   explicit InOrderDevice(asio::io_context& io) : line_(io, "in-order device", 0) {
     line_.keep_order();
     line_.set_far_end([this](std::string_view written) {
+      if (deaf_) return;
+      if (garble_next_ > 0) {
+        --garble_next_;
+        line_.deliver("#\r");
+        return;
+      }
       if (written == "A\r") line_.deliver("a\r");
       if (written == "B\r") line_.deliver("b\r");
     });
   }
+  void garble_next(int requests) { garble_next_ = requests; }
+  void deaf() { deaf_ = true; }
   // Stale replies already on their way before the proof starts.
   void stale(std::string bytes) { line_.deliver(std::move(bytes), 1ms); }
   test::FakeLine& line() { return line_; }
 
  private:
   test::FakeLine line_;
+  int garble_next_ = 0;
+  bool deaf_ = false;
 };
 
 class AlignmentProofTest : public ::testing::Test {
@@ -111,6 +121,52 @@ TEST_F(AlignmentProofTest, NothingOwedProvesInOneAttemptWithoutStrays) {
   EXPECT_EQ(result.attempts, 1);
   EXPECT_EQ(result.lost, 0u);
   EXPECT_TRUE(result.strays.empty());
+}
+
+TEST_F(AlignmentProofTest, AGarbledAnswerEndsItsAttemptAsAWrongReplyThoughSilenceFollowsIt) {
+  AlignmentDebt debt;
+  device_.garble_next(1);
+  const auto result = prove(debt);
+  ASSERT_TRUE(result.proved) << result.why;
+  EXPECT_EQ(result.attempts, 2);
+  // The garbled frame was this attempt's own answer (nothing was owed): the device's failure
+  // to answer as it must, counted as such by the bus, not as silence.
+  ASSERT_EQ(result.failures.size(), 1u);
+  EXPECT_EQ(result.failures[0].end, AttemptEnd::wrong_reply);
+}
+
+TEST_F(AlignmentProofTest, AnOwedReplyAndThenSilenceIsNoReplyFromTheDevice) {
+  AlignmentDebt debt;
+  debt.add();
+  device_.stale("z\r");  // the late reply the line owed
+  device_.deaf();
+  const auto result = prove(debt, 1);
+  EXPECT_FALSE(result.proved);
+  ASSERT_EQ(result.failures.size(), 1u);
+  EXPECT_EQ(result.failures[0].end, AttemptEnd::no_reply) << result.failures[0].why;
+  EXPECT_FALSE(result.never_quiet);
+}
+
+TEST_F(AlignmentProofTest, ASilentDeviceFailsEveryAttemptAsNoReply) {
+  AlignmentDebt debt;
+  device_.deaf();
+  const auto result = prove(debt, 2);
+  EXPECT_FALSE(result.proved);
+  EXPECT_EQ(result.attempts, 2);
+  ASSERT_EQ(result.failures.size(), 2u);
+  for (const auto& failure : result.failures) EXPECT_EQ(failure.end, AttemptEnd::no_reply);
+  EXPECT_EQ(result.why, result.failures.back().why);
+}
+
+TEST(AlignmentDebtTest, WholeDrainedFramesPayWhatIsOwedAndNoMore) {
+  AlignmentDebt debt;
+  debt.add();
+  debt.add();
+  EXPECT_EQ(debt.settle("a\rb\rc\r", line), 2u);
+  EXPECT_EQ(debt.owed, 0u);
+  debt.add();
+  EXPECT_EQ(debt.settle("partial", line), 0u);  // no whole frame
+  EXPECT_EQ(debt.owed, 1u);
 }
 
 }  // namespace
