@@ -55,18 +55,25 @@ std::shared_ptr<Gateway::Generation> Gateway::build(std::shared_ptr<const Loaded
         static_cast<std::size_t>(raw->bus_of_node.at(static_cast<std::size_t>(n))));
   };
   g->actions = std::make_unique<ActionRunner>(io_.get_executor(), g->image, bus_of);
+  g->control = std::make_shared<ControlService>(config, g->image, *g->actions, bus_of);
   for (std::size_t l = 0; l < config->gateway.listener_count(); ++l)
     g->handlers.push_back(make_handler(*g, l));
   return g;
 }
 
 std::shared_ptr<RegisterMapHandler> Gateway::make_handler(Generation& g, std::size_t listener) {
-  Generation* raw = &g;
-  const auto bus_of = [raw](int n) -> Bus& {
-    return *raw->buses.at(
-        static_cast<std::size_t>(raw->bus_of_node.at(static_cast<std::size_t>(n))));
-  };
-  return std::make_shared<RegisterMapHandler>(g.config, listener, g.image, *g.actions, bus_of);
+  return std::make_shared<RegisterMapHandler>(g.config, listener, g.image, *g.actions, *g.control);
+}
+
+std::vector<WritePolicy> Gateway::node_policies(const Generation& g) {
+  std::vector<WritePolicy> policies;
+  for (const auto& bus : g.config->gateway.buses)
+    for (const auto& node : bus.nodes) {
+      const ModbusConfig& m = g.config->gateway.listener_modbus(node.listener);
+      const bool read_only = m.read_only_holding || m.unit_read_only(node.unit_id);
+      policies.push_back({!read_only, !read_only && m.writes_enabled});
+    }
+  return policies;
 }
 
 std::shared_ptr<modbus::RequestHandler> Gateway::handler(std::string_view listener) const {
@@ -141,7 +148,7 @@ void Gateway::start_sparkplug() {
   const auto& s = current_->config->gateway.sparkplug;
   if (!s.enabled) return;
   sparkplug_ = std::make_unique<sparkplug::EdgeNode>(io_.get_executor(), s);
-  sparkplug_->bind(current_->config, current_->image, current_->handlers);
+  sparkplug_->bind(current_->config, current_->image, current_->control, node_policies(*current_));
   sparkplug_->start();
 }
 
@@ -194,7 +201,8 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
   if (!sparkplug_ || sparkplug_->config() != current_->config->gateway.sparkplug)
     start_sparkplug();
   else
-    sparkplug_->bind(current_->config, current_->image, current_->handlers);
+    sparkplug_->bind(current_->config, current_->image, current_->control,
+                     node_policies(*current_));
   for (auto& bus : fresh) spawn(bus);
   return fmt::format("{} bus(es) kept running, {} started, {} stopped{}", kept, fresh.size(),
                      stopped, listener_summary);

@@ -67,6 +67,7 @@ class Gateway {
     std::vector<int> bus_of_node;
     ProcessImage image;
     std::unique_ptr<ActionRunner> actions;
+    std::shared_ptr<ControlService> control;                    // every front door's writes
     std::vector<std::shared_ptr<RegisterMapHandler>> handlers;  // by listener index
   };
 
@@ -75,6 +76,8 @@ class Gateway {
                                     Generation* previous, std::vector<std::shared_ptr<Bus>>& fresh);
   // The one place a listener's handler is made (every server of the listener shares it).
   std::shared_ptr<RegisterMapHandler> make_handler(Generation& g, std::size_t listener);
+  // What DCMD may change on each node: what the Modbus listener that owns the node allows.
+  static std::vector<WritePolicy> node_policies(const Generation& g);
   // The handler of the listener whose unit-ID space the RTU port serves (null without one).
   std::shared_ptr<modbus::RequestHandler> rtu_handler(const Generation& g) const;
   static modbus::ModbusTcpServerOptions server_options(const GatewayConfig& config,

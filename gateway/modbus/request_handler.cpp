@@ -27,51 +27,78 @@ Pdu read_registers(RequestHandler& handler, std::uint8_t unit, FunctionCode func
   return encode_read_registers_response(function, result.values());
 }
 
-asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, const Request& request) {
-  const FunctionCode function = function_code(request);
-  const auto fc = static_cast<std::uint8_t>(function);
+// One overload per request type: std::visit makes a request type without one a compile error.
+asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, FunctionCode function,
+                            const ReadDeviceIdentificationRequest& r) {
+  DeviceIdentificationResult result = handler.device_identification(unit);
+  if (!result.ok())
+    co_return encode_exception(static_cast<std::uint8_t>(function), result.exception());
+  co_return encode_device_identification_response(r, result.values());
+}
 
-  if (const auto* r = std::get_if<ReadDeviceIdentificationRequest>(&request)) {
-    DeviceIdentificationResult result = handler.device_identification(unit);
-    if (!result.ok()) co_return encode_exception(fc, result.exception());
-    co_return encode_device_identification_response(*r, result.values());
-  }
-  if (const auto* r = std::get_if<ReadBitsRequest>(&request)) {
-    co_return read_bits(handler, unit, *r);
-  }
-  if (const auto* r = std::get_if<ReadRegistersRequest>(&request)) {
-    co_return read_registers(handler, unit, function, r->table, r->address, r->count);
-  }
-  if (const auto* r = std::get_if<WriteSingleCoilRequest>(&request)) {
-    const WriteResult result =
-        co_await handler.write_coils(unit, r->address, std::vector<bool>(1, r->value));
-    if (!result.ok()) co_return encode_exception(fc, result.exception());
-    co_return encode_write_single_coil_response(r->address, r->value);
-  }
-  if (const auto* r = std::get_if<WriteSingleRegisterRequest>(&request)) {
-    const std::uint16_t value = r->value;
-    const WriteResult result = co_await handler.write_registers(
-        unit, r->address, std::span<const std::uint16_t>(&value, 1));
-    if (!result.ok()) co_return encode_exception(fc, result.exception());
-    co_return encode_write_single_register_response(r->address, r->value);
-  }
-  if (const auto* r = std::get_if<WriteCoilsRequest>(&request)) {
-    const WriteResult result = co_await handler.write_coils(unit, r->address, r->values);
-    if (!result.ok()) co_return encode_exception(fc, result.exception());
-    co_return encode_write_multiple_response(function, r->address,
-                                             static_cast<std::uint16_t>(r->values.size()));
-  }
-  if (const auto* r = std::get_if<WriteRegistersRequest>(&request)) {
-    const WriteResult result = co_await handler.write_registers(unit, r->address, r->values);
-    if (!result.ok()) co_return encode_exception(fc, result.exception());
-    co_return encode_write_multiple_response(function, r->address,
-                                             static_cast<std::uint16_t>(r->values.size()));
-  }
-  const auto& r = std::get<ReadWriteRegistersRequest>(request);
+asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, FunctionCode,
+                            const ReadBitsRequest& r) {
+  co_return read_bits(handler, unit, r);
+}
+
+asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, FunctionCode function,
+                            const ReadRegistersRequest& r) {
+  co_return read_registers(handler, unit, function, r.table, r.address, r.count);
+}
+
+asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, FunctionCode function,
+                            const WriteSingleCoilRequest& r) {
+  const WriteResult result =
+      co_await handler.write_coils(unit, r.address, std::vector<bool>(1, r.value));
+  if (!result.ok())
+    co_return encode_exception(static_cast<std::uint8_t>(function), result.exception());
+  co_return encode_write_single_coil_response(r.address, r.value);
+}
+
+asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, FunctionCode function,
+                            const WriteSingleRegisterRequest& r) {
+  const std::uint16_t value = r.value;
+  const WriteResult result =
+      co_await handler.write_registers(unit, r.address, std::span<const std::uint16_t>(&value, 1));
+  if (!result.ok())
+    co_return encode_exception(static_cast<std::uint8_t>(function), result.exception());
+  co_return encode_write_single_register_response(r.address, r.value);
+}
+
+asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, FunctionCode function,
+                            const WriteCoilsRequest& r) {
+  const WriteResult result = co_await handler.write_coils(unit, r.address, r.values);
+  if (!result.ok())
+    co_return encode_exception(static_cast<std::uint8_t>(function), result.exception());
+  co_return encode_write_multiple_response(function, r.address,
+                                           static_cast<std::uint16_t>(r.values.size()));
+}
+
+asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, FunctionCode function,
+                            const WriteRegistersRequest& r) {
+  const WriteResult result = co_await handler.write_registers(unit, r.address, r.values);
+  if (!result.ok())
+    co_return encode_exception(static_cast<std::uint8_t>(function), result.exception());
+  co_return encode_write_multiple_response(function, r.address,
+                                           static_cast<std::uint16_t>(r.values.size()));
+}
+
+asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, FunctionCode function,
+                            const ReadWriteRegistersRequest& r) {
   const WriteResult result = co_await handler.write_registers(unit, r.write_address, r.values);
-  if (!result.ok()) co_return encode_exception(fc, result.exception());
+  if (!result.ok())
+    co_return encode_exception(static_cast<std::uint8_t>(function), result.exception());
   co_return read_registers(handler, unit, function, RegisterTable::holding_registers,
                            r.read_address, r.read_count);
+}
+
+asio::awaitable<Pdu> handle(RequestHandler& handler, std::uint8_t unit, const Request& request) {
+  const FunctionCode function = function_code(request);
+  const auto one = [&handler, unit, function](const auto& r) {
+    return handle(handler, unit, function, r);
+  };
+  auto pending = std::visit(one, request);
+  co_return co_await std::move(pending);
 }
 
 }  // namespace

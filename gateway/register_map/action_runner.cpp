@@ -321,8 +321,10 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
       const auto last_seen = std::max(acknowledged, condition_updated(node, model, action));
       if (Clock::now() - last_seen >= *blind_after) {
         const bool offline = node.state == NodeState::offline;
-        node.action.status = ActionStatus::error;
-        node.action.error = offline ? kActionErrorUnreachable : kActionErrorGarbled;
+        // The action's own slot (a profile axis keeps its own), checked against this
+        // generation at the top of the loop with no wait since.
+        state.status = ActionStatus::error;
+        state.error = offline ? kActionErrorUnreachable : kActionErrorGarbled;
         log::warning(
             "node {}: action {} failed: its end cannot be seen, point '{}' not read "
             "for {} ms ({}; last error: {})",

@@ -9,9 +9,8 @@
 
 #include <algorithm>
 
-#include "gateway/bus/bus.hpp"
 #include "gateway/lifecycle/log.hpp"
-#include "gateway/register_map/register_map_handler.hpp"
+#include "gateway/register_map/control_exception.hpp"
 
 namespace fieldgate {
 
@@ -101,9 +100,9 @@ void finish_with_error(ProfileAxisRuntime& rt, uint16_t code) {
 
 }  // namespace
 
-AxisProfileServer::AxisProfileServer(ProcessImage& image, ActionRunner& actions, BusOf bus_of,
-                                     const ModbusConfig& modbus)
-    : image_(image), actions_(actions), bus_of_(std::move(bus_of)), modbus_(modbus) {}
+AxisProfileServer::AxisProfileServer(ProcessImage& image, ActionRunner& actions,
+                                     ControlService& control, const ModbusConfig& modbus)
+    : image_(image), actions_(actions), control_(control), modbus_(modbus) {}
 
 AxisProfileServer::~AxisProfileServer() {
   *alive_ = false;
@@ -251,48 +250,41 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
                                                                 uint16_t sequence) {
   const Model& model = *unit.model;
   const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
-  if (!axis.supports(cmd)) co_return ExceptionCode::illegal_function;
-  if (!modbus_.writes_enabled) co_return ExceptionCode::illegal_function;
+  if (!axis.supports(cmd)) co_return exception_for(ControlStatus::not_supported);
   auto& node = image_.node(unit.node_index);
   auto& rt = runtime(unit);
+  const auto& action_names = axis.commands.at(cmd);
+  const ActionDef* first = action_names.empty() ? nullptr : model.find_action(action_names.front());
+  const WritePolicy policy{true, modbus_.writes_enabled};
+  if (const auto allowed = control_.check_command(unit.node_index, first, policy); !allowed.ok())
+    co_return exception_for(allowed.status);
   // The values this command passes, checked against the model's and the node's limits.
   std::vector<std::pair<std::size_t, int64_t>> passes;  // model setpoint index, value
-  std::vector<std::pair<const PointDef*, int64_t>> point_writes;
+  std::vector<ControlWrite> point_writes;
   for (const auto& [which, slot] : inputs_of(cmd)) {
     const auto it = axis.setpoints.find(which);
     if (it == axis.setpoints.end()) continue;
     const SetpointDef* s = model.find_setpoint(it->second);
-    const PointDef* p = s ? nullptr : model.find_point(it->second);
     int64_t v = rt.setpoints[slot];
     if (which == ProfileSetpoint::jog_velocity || which == ProfileSetpoint::home_velocity)
       v = v < 0 ? -v : v;
-    std::optional<int64_t> min = s ? s->min : p->min, max = s ? s->max : p->max;
-    if (const auto l = unit.node->limits.find(it->second); l != unit.node->limits.end()) {
-      if (l->second.min && (!min || *l->second.min > *min)) min = l->second.min;
-      if (l->second.max && (!max || *l->second.max < *max)) max = l->second.max;
-    }
-    if (!in_range(s ? s->type : p->type, v) || (min && v < *min) || (max && v > *max))
-      co_return ExceptionCode::illegal_data_value;
+    if (const auto checked = control_.check_value(unit.node_index, it->second, v); !checked.ok())
+      co_return exception_for(checked.status);
     if (s)
       passes.emplace_back(static_cast<std::size_t>(s - model.setpoints.data()), v);
     else
-      point_writes.emplace_back(p, v);
+      point_writes.push_back(
+          {ControlWrite::Kind::point, unit.node_index, point_index(model, it->second), v});
   }
   for (const auto& [name, value] : axis.fixed)
     passes.emplace_back(
         static_cast<std::size_t>(model.find_setpoint(name) - model.setpoints.data()), value);
   for (const auto& [name, point] : axis.hold) {
     const auto value = point_value(model, node, point);
-    if (!value) co_return ExceptionCode::gateway_target_failed;
+    if (!value) co_return exception_for(ControlStatus::value_unknown);
     passes.emplace_back(
         static_cast<std::size_t>(model.find_setpoint(name) - model.setpoints.data()), *value);
   }
-  const auto& action_names = axis.commands.at(cmd);
-  const ActionDef* first = action_names.empty() ? nullptr : model.find_action(action_names.front());
-  if (first && node.action.holding_line &&
-      !std::all_of(first->steps.begin(), first->steps.end(),
-                   [](const ActionStep& s) { return s.urgent; }))
-    co_return ExceptionCode::server_busy;
 
   const PlcopenState state = derive_state(observe(unit, rt));
   const uint64_t generation = ++rt.generation;
@@ -318,30 +310,23 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
   abort_shared_stops(unit, cmd);
   for (const auto& [index, value] : passes) node.setpoints[index] = value;
   rt.status = CommandStatus::busy;
-  for (const auto& [point, value] : point_writes) {
-    const int64_t v = value;
-    const Request request{point->write->request.render([v](std::string_view) { return v; }),
-                          Request::Expect::ack, NumberFormat::decimal};
-    const Reply written = co_await bus_of_(unit.node_index).submit(unit.node_index, request);
+  for (const auto& write : point_writes) {
+    const ControlResult written = co_await control_.apply(write);
     if (rt.generation != generation) co_return modbus::WriteResult::success();  // superseded
-    if (written.status != Reply::Status::ok) {
-      finish_with_error(rt, written.status == Reply::Status::device_error
+    if (!written.ok()) {
+      finish_with_error(rt, written.status == ControlStatus::device_error
                                 ? static_cast<uint16_t>(written.device_code)
                                 : kActionErrorNoReply);
-      if (auto ex = exception_for(written)) co_return *ex;
-      co_return ExceptionCode::server_device_failure;
+      co_return exception_for(written.status);
     }
-    image_.node(unit.node_index).points[static_cast<std::size_t>(point - model.points.data())] = {
-        value, std::chrono::steady_clock::now(), true};
   }
   const uint64_t action_generation = rt.action->generation + 1;
   const auto slot = rt.action;
-  const Reply reply = co_await actions_.start(unit.node_index, unit.model, *first, slot);
+  const ControlResult started = co_await control_.start_action(unit.node_index, *first, slot);
   if (rt.generation != generation) co_return modbus::WriteResult::success();  // superseded
-  if (reply.status != Reply::Status::ok) {
+  if (!started.ok()) {
     finish_with_error(rt, slot->error);
-    if (auto ex = exception_for(reply)) co_return *ex;
-    co_return ExceptionCode::server_device_failure;
+    co_return exception_for(started.status);
   }
   const auto executor = co_await asio::this_coro::executor;
   auto alive = alive_;

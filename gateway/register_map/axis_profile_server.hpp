@@ -6,6 +6,7 @@
 #include <span>
 
 #include "gateway/config/gateway_config.hpp"
+#include "gateway/control/control_service.hpp"
 #include "gateway/image/process_image.hpp"
 #include "gateway/modbus/request_handler.hpp"
 #include "gateway/register_map/action_runner.hpp"
@@ -24,8 +25,7 @@ struct ProfileUnit {
 // process image, commands through the model's actions with the sequence-number handshake.
 class AxisProfileServer {
  public:
-  using BusOf = std::function<Bus&(int node_index)>;
-  AxisProfileServer(ProcessImage& image, ActionRunner& actions, BusOf bus_of,
+  AxisProfileServer(ProcessImage& image, ActionRunner& actions, ControlService& control,
                     const ModbusConfig& modbus);
   ~AxisProfileServer();
 
@@ -45,7 +45,7 @@ class AxisProfileServer {
 
   ProcessImage& image_;
   ActionRunner& actions_;
-  BusOf bus_of_;
+  ControlService& control_;
   const ModbusConfig& modbus_;
   std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);
 };

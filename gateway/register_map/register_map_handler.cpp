@@ -2,8 +2,7 @@
 
 #include <algorithm>
 
-#include "gateway/bus/bus.hpp"
-#include "gateway/lifecycle/log.hpp"
+#include "gateway/register_map/control_exception.hpp"
 #include "gateway/register_map/device_identification.hpp"
 
 namespace fieldgate {
@@ -33,45 +32,17 @@ int64_t held_line_view(const UnitMap& unit, const NodeImage& node, const Registe
   return action->done->equals ? (value & ~mask) : (value | mask);
 }
 
-// Whether a write needs the bus of a node whose line an action holds: every point write and
-// every action but one made only of urgent steps (a stop byte gets past a held line).
-bool needs_held_line(const NodeImage& node, const UnitMap& unit, const RegisterEntry& e,
-                     int64_t value) {
-  if (!node.action.holding_line) return false;
-  if (e.kind == RegisterEntry::Kind::point) return true;
-  if (e.kind != RegisterEntry::Kind::action_command) return false;
-  const ActionDef* action = unit.model->find_action(static_cast<uint16_t>(value));
-  if (!action) return false;
-  return !std::all_of(action->steps.begin(), action->steps.end(),
-                      [](const ActionStep& s) { return s.urgent; });
-}
 }  // namespace
-
-std::optional<ExceptionCode> exception_for(const Reply& reply) {
-  switch (reply.status) {
-    case Reply::Status::ok:
-      return std::nullopt;
-    case Reply::Status::device_error:
-      return ExceptionCode::server_device_failure;
-    case Reply::Status::unreachable:
-    case Reply::Status::timeout:
-    case Reply::Status::garbled:
-    case Reply::Status::link_down:
-      return ExceptionCode::gateway_target_failed;
-  }
-  return ExceptionCode::server_device_failure;
-}
 
 RegisterMapHandler::RegisterMapHandler(std::shared_ptr<const LoadedConfig> config,
                                        std::size_t listener, ProcessImage& image,
-                                       ActionRunner& actions, BusOf bus_of)
+                                       ActionRunner& actions, ControlService& control)
     : config_(std::move(config)),
       map_(config_->map_of(listener)),
       modbus_(config_->gateway.listener_modbus(listener)),
       image_(image),
-      actions_(actions),
-      bus_of_(std::move(bus_of)),
-      profile_(image, actions, bus_of_, modbus_) {
+      control_(control),
+      profile_(image, actions, control, modbus_) {
   for (const auto& bus : config_->gateway.buses)
     for (const auto& node : bus.nodes) {
       const int index = static_cast<int>(nodes_.size());
@@ -191,14 +162,11 @@ asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
   if (!unit) co_return ExceptionCode::gateway_path_unavailable;
   if (modbus_config.read_only_holding || modbus_config.unit_read_only(unit_id))
     co_return ExceptionCode::illegal_function;
-  const NodeConfig& node_config = *nodes_.at(static_cast<std::size_t>(unit->node_index));
 
-  // Check the whole request before anything reaches a controller.
-  struct Planned {
-    const RegisterEntry* entry;
-    int64_t value;
-  };
-  std::vector<Planned> plan;
+  // The registers name the writes; the control service checks them all before any runs.
+  const WritePolicy policy{true, modbus_config.writes_enabled};
+  std::vector<ControlWrite> writes;
+  std::optional<ExceptionCode> held;
   const uint32_t end = static_cast<uint32_t>(address) + values.size();
   for (uint32_t a = address; a < end;) {
     const RegisterEntry* e = unit->find(Table::holding_registers, static_cast<uint16_t>(a));
@@ -207,63 +175,26 @@ asio::awaitable<modbus::WriteResult> RegisterMapHandler::write_registers(
       co_return ExceptionCode::illegal_data_value;  // half of a 32-bit value
     const int64_t value = from_registers(e->type, values.subspan(a - address, e->count), order);
     if (!in_range(e->type, value)) co_return ExceptionCode::illegal_data_value;
-    std::optional<int64_t> min, max;
-    if (e->kind == RegisterEntry::Kind::point) {
-      const auto& p = unit->model->points[static_cast<std::size_t>(e->index)];
-      min = p.min;
-      max = p.max;
-    } else if (e->kind == RegisterEntry::Kind::setpoint) {
-      const auto& s = unit->model->setpoints[static_cast<std::size_t>(e->index)];
-      min = s.min;
-      max = s.max;
-    } else if (e->kind == RegisterEntry::Kind::action_command) {
-      if (!unit->model->find_action(static_cast<uint16_t>(value)))
-        co_return ExceptionCode::illegal_data_value;
-    }
-    if (const auto l = node_config.limits.find(e->name); l != node_config.limits.end()) {
-      if (l->second.min && (!min || *l->second.min > *min)) min = l->second.min;
-      if (l->second.max && (!max || *l->second.max < *max)) max = l->second.max;
-    }
-    if ((min && value < *min) || (max && value > *max)) co_return ExceptionCode::illegal_data_value;
-    if (!modbus_config.writes_enabled && e->kind != RegisterEntry::Kind::setpoint)
-      co_return ExceptionCode::illegal_function;
-    plan.push_back({e, value});
+    ControlWrite w{ControlWrite::Kind::point, unit->node_index, e->index, value};
+    if (e->kind == RegisterEntry::Kind::setpoint)
+      w.kind = ControlWrite::Kind::setpoint;
+    else if (e->kind == RegisterEntry::Kind::action_command)
+      w.kind = ControlWrite::Kind::action;
+    else if (e->kind != RegisterEntry::Kind::point)
+      co_return ExceptionCode::illegal_data_address;
+    const ControlResult checked = control_.check(w, policy);
+    // A held line answers busy only once every register passed the other checks.
+    if (checked.status == ControlStatus::line_held)
+      held = exception_for(checked.status);
+    else if (!checked.ok())
+      co_return exception_for(checked.status);
+    writes.push_back(w);
     a += e->count;
   }
-
-  auto& node = image_.node(unit->node_index);
-  // Answered at once rather than after the motion: a PLC would time out and repeat the write.
-  for (const auto& [e, value] : plan)
-    if (needs_held_line(node, *unit, *e, value)) co_return ExceptionCode::server_busy;
-  for (const auto& [e, value] : plan) {
-    switch (e->kind) {
-      case RegisterEntry::Kind::setpoint:
-        node.setpoints[static_cast<std::size_t>(e->index)] = value;
-        break;
-      case RegisterEntry::Kind::point: {
-        const auto& p = unit->model->points[static_cast<std::size_t>(e->index)];
-        const int64_t v = value;
-        Request request{p.write->request.render([v](std::string_view) { return v; }),
-                        Request::Expect::ack, NumberFormat::decimal};
-        const Reply reply = co_await bus_of_(unit->node_index).submit(unit->node_index, request);
-        if (auto ex = exception_for(reply)) {
-          log::warning("unit {}: write of {} = {} failed: {}", unit_id, p.name, value,
-                       reply.text.empty() ? std::string(to_string(reply.status)) : reply.text);
-          co_return *ex;
-        }
-        // The confirmed value until the next poll; for a write-only point, its only readback.
-        node.points[static_cast<std::size_t>(e->index)] = {value, Clock::now(), true};
-        break;
-      }
-      case RegisterEntry::Kind::action_command: {
-        const ActionDef* action = unit->model->find_action(static_cast<uint16_t>(value));
-        const Reply reply = co_await actions_.start(unit->node_index, unit->model, *action);
-        if (auto ex = exception_for(reply)) co_return *ex;
-        break;
-      }
-      default:
-        co_return ExceptionCode::illegal_data_address;
-    }
+  if (held) co_return *held;
+  for (const auto& w : writes) {
+    const ControlResult result = co_await control_.apply(w);
+    if (!result.ok()) co_return exception_for(result.status);
   }
   co_return modbus::WriteResult::success();
 }

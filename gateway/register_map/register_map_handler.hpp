@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "gateway/config/config_loader.hpp"
+#include "gateway/control/control_service.hpp"
 #include "gateway/image/process_image.hpp"
 #include "gateway/modbus/request_handler.hpp"
 #include "gateway/register_map/action_runner.hpp"
@@ -11,17 +12,13 @@
 
 namespace fieldgate {
 
-class Bus;
-
 // Serves one listener's register map (its unit-ID space and access options): reads from the
-// process image, writes confirmed through the buses. Every listener has its own handler over
+// process image, writes through the control service. Every listener has its own handler over
 // the one process image.
 class RegisterMapHandler final : public modbus::RequestHandler {
  public:
-  using BusOf = std::function<Bus&(int node_index)>;
-
   RegisterMapHandler(std::shared_ptr<const LoadedConfig> config, std::size_t listener,
-                     ProcessImage& image, ActionRunner& actions, BusOf bus_of);
+                     ProcessImage& image, ActionRunner& actions, ControlService& control);
 
   modbus::ReadBitsResult read_bits(uint8_t unit, modbus::BitTable table, uint16_t address,
                                    uint16_t count) override;
@@ -44,8 +41,7 @@ class RegisterMapHandler final : public modbus::RequestHandler {
   const RegisterMap& map_;
   const ModbusConfig& modbus_;
   ProcessImage& image_;
-  ActionRunner& actions_;
-  BusOf bus_of_;
+  ControlService& control_;
   // The axis a profile unit ID stands for, or nullptr (a native unit, or none).
   const ProfileUnit* profile_unit(uint8_t unit) const;
 
@@ -53,8 +49,5 @@ class RegisterMapHandler final : public modbus::RequestHandler {
   std::map<uint8_t, ProfileUnit> profile_units_;
   AxisProfileServer profile_;
 };
-
-// How a bus reply answers a confirmed write: nullopt for success, else the exception.
-std::optional<modbus::ExceptionCode> exception_for(const Reply& reply);
 
 }  // namespace fieldgate

@@ -7,28 +7,11 @@
 
 #include <fmt/format.h>
 
-#include <span>
-
 namespace fieldgate::sparkplug {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-const RegisterEntry* entry_for(const UnitMap& unit, const DeviceMetric& metric) {
-  using S = DeviceMetric::Source;
-  for (const auto& e : unit.tables[static_cast<std::size_t>(Table::holding_registers)]) {
-    if (!e.writable) continue;
-    if (metric.source == S::point && e.kind == RegisterEntry::Kind::point &&
-        e.index == metric.index)
-      return &e;
-    if (metric.source == S::setpoint && e.kind == RegisterEntry::Kind::setpoint &&
-        e.index == metric.index)
-      return &e;
-    if (metric.source == S::action && e.kind == RegisterEntry::Kind::action_command) return &e;
-  }
-  return nullptr;
-}
 
 // Action errors after which the action may or may not have done its work.
 bool outcome_unknown(uint16_t error) {
@@ -41,56 +24,37 @@ bool outcome_unknown(uint16_t error) {
 asio::awaitable<void> execute_command(CommandTarget target, DeviceMetric metric, Metric value,
                                       CommandReport report) {
   const auto reject = [&](std::string detail) { report({"rejected", std::move(detail), true}); };
-  const UnitMap* unit = target.config->map_of(target.listener).unit(target.unit_id);
-  if (!unit) {
-    reject("the device has no register map");
-    co_return;
-  }
   const auto number = integer_value(value);
   if (!number) {
     reject("the value is null or not an integer or boolean");
     co_return;
   }
-  int64_t written = *number;
+  ControlWrite write{ControlWrite::Kind::point, target.node_index, metric.index, *number};
   const ActionDef* action = nullptr;
-  if (metric.source == DeviceMetric::Source::action) {
-    if (written != 1) {
+  using S = DeviceMetric::Source;
+  if (metric.source == S::action) {
+    if (*number != 1) {
       reject("write true to start an action");
       co_return;
     }
-    action = &unit->model->actions.at(static_cast<std::size_t>(metric.index));
-    written = action->code;
-  }
-  const RegisterEntry* entry = entry_for(*unit, metric);
-  if (!entry) {
-    reject("the metric has no writable register");
+    const Model& model = *target.control->node_config(target.node_index).model;
+    action = &model.actions.at(static_cast<std::size_t>(metric.index));
+    write = {ControlWrite::Kind::action, target.node_index, 0, action->code};
+  } else if (metric.source == S::setpoint) {
+    write.kind = ControlWrite::Kind::setpoint;
+  } else if (metric.source != S::point) {
+    reject("the metric is not writable");
     co_return;
   }
-  if (!in_range(entry->type, written)) {
-    report({"failed", fmt::format("{} is out of the range of {}", written, to_string(entry->type)),
-            true});
-    co_return;
-  }
-  const std::vector<uint16_t> words =
-      to_registers(entry->type, written, target.config->map_of(target.listener).word_order());
-  const std::span<const uint16_t> registers(words);
   NodeImage& node = target.image->node(target.node_index);
-  const uint64_t unknown_before = node.counters.unknown_writes;
-  const modbus::WriteResult result =
-      co_await target.handler->write_registers(target.unit_id, entry->address, registers);
+  const ControlResult result = co_await target.control->write(write, target.policy);
+  if (result.status == ControlStatus::outcome_unknown) {
+    report({"unknown",
+            fmt::format("sent without a valid reply, it may have run ({})", result.detail), true});
+    co_return;
+  }
   if (!result.ok()) {
-    const auto ex = result.exception();
-    if (ex == modbus::ExceptionCode::gateway_target_failed &&
-        node.counters.unknown_writes != unknown_before) {
-      report({"unknown", "sent without a valid reply: it may have run", true});
-      co_return;
-    }
-    std::string detail =
-        fmt::format("exception 0x{:02X} ({})", static_cast<int>(ex), modbus::to_string(ex));
-    if (ex == modbus::ExceptionCode::server_device_failure &&
-        !node.counters.last_error_text.empty())
-      detail += ": " + node.counters.last_error_text;
-    report({"failed", detail, true});
+    report({"failed", fmt::format("{}: {}", to_string(result.status), result.detail), true});
     co_return;
   }
   if (!action) {

@@ -8,8 +8,8 @@
 #include <string>
 
 #include "gateway/config/config_loader.hpp"
+#include "gateway/control/control_service.hpp"
 #include "gateway/image/process_image.hpp"
-#include "gateway/register_map/register_map_handler.hpp"
 #include "gateway/sparkplug/metric_mapping.hpp"
 #include "gateway/sparkplug/payload.hpp"
 
@@ -18,11 +18,10 @@ namespace fieldgate::sparkplug {
 // The device a command is for, in the configuration generation it arrived in.
 struct CommandTarget {
   std::shared_ptr<const LoadedConfig> config;
-  std::shared_ptr<RegisterMapHandler> handler;
+  std::shared_ptr<ControlService> control;
   ProcessImage* image = nullptr;
   int node_index = 0;
-  std::size_t listener = 0;  // whose unit-ID space unit_id is in
-  uint8_t unit_id = 0;
+  WritePolicy policy;
 };
 
 struct CommandOutcome {
@@ -33,10 +32,10 @@ struct CommandOutcome {
 
 using CommandReport = std::function<void(const CommandOutcome&)>;
 
-// Carries out one DCMD metric as the Modbus write of the same register would be carried out:
-// through RegisterMapHandler::write_registers (limits, writes_enabled, read-only units, a held
-// line, confirmation by the controller, the action runner). A written action is then followed to
-// its end (done, error) or, when no end is seen within its timeout, reported 'unknown'.
+// Carries out one DCMD metric through the control service, under the same rules as every other
+// door's write (limits, the node's write policy, a held line, confirmation by the controller,
+// the action runner). A written action is then followed to its end (done, error) or, when no
+// end is seen within its timeout, reported 'unknown'.
 asio::awaitable<void> execute_command(CommandTarget target, DeviceMetric metric, Metric value,
                                       CommandReport report);
 

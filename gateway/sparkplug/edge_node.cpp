@@ -47,19 +47,19 @@ EdgeNode::~EdgeNode() {
 }
 
 void EdgeNode::bind(std::shared_ptr<const LoadedConfig> config, ProcessImage& image,
-                    std::vector<std::shared_ptr<RegisterMapHandler>> handlers) {
+                    std::shared_ptr<ControlService> control, std::vector<WritePolicy> policies) {
   loaded_ = std::move(config);
   image_ = &image;
-  handlers_ = std::move(handlers);
+  control_ = std::move(control);
+  policies_ = std::move(policies);
   devices_.clear();
-  for (std::size_t l = 0; l < loaded_->gateway.listener_count(); ++l)
-    for (const auto& unit : loaded_->map_of(l).units()) {
+  int node_index = 0;
+  for (const auto& bus : loaded_->gateway.buses)
+    for (const auto& node : bus.nodes) {
       Device d;
-      d.id = device_id_of(unit.second.node_name);
-      d.node_index = unit.second.node_index;
-      d.listener = l;
-      d.unit_id = unit.first;
-      d.model = unit.second.model;
+      d.id = device_id_of(node.name);
+      d.node_index = node_index++;
+      d.model = node.model;
       d.metrics = device_metrics(*d.model, config_);
       devices_.push_back(std::move(d));
     }
@@ -355,8 +355,8 @@ void EdgeNode::on_device_command(Device& d, const Payload& payload) {
     items.push_back({*it, m});
   }
   if (items.empty()) return;
-  CommandTarget target{loaded_,  handlers_.at(d.listener), image_, d.node_index, d.listener,
-                       d.unit_id};
+  CommandTarget target{loaded_, control_, image_, d.node_index,
+                       policies_.at(static_cast<std::size_t>(d.node_index))};
   const std::string device_id = d.id;
   std::weak_ptr<EdgeNode*> self = self_;
   // One command after the other, in the order of the payload (a target before its move).

@@ -8,8 +8,8 @@
 #include <vector>
 
 #include "gateway/config/config_loader.hpp"
+#include "gateway/control/control_service.hpp"
 #include "gateway/image/process_image.hpp"
-#include "gateway/register_map/register_map_handler.hpp"
 #include "gateway/sparkplug/metric_mapping.hpp"
 #include "gateway/sparkplug/mqtt_connection.hpp"
 #include "gateway/sparkplug/primary_host_state.hpp"
@@ -24,7 +24,8 @@ namespace fieldgate::sparkplug {
 // (and, with a primary host configured, once its STATE says online) NBIRTH and a DBIRTH for
 // every online node; DDEATH/DBIRTH follow each node's online state; DDATA reports changes beyond
 // the deadband of the point's type; seq runs 0-255 over NBIRTH, DBIRTH, DDATA, DDEATH.
-// NCMD "Node Control/Rebirth" publishes the births again; DCMD goes through the Modbus write path.
+// NCMD "Node Control/Rebirth" publishes the births again; DCMD goes through the control service, as
+// every front door's writes do.
 //
 // No store-and-forward: while the broker is away nothing is queued, and the births after the
 // reconnect carry every current value.
@@ -35,9 +36,10 @@ class EdgeNode {
 
   // The configuration generation in force: on start and after every reload (births follow when
   // the session is up, as the metrics may have changed).
-  // `handlers` by listener index: every listener's nodes are devices of this edge node.
+  // Every node is a device. `policies` by node number: what DCMD may change on each (the gateway
+  // gives each node the policy of the door that owns it, so a monitor-only node stays so).
   void bind(std::shared_ptr<const LoadedConfig> config, ProcessImage& image,
-            std::vector<std::shared_ptr<RegisterMapHandler>> handlers);
+            std::shared_ptr<ControlService> control, std::vector<WritePolicy> policies);
   void start();
   // NDEATH, then DISCONNECT.
   void stop();
@@ -49,8 +51,6 @@ class EdgeNode {
   struct Device {
     std::string id;
     int node_index = 0;
-    std::size_t listener = 0;
-    uint8_t unit_id = 0;
     ModelPtr model;
     std::vector<DeviceMetric> metrics;
     std::vector<MetricValue> published;
@@ -94,7 +94,8 @@ class EdgeNode {
 
   std::shared_ptr<const LoadedConfig> loaded_;
   ProcessImage* image_ = nullptr;
-  std::vector<std::shared_ptr<RegisterMapHandler>> handlers_;
+  std::shared_ptr<ControlService> control_;
+  std::vector<WritePolicy> policies_;  // by node number
   std::vector<Device> devices_;
   std::vector<NodeMetric> node_published_;
 

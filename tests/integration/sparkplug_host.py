@@ -379,9 +379,10 @@ def run_single(host, broker, gw):
     host.command(topic("DCMD", e, dev), [("Setpoints/enable_mode", 6, 5)])
     r = host.wait(topic("DDATA", e, dev), lambda p: value(p, "Command/Metric") ==
                   "Setpoints/enable_mode", after=mark)
-    check("DCMD out of the model's limits fails like the Modbus write (0x03)",
+    check("DCMD out of the model's limits fails as the Modbus write does, and says why",
           r is not None and value(r[1], "Command/Result") == "failed"
-          and "0x03" in value(r[1], "Command/Detail"), r and value(r[1], "Command/Detail"))
+          and "out of range" in value(r[1], "Command/Detail")
+          and "minimum" in value(r[1], "Command/Detail"), r and value(r[1], "Command/Detail"))
 
     # A command that gets no reply may have run: its outcome is 'unknown', never failed. The
     # amplifier runs it and its reply is lost (a silent line would refuse it unsent: the gateway
