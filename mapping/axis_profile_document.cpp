@@ -158,7 +158,7 @@ std::string write_axis_profile_document() {
       "command: the axis goes to ErrorStop until a reset |\n\n"
       "A refused command changes no axis state; the error shows in command_status and "
       "command_error until the next command. The gateway's own action codes (0xfffb no reply "
-      "... 0xffff timeout) are those of the native action block (README).\n",
+      "... 0xffff timeout) are those of the native action block (register-map.md).\n",
       kProfileErrorDisabled, kProfileErrorErrorStop, kProfileErrorStopping);
   return out;
 }

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs fieldgate into a scratch root (cmake --install with DESTDIR) and checks the unit
 # offline: `systemd-analyze verify` must pass, and `systemd-analyze security` must rate the
-# exposure below 3.0 (it prints the score for the README). Usage: unit_check.sh BUILD_DIR
+# exposure below 3.0 (it prints the score for docs/operations.md). Usage: unit_check.sh BUILD_DIR
 set -euo pipefail
 build=$1
 root=$(mktemp -d)
