@@ -44,7 +44,8 @@ constexpr DiagnosticLayout kDiagnostics[] = {
     {DiagnosticField::last_good_age_ms, "diag.last_good_age", ValueType::uint32,
      "ms since the last good poll (0xffffffff: never)"},
     {DiagnosticField::consecutive_timeouts, "diag.consecutive_timeouts", ValueType::uint16,
-     "timeouts in a row"},
+     "exchanges in a row without an answer: timeouts, and 'not reachable' replies of a "
+     "forwarding device (Copley e 32); the node goes offline at offline_after"},
     {DiagnosticField::transactions, "diag.transactions", ValueType::uint32,
      "transactions with this node"},
     {DiagnosticField::timeouts, "diag.timeouts", ValueType::uint32, "transactions that timed out"},

@@ -8,6 +8,7 @@
 
 #include "mapping/diagnostics.hpp"
 #include "mapping/model.hpp"
+#include "mapping/node_diagnostics.hpp"
 #include "mapping/value_type.hpp"
 
 namespace fieldgate {
@@ -22,29 +23,6 @@ inline constexpr uint16_t setpoints = 110;     // holding: action parameters
 inline constexpr uint16_t diagnostics = 1000;  // input registers
 inline constexpr uint16_t online_bit = 1000;   // discrete input
 }  // namespace layout
-
-// Fields of the per-node diagnostic block, in register order from layout::diagnostics.
-enum class DiagnosticField {
-  online,            // 1 while the node answers
-  last_good_age_ms,  // uint32, 0xffffffff before the first good poll
-  consecutive_timeouts,
-  transactions,       // uint32
-  timeouts,           // uint32
-  errors,             // uint32 (device errors and garbled replies)
-  last_device_error,  // 16 bits; 0xffff for a wider code (last_device_error_code has it)
-  action_status,
-  action_code,
-  action_error,
-  node_state,      // 0 starting, 1 online, 2 offline, 3 faulted
-  unknown_writes,  // uint32: commands sent that got no valid reply (outcome unknown)
-  data_age_ms,     // uint32: age of the oldest polled value, 0xffffffff if one was never read
-  unreachable,     // uint32: a forwarding device said the node is not reachable (Copley e 32)
-  // uint32: the last device error code in full (a CANopen SDO abort code has 32 bits). Last in
-  // the block, so the fields before it keep their registers.
-  last_device_error_code,
-};
-
-enum class ActionStatus : uint16_t { idle = 0, busy = 1, done = 2, error = 3 };
 
 struct RegisterEntry {
   enum class Kind {

@@ -53,9 +53,8 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   void pin(char name, ims::ReadingPins pins) { readings_.pin(name, pins); }
   void set_log_sink(LogSink sink) { log_ = std::move(sink); }
   void route_log(LogRoute route) override {
-    log_ = [route = std::move(route)](int level, const std::string& text) {
-      route(level, "ims-party-line: " + text);
-    };
+    // The route names the bus; the family's name would only repeat what the bus is.
+    log_ = [route = std::move(route)](int level, const std::string& text) { route(level, text); };
   }
 
   // How long a debt of late replies is kept (README "Late replies").

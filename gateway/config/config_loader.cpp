@@ -122,13 +122,24 @@ class ConfigParser {
           r_.error(node, fmt::format("{}: unterminated ${{ in '{}'", what, *text));
           return std::nullopt;
         }
-        const std::string name = text->substr(i + 2, close - i - 2);
+        // ${NAME:-fallback}, as in the shell: the fallback when NAME is unset or empty.
+        std::string name = text->substr(i + 2, close - i - 2);
+        std::optional<std::string> fallback;
+        if (const auto dash = name.find(":-"); dash != std::string::npos) {
+          fallback = name.substr(dash + 2);
+          name.resize(dash);
+        }
         const char* value = std::getenv(name.c_str());
-        if (!value) {
-          r_.error(node, fmt::format("{}: environment variable {} is not set", what, name));
+        if (value && *value) {
+          out += value;
+        } else if (fallback) {
+          out += *fallback;
+        } else {
+          r_.error(node, fmt::format("{}: environment variable {} is not set (a fallback: "
+                                     "${{{}:-value}})",
+                                     what, name, name));
           return std::nullopt;
         }
-        out += value;
         i = close;
       } else {
         out += (*text)[i];
@@ -521,6 +532,16 @@ class ConfigParser {
     }
     if (node["timing"]) parse_timing(node["timing"], bus.timing, where + " timing", has_can);
     parse_device_writes(node["device_writes"], bus, where);
+    if (bus.transport.kind == TransportConfig::Kind::serial &&
+        !bus.transport.serial.device.empty()) {
+      std::error_code ec;
+      // Not an error: a USB adapter may be plugged in later, and the bus retries opening it.
+      if (!std::filesystem::exists(bus.transport.serial.device, ec))
+        config.warnings.push_back(fmt::format(
+            "{}: warning: {}: serial device {} does not exist (yet); the bus keeps trying to "
+            "open it",
+            to_string(r_.mark(node)), where, bus.transport.serial.device));
+    }
     if (auto nodes = r_.require(node, "nodes", where);
         nodes && r_.expect_sequence(*nodes, where + " nodes")) {
       for (const auto& n : *nodes) parse_node(n, bus, config, where);
@@ -532,7 +553,8 @@ class ConfigParser {
         const auto used = node_link_timing(bus, n).reply_timeout;
         if (used < need.reply_timeout)
           config.warnings.push_back(fmt::format(
-              "{}: bus {} node {}: reply_timeout {} ms is below the {} ms this node needs: {}. "
+              "{}: warning: bus {} node {}: reply_timeout {} ms is below the {} ms this node "
+              "needs: {}. "
               "Raise it (per node: reply_timeout in the node's entry)",
               to_string(n.mark), bus.name, n.name,
               std::chrono::duration_cast<std::chrono::milliseconds>(used).count(),
@@ -542,7 +564,8 @@ class ConfigParser {
       const auto budget = compute_poll_budget(bus);
       if (budget.wire_seconds_per_second > 1.0)
         config.warnings.push_back(fmt::format(
-            "{}: bus {}: the configured polls need {:.0f}% of the wire time at {} baud; poll "
+            "{}: warning: bus {}: the configured polls need {:.0f}% of the wire time at {} baud; "
+            "poll "
             "periods will stretch (raise the baud or lengthen the periods)",
             to_string(bus.mark), bus.name, budget.wire_seconds_per_second * 100,
             bus.transport.serial.baud));

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "gateway/image/axis_profile_state.hpp"
-#include "mapping/register_map.hpp"
+#include "mapping/node_diagnostics.hpp"
 
 namespace fieldgate {
 

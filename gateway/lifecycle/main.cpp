@@ -78,18 +78,23 @@ int main(int argc, char** argv) {
   std::string config_path = FIELDGATE_DEFAULT_CONFIG;
   bool verbose = false;
   app.set_version_flag("--version", "fieldgate " FIELDGATE_VERSION_TEXT);
-  app.add_option("-c,--config", config_path, "gateway configuration (YAML)")->capture_default_str();
+  auto* config_option = app.add_option("-c,--config", config_path, "gateway configuration (YAML)")
+                            ->capture_default_str();
   app.add_flag("-v,--verbose", verbose, "log debug detail");
   std::string runtime_dir;
   app.add_option("--runtime-dir", runtime_dir,
                  "where the reload verdict is written (default: $RUNTIME_DIRECTORY)");
   auto* check = app.add_subcommand("check", "validate a configuration without opening any port");
   std::string check_path = FIELDGATE_DEFAULT_CONFIG;
-  check->add_option("config", check_path, "gateway configuration (YAML)")->capture_default_str();
+  auto* check_given = check->add_option("config", check_path, "gateway configuration (YAML)")
+                          ->capture_default_str();
+  auto* check_named = check->add_option("-c,--config", check_path, "the same, by name");
   auto* map = app.add_subcommand("map", "write the register map document for the PLC programmer");
   std::string map_path = FIELDGATE_DEFAULT_CONFIG;
   std::string map_format = "md";
-  map->add_option("config", map_path, "gateway configuration (YAML)")->capture_default_str();
+  auto* map_given =
+      map->add_option("config", map_path, "gateway configuration (YAML)")->capture_default_str();
+  auto* map_named = map->add_option("-c,--config", map_path, "the same, by name");
   map->add_option("--format", map_format, "md or csv")->check(CLI::IsMember({"md", "csv"}));
   bool map_profile = false;
   map->add_flag("--profile", map_profile,
@@ -110,6 +115,11 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
+  // `fieldgate --config X check` means X, as `fieldgate check X` and `fieldgate check --config X`.
+  if (config_option->count() > 0) {
+    if (check_given->count() == 0 && check_named->count() == 0) check_path = config_path;
+    if (map_given->count() == 0 && map_named->count() == 0) map_path = config_path;
+  }
   if (*reload) {
     reload_options.timeout =
         std::chrono::milliseconds(static_cast<long long>(reload_timeout * 1000));

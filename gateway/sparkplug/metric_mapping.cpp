@@ -2,7 +2,7 @@
 
 #include <fmt/format.h>
 
-#include "mapping/register_map.hpp"
+#include "mapping/node_diagnostics.hpp"
 
 namespace fieldgate::sparkplug {
 
@@ -90,7 +90,7 @@ std::vector<DeviceMetric> device_metrics(const Model& model, const SparkplugConf
   out.push_back({"Command/Sequence", DataType::uint64, S::command_sequence, 0, 0, false, false, 0});
   // The PLCopen axis profile (issue #14) adds its metrics here, as "Profile/<name>" with a
   // source reading the profile's view of the node; everything else (births, report by
-  // exception, DCMD through the register map handler) then applies to them unchanged.
+  // exception, DCMD through the control service) then applies to them unchanged.
   return out;
 }
 

@@ -253,6 +253,36 @@ TEST_F(ConfigLoaderTest, CanopenNodeAddresses) {
       << e;
 }
 
+TEST_F(ConfigLoaderTest, AnUnsetVariableTakesItsFallbackOrIsAnErrorThatNamesTheFallbackSyntax) {
+  ::unsetenv("FIELDGATE_TEST_UNSET");
+  std::optional<LoadedConfig> c;
+  EXPECT_EQ(load("buses:\n  - name: b\n    protocol: copley-ascii\n"
+                 "    serial: {device: '${FIELDGATE_TEST_UNSET:-/dev/null}', baud: 115200}\n"
+                 "    nodes:\n      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n",
+                 &c),
+            "");
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->gateway.buses[0].transport.serial.device, "/dev/null");
+  std::string yaml = bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n");
+  yaml.replace(yaml.find("/dev/null"), 9, "${FIELDGATE_TEST_UNSET}");
+  const auto e = load(yaml);
+  EXPECT_NE(e.find("environment variable FIELDGATE_TEST_UNSET is not set"), std::string::npos) << e;
+  EXPECT_NE(e.find("${FIELDGATE_TEST_UNSET:-value}"), std::string::npos) << e;
+}
+
+TEST_F(ConfigLoaderTest, ASerialDeviceThatIsNotThereIsAWarningNotAnError) {
+  std::optional<LoadedConfig> c;
+  const std::string yaml = bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n");
+  const auto at = yaml.find("/dev/null");
+  EXPECT_EQ(load(std::string(yaml).replace(at, 9, "/dev/fieldgate-no-such-port"), &c), "");
+  ASSERT_TRUE(c);
+  ASSERT_EQ(c->gateway.warnings.size(), 1u);
+  EXPECT_NE(c->gateway.warnings[0].find(": warning: bus b: serial device "
+                                        "/dev/fieldgate-no-such-port does not exist"),
+            std::string::npos)
+      << c->gateway.warnings[0];
+}
+
 TEST_F(ConfigLoaderTest, ShippedDemoConfigIsValid) {
   ::setenv("FIELDGATE_DEMO_DIR", "/tmp", 1);
   Diagnostics d;

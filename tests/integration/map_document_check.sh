@@ -11,6 +11,10 @@ copley_units "$sim"
 "$fieldgate" map "$dir/gw.yaml" --format csv >"$dir/map.csv"
 "$fieldgate" map "$dir/gw.yaml" --format md >"$dir/map.md"
 grep -q '^| holding registers | 100 | 40101 | action.command |' "$dir/map.md" || { echo "FAIL: markdown lacks the action register"; exit 1; }
+# The configuration named as an option, of the subcommand or of fieldgate, is the same file.
+"$fieldgate" map --config "$dir/gw.yaml" --format csv | cmp -s - "$dir/map.csv" || { echo "FAIL: map --config X differs from map X"; exit 1; }
+"$fieldgate" --config "$dir/gw.yaml" map --format csv | cmp -s - "$dir/map.csv" || { echo "FAIL: --config X map differs from map X"; exit 1; }
+"$fieldgate" --config "$dir/gw.yaml" check | grep -q "^$dir/gw.yaml: ok" || { echo "FAIL: --config X check did not check X"; exit 1; }
 start_daemon "$fieldgate" "$dir/gw.yaml" "$dir/daemon.log"
 
 /usr/bin/python3 - "$port" "$dir/map.csv" <<'PY'
