@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -570,12 +571,19 @@ class ConfigParser {
             to_string(bus.mark), bus.name, budget.wire_seconds_per_second * 100,
             bus.transport.serial.baud));
     }
-    bus.signature = YAML::Dump(node) + "\n--- link " + bus.transport.serial.device + " " +
-                    bus.transport.host + " " + bus.transport.can_interface + "\n";
-    std::set<const Model*> models;  // each model's text once, however many nodes use it
-    for (const auto& n : bus.nodes)
-      if (n.model && models.insert(n.model.get()).second)
-        bus.signature += "\n--- model " + n.model->name + "\n" + file_text(n.model->mark.file);
+    const std::string link = "\n--- link " + bus.protocol + " " + bus.transport.serial.device +
+                             " " + bus.transport.host + " " + bus.transport.can_interface + "\n";
+    bus.signature = YAML::Dump(node) + link;
+    std::map<const Model*, std::string> models;  // each model's text once
+    for (auto& n : bus.nodes) {
+      if (!n.model) continue;
+      auto [it, fresh] = models.try_emplace(n.model.get());
+      if (fresh) {
+        it->second = "\n--- model " + n.model->name + "\n" + file_text(n.model->mark.file);
+        bus.signature += it->second;
+      }
+      n.identity = link + "--- address " + n.address.text + it->second;
+    }
     config.buses.push_back(std::move(bus));
   }
 

@@ -96,6 +96,9 @@ struct NodeConfig {
   std::size_t listener = 0;  // index of GatewayConfig::listener_modbus: 0 is `modbus:`
   std::map<std::string, uint8_t> axis_units;  // profile axis name -> its unit ID
   SourceMark mark;
+  // What the node's values depend on: its bus's protocol and link, its address and its model's
+  // text. Equal across a reload: what a replaced bus last read is still this device's.
+  std::string identity;
 
   microseconds period_of(const std::string& poll_class) const;
 };

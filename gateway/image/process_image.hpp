@@ -74,6 +74,9 @@ struct NodeImage {
   std::vector<int64_t> setpoints;  // by model setpoint index
   NodeCounters counters;
   NodeState state = NodeState::starting;
+  // The values were read by the bus a reload replaced (the node itself unchanged): served, with
+  // their age, while this node is still starting on the new bus.
+  bool carried_over = false;
   ActionState action;
   std::vector<ProfileAxisRuntime> profile_axes;  // by the model's profile axis index
 };

@@ -68,7 +68,8 @@ std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit
     case RegisterEntry::Kind::point:
     case RegisterEntry::Kind::point_bit: {
       const auto& pv = node.points[static_cast<std::size_t>(e.index)];
-      const bool offline = node.state != NodeState::online;
+      const bool offline = node.state != NodeState::online &&
+                           !(node.state == NodeState::starting && node.carried_over);
       if (!pv.valid) return ExceptionCode::gateway_target_failed;
       if (offline && modbus_.offline_reads == OfflineReads::exception)
         return ExceptionCode::gateway_target_failed;
