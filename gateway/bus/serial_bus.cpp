@@ -105,10 +105,11 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
       existing->targets.push_back({static_cast<int>(p), point.read->field});
     }
     nodes_.back().poll_items = static_cast<int>(items.size());
-    for (auto& it : items) plan_.add(std::move(it));
+    // Before the items move into the plan: the data age covers the polled points.
     img.polled.assign(n.model->points.size(), false);
     for (const auto& it : items)
       for (const auto& t : it.targets) img.polled[static_cast<std::size_t>(t.point)] = true;
+    for (auto& it : items) plan_.add(std::move(it));
     ++index;
   }
 }

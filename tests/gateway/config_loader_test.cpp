@@ -264,7 +264,7 @@ TEST_F(ConfigLoaderTest, AnUnsetVariableTakesItsFallbackOrIsAnErrorThatNamesTheF
   ASSERT_TRUE(c);
   EXPECT_EQ(c->gateway.buses[0].transport.serial.device, "/dev/null");
   std::string yaml = bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n");
-  yaml.replace(yaml.find("/dev/null"), 9, "${FIELDGATE_TEST_UNSET}");
+  yaml.replace(yaml.find("/dev/null"), 9, "'${FIELDGATE_TEST_UNSET}'");
   const auto e = load(yaml);
   EXPECT_NE(e.find("environment variable FIELDGATE_TEST_UNSET is not set"), std::string::npos) << e;
   EXPECT_NE(e.find("${FIELDGATE_TEST_UNSET:-value}"), std::string::npos) << e;
