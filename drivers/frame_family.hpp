@@ -16,8 +16,8 @@
 #include <string_view>
 #include <vector>
 
-#include "drivers/canopen/can_frame.hpp"
 #include "drivers/protocol_family.hpp"
+#include "drivers/transport/can_frame.hpp"
 
 namespace fieldgate {
 
@@ -27,8 +27,7 @@ class FramePort {
   virtual ~FramePort() = default;
   // False when the frame could not go out (the link is down, or the transmit queue stayed
   // full). `outcome`: how the transaction this frame ends came out, for the wire trace.
-  virtual asio::awaitable<bool> send(const canopen::CanFrame& frame,
-                                     std::string_view outcome = {}) = 0;
+  virtual asio::awaitable<bool> send(const CanFrame& frame, std::string_view outcome = {}) = 0;
   // False once the link went down or the bus is stopping: a waiting transaction gives up.
   virtual bool up() const = 0;
 };
@@ -51,12 +50,12 @@ class FrameFamily : public Family {
   virtual std::vector<uint32_t> receive_ids(const NodeAddress& node, const Model& model) const = 0;
   // The role of a frame for a node; process data (a frame whose identifier a point of the
   // node's model reads) is told apart by the bus from its points.
-  virtual FrameRole classify(const NodeAddress& node, const canopen::CanFrame& frame) const = 0;
+  virtual FrameRole classify(const NodeAddress& node, const CanFrame& frame) const = 0;
   // The node number a frame names, for the wire trace: kEveryNode for one sent to every node,
   // kNoNode for none (an error frame).
   static constexpr int kNoNode = -1;
   static constexpr int kEveryNode = -2;
-  virtual int frame_node(const canopen::CanFrame& frame) const = 0;
+  virtual int frame_node(const CanFrame& frame) const = 0;
 };
 
 }  // namespace fieldgate

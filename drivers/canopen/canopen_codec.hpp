@@ -9,7 +9,8 @@
 #include <string_view>
 #include <vector>
 
-#include "drivers/canopen/can_frame.hpp"
+#include "drivers/canopen/canopen_time.hpp"
+#include "drivers/transport/can_frame.hpp"
 
 namespace fieldgate::canopen {
 

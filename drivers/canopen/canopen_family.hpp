@@ -14,8 +14,8 @@ class CanopenFamily final : public FrameFamily {
                                            std::string& error) const override;
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
   std::vector<uint32_t> receive_ids(const NodeAddress& node, const Model& model) const override;
-  FrameRole classify(const NodeAddress& node, const canopen::CanFrame& frame) const override;
-  int frame_node(const canopen::CanFrame& frame) const override;
+  FrameRole classify(const NodeAddress& node, const CanFrame& frame) const override;
+  int frame_node(const CanFrame& frame) const override;
 };
 
 FamilyPtr make_canopen_family();

@@ -29,8 +29,9 @@
 #include <string>
 #include <string_view>
 
-#include "drivers/canopen/can_frame.hpp"
 #include "drivers/canopen/canopen_codec.hpp"
+#include "drivers/canopen/canopen_time.hpp"
+#include "drivers/transport/can_frame.hpp"
 #include "mapping/model.hpp"
 
 namespace fieldgate::canopen {

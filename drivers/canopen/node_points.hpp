@@ -12,10 +12,11 @@
 #include <string>
 #include <vector>
 
-#include "drivers/canopen/can_frame.hpp"
 #include "drivers/canopen/canopen_request.hpp"
+#include "drivers/canopen/canopen_time.hpp"
 #include "drivers/canopen/node_supervision.hpp"
 #include "drivers/protocol_family.hpp"
+#include "drivers/transport/can_frame.hpp"
 #include "mapping/model.hpp"
 
 namespace fieldgate::canopen {

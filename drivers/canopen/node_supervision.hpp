@@ -12,10 +12,11 @@
 #include <string>
 #include <string_view>
 
-#include "drivers/canopen/can_frame.hpp"
 #include "drivers/canopen/canopen_codec.hpp"
 #include "drivers/canopen/canopen_request.hpp"
+#include "drivers/canopen/canopen_time.hpp"
 #include "drivers/protocol_family.hpp"
+#include "drivers/transport/can_frame.hpp"
 
 namespace fieldgate::canopen {
 

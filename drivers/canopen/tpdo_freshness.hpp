@@ -9,8 +9,9 @@
 #include <utility>
 #include <vector>
 
-#include "drivers/canopen/can_frame.hpp"
+#include "drivers/canopen/canopen_time.hpp"
 #include "drivers/canopen/node_points.hpp"
+#include "drivers/transport/can_frame.hpp"
 
 namespace fieldgate::canopen {
 

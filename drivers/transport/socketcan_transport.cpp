@@ -23,7 +23,6 @@
 namespace fieldgate {
 
 using namespace boost::asio::experimental::awaitable_operators;
-using canopen::CanFrame;
 
 namespace {
 constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);

@@ -15,7 +15,7 @@
 #include <system_error>
 #include <vector>
 
-#include "drivers/canopen/can_frame.hpp"
+#include "drivers/transport/can_frame.hpp"
 
 namespace fieldgate {
 
@@ -40,11 +40,11 @@ class CanChannel {
   virtual bool is_open() const = 0;
   // Waits until frames arrive and appends them; an error means the link failed (interface down
   // or gone) or the channel was closed. Cancellable by close().
-  virtual asio::awaitable<std::error_code> receive(std::vector<canopen::CanFrame>& frames) = 0;
+  virtual asio::awaitable<std::error_code> receive(std::vector<CanFrame>& frames) = 0;
   // Sends one frame; frames that find no room in the transmit queue for `timeout` are dropped
   // (and counted). Several coroutines may send at the same time. An error means the link
   // failed.
-  virtual asio::awaitable<std::error_code> send(const canopen::CanFrame& frame,
+  virtual asio::awaitable<std::error_code> send(const CanFrame& frame,
                                                 std::chrono::microseconds timeout) = 0;
   virtual std::string describe() const = 0;
   virtual const CanChannelStats& stats() const = 0;
@@ -65,8 +65,8 @@ class SocketCanTransport final : public CanChannel {
   std::error_code open(const std::vector<uint32_t>& cob_ids) override;
   void close() override;
   bool is_open() const override { return descriptor_.is_open(); }
-  asio::awaitable<std::error_code> receive(std::vector<canopen::CanFrame>& frames) override;
-  asio::awaitable<std::error_code> send(const canopen::CanFrame& frame,
+  asio::awaitable<std::error_code> receive(std::vector<CanFrame>& frames) override;
+  asio::awaitable<std::error_code> send(const CanFrame& frame,
                                         std::chrono::microseconds timeout) override;
   std::string describe() const override { return "SocketCAN " + interface_; }
   const CanChannelStats& stats() const override { return stats_; }
@@ -76,7 +76,7 @@ class SocketCanTransport final : public CanChannel {
   static constexpr std::size_t kMaxQueued = 1024;
 
   // Reads what the socket has without blocking; false with ec set when the link failed.
-  bool drain(std::vector<canopen::CanFrame>& frames, std::error_code& ec);
+  bool drain(std::vector<CanFrame>& frames, std::error_code& ec);
   enum class Flush { done, blocked, no_buffers, failed };
   // Writes queued frames until the queue is empty or the socket has no room.
   Flush flush();

@@ -58,8 +58,7 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   void rebind(int first_node_index, NodeUpdated on_update) override;
 
   // The port the nodes' transfers use.
-  asio::awaitable<bool> send(const canopen::CanFrame& frame,
-                             std::string_view outcome = {}) override;
+  asio::awaitable<bool> send(const CanFrame& frame, std::string_view outcome = {}) override;
   bool up() const override { return !stopping_ && link_up_; }
 
   // What the bus consumed from a node, for diagnostics and tests.
@@ -76,13 +75,13 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   // True when the time came, false when the timer was cancelled (woken).
   asio::awaitable<bool> sleep_until(asio::steady_timer& timer, SteadyTime when);
 
-  void trace_frame(const canopen::CanFrame& frame, TraceDirection direction, SteadyTime at,
+  void trace_frame(const CanFrame& frame, TraceDirection direction, SteadyTime at,
                    std::string_view outcome);
   asio::awaitable<void> run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now);
 
-  void dispatch(const canopen::CanFrame& frame, SteadyTime now);
-  void on_error_frame(const canopen::CanFrame& frame, SteadyTime now);
-  void on_tpdo(NodeRuntime& n, const canopen::CanFrame& frame, SteadyTime now);
+  void dispatch(const CanFrame& frame, SteadyTime now);
+  void on_error_frame(const CanFrame& frame, SteadyTime now);
+  void on_tpdo(NodeRuntime& n, const CanFrame& frame, SteadyTime now);
   void refresh_local_points(NodeRuntime& n, SteadyTime now);
   // Overdue polls of a node back online run at once, each on its own phase.
   void resume_polls(NodeRuntime& n, SteadyTime now);

@@ -428,8 +428,8 @@ TEST_F(CanBusTest, LinkDownAndBack) {
 TEST_F(CanBusTest, ErrorFramesAreCounted) {
   start("2", "      - {name: axis2, address: 2, model: canopen-cia402, unit_id: 1}\n");
   ASSERT_TRUE(run_until([&] { return online(0); }));
-  sim_->inject_error(*canopen::parse_frame("20000004#0030000000000000"));
-  sim_->inject_error(*canopen::parse_frame("20000040#0000000000000000"));
+  sim_->inject_error(*parse_frame("20000004#0030000000000000"));
+  sim_->inject_error(*parse_frame("20000040#0000000000000000"));
   ASSERT_TRUE(run_until([&] { return bus_->can_counters()->error_frames == 2; }));
   EXPECT_EQ(bus_->can_counters()->bus_off, 1u);
   EXPECT_TRUE(bus_->counters().link_up);

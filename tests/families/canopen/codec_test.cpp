@@ -3,8 +3,8 @@
 
 #include <linux/can/error.h>
 
-#include "drivers/canopen/can_frame.hpp"
 #include "drivers/canopen/canopen_codec.hpp"
+#include "drivers/transport/can_frame.hpp"
 
 namespace fieldgate::canopen {
 namespace {

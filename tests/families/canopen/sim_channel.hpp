@@ -11,14 +11,13 @@
 #include <deque>
 #include <set>
 
-#include "drivers/canopen/can_frame.hpp"
+#include "drivers/transport/can_frame.hpp"
 #include "drivers/transport/socketcan_transport.hpp"
 #include "network.hpp"
 
 namespace fieldgate::test {
 
 namespace simco = fieldgate::sim::canopen;
-using canopen::CanFrame;
 
 class SimChannel final : public CanChannel {
  public:
@@ -69,7 +68,7 @@ class SimChannel final : public CanChannel {
       while (!pending_.empty() && pending_.front().first <= now) {
         const auto f = pending_.front().second;
         pending_.pop_front();
-        if (!f.error) shared_->wire.push_back(canopen::to_string(f));  // as the bus sees it
+        if (!f.error) shared_->wire.push_back(to_string(f));  // as the bus sees it
         if (f.error || filter_.count(f.id)) {
           frames.push_back(f);
           if (!f.error) ++stats_.frames_received;
@@ -87,7 +86,7 @@ class SimChannel final : public CanChannel {
     if (!open_) co_return std::make_error_code(std::errc::bad_file_descriptor);
     if (shared_->down) co_return std::make_error_code(std::errc::network_down);
     ++stats_.frames_sent;
-    shared_->wire.push_back(canopen::to_string(frame));
+    shared_->wire.push_back(to_string(frame));
     simco::CanFrame f;
     f.id = frame.id;
     f.len = frame.len;

@@ -17,8 +17,6 @@ namespace fieldgate {
 namespace {
 
 using namespace std::chrono_literals;
-using canopen::CanFrame;
-using canopen::parse_frame;
 using test::can_interface;
 
 class VcanBus : public ::testing::Test {
@@ -152,10 +150,10 @@ TEST_F(VcanBus, TransportFiltersAndErrorFrames) {
     got.insert(got.end(), batch.begin(), batch.end());
   }
   ASSERT_EQ(got.size(), 3u);  // 0x124 and the remote frame are filtered out by the kernel
-  EXPECT_EQ(canopen::to_string(got[0]), "123#CAFE");
+  EXPECT_EQ(to_string(got[0]), "123#CAFE");
   EXPECT_TRUE(got[1].error);
-  EXPECT_TRUE(canopen::decode_error_frame(got[1]).bus_off);
-  EXPECT_EQ(canopen::to_string(got[2]), "7FE#11");
+  EXPECT_TRUE(decode_error_frame(got[1]).bus_off);
+  EXPECT_EQ(to_string(got[2]), "7FE#11");
   EXPECT_EQ(t.stats().error_frames, 1u);
   EXPECT_EQ(t.stats().frames_received, 2u);
   // Sending goes out on the wire where candump sees it.

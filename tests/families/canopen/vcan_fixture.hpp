@@ -18,7 +18,7 @@
 #include <string>
 #include <vector>
 
-#include "drivers/canopen/can_frame.hpp"
+#include "drivers/transport/can_frame.hpp"
 #include "harness.hpp"
 
 namespace fieldgate::test {
@@ -44,7 +44,7 @@ inline int shell(const std::string& command) {
 }
 
 // Sends one frame (data, remote or error frame) from a socket of the test's own.
-inline bool raw_send(const canopen::CanFrame& frame) {
+inline bool raw_send(const CanFrame& frame) {
   const int fd = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
   if (fd < 0) return false;
   sockaddr_can addr{};
@@ -73,7 +73,7 @@ class Candump {
   bool wait_listening() {
     return wait_until(
         [&] {
-          raw_send(*canopen::parse_frame("7FF#01"));
+          raw_send(*parse_frame("7FF#01"));
           return count("7FF#01") > 0;
         },
         20s);

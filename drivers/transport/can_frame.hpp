@@ -1,19 +1,15 @@
-// A classic CAN frame as the CANopen core sees it, independent of SocketCAN's struct can_frame,
-// and the candump text form used in logs and test vectors.
+// A classic CAN frame, independent of SocketCAN's struct can_frame, and the candump text form
+// used in logs and test vectors. The transport's unit; CANopen (drivers/canopen) builds on it.
 #pragma once
 
 #include <array>
-#include <chrono>
 #include <cstdint>
 #include <initializer_list>
 #include <optional>
 #include <string>
 #include <string_view>
 
-namespace fieldgate::canopen {
-
-using Clock = std::chrono::steady_clock;
-using TimePoint = Clock::time_point;
+namespace fieldgate {
 
 struct CanFrame {
   uint32_t id = 0;  // 11-bit COB-ID; for an error frame the error class bits (can/error.h)
@@ -43,4 +39,4 @@ struct ErrorFrameInfo {
 };
 ErrorFrameInfo decode_error_frame(const CanFrame& frame);
 
-}  // namespace fieldgate::canopen
+}  // namespace fieldgate

@@ -1,4 +1,4 @@
-#include "drivers/canopen/can_frame.hpp"
+#include "drivers/transport/can_frame.hpp"
 
 #include <fmt/format.h>
 #include <linux/can.h>
@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <charconv>
 
-namespace fieldgate::canopen {
+namespace fieldgate {
 
 CanFrame CanFrame::make(uint32_t id, std::initializer_list<uint8_t> bytes) {
   CanFrame f;
@@ -101,4 +101,4 @@ ErrorFrameInfo decode_error_frame(const CanFrame& frame) {
   return info;
 }
 
-}  // namespace fieldgate::canopen
+}  // namespace fieldgate
