@@ -342,10 +342,15 @@ asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed, boo
   const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(found.waited).count();
   const char* after = failed.status == Reply::Status::ok ? "stray bytes after a reply"
                                                          : to_string(failed.status).data();
+  // Said so that a newcomer reading a start-up on a loaded machine sees a handled event, not a
+  // broken link.
   if (!found.drained.empty())
-    log::warning("bus {}: resync after {} from node {} ({}): drained {} byte(s) '{}' in {} ms",
-                 config_.name, after, n.config->name, n.config->address.text, found.drained.size(),
-                 printable_bytes(found.drained, 80), ms);
+    log::warning(
+        "bus {}: resync after {} from node {} ({}): drained {} byte(s) '{}' in {} ms (a reply "
+        "late, cut or corrupted on the line; none of it is used, and the line is proven in step "
+        "before a reply is trusted again)",
+        config_.name, after, n.config->name, n.config->address.text, found.drained.size(),
+        printable_bytes(found.drained, 80), ms);
   else
     log::debug("bus {}: resync after {} from node {} ({}): line quiet after {} ms", config_.name,
                after, n.config->name, n.config->address.text, ms);
