@@ -10,7 +10,10 @@
 #include <cctype>
 #include <cerrno>
 #include <cstdlib>
+#include <functional>
+#include <regex>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace {
@@ -79,22 +82,87 @@ void centent(std::string_view wire) {
                [](std::string_view line) { (void)fieldgate::cn0170::parse_message(line); });
 }
 
+// The Techno C-series reply grammar, written apart from the parser from the manual (p.29,
+// p.43, p.54, p.90, p.93) and its digest (§1.2, §5, §6): a command is answered by one handshake
+// character, "0 if the line was accepted" or an error character (2-8, B, c, D, G, z, CR). `@0P`
+// answers "a series of eighteen characters giving the absolute position using hexadecimal
+// notation in 2's complement", 6 per axis X Y Z; whether the `0` handshake comes first and a CR
+// (or LF) after is not said (digest §5), nor the length for one or two axes: the family reads 6
+// or 12 digits as X or X Y, the other axes 0, from a controller with that many axes fitted (the
+// model's fitted_axes; 18 digits from any), and hex letters in either case (its README; the
+// manual's symbols are 0-9 A-F, and a lower-case letter means the same digit). `@0b`/`@0c`
+// answer "the software handshake, followed by two digits ... expressed as a hexadecimal"
+// (p.54), a CR or LF possibly after.
+enum class TechnoReply { handshake, positions, peek };
+
+bool techno_grammar(std::string_view frame, TechnoReply kind, int fitted_axes,
+                    std::vector<int64_t>& values) {
+  if (kind == TechnoReply::handshake) return frame == "0";
+  const auto positions_of = [](int axes) {
+    return std::regex("0?([0-9A-Fa-f]{18}|[0-9A-Fa-f]{" + std::to_string(6 * axes) +
+                      "})(?:\r\n|\r|\n)?");
+  };
+  static const std::regex positions[] = {positions_of(1), positions_of(2), positions_of(3)};
+  static const std::regex peek("0([0-9A-Fa-f]{2})(?:\r\n|\r|\n)?");
+  std::match_results<std::string_view::const_iterator> m;
+  if (!std::regex_match(frame.begin(), frame.end(), m,
+                        kind == TechnoReply::positions ? positions[fitted_axes - 1] : peek))
+    return false;
+  const std::string digits = m[1].str();
+  if (kind == TechnoReply::peek) {
+    values.push_back(std::stoll(digits, nullptr, 16));
+    return true;
+  }
+  // 24-bit two's complement: 800000..FFFFFF are -8388608..-1 (p.95, corrected in digest §10.13).
+  for (std::size_t at = 0; at < digits.size(); at += 6) {
+    const long long v = std::stoll(digits.substr(at, 6), nullptr, 16);
+    values.push_back(v >= 0x800000 ? v - 0x1000000 : v);
+  }
+  values.resize(3, 0);
+  return true;
+}
+
 void techno(std::string_view wire, std::uint8_t mode) {
   using namespace fieldgate::techno;
+  TechnoReply kind = TechnoReply::handshake;
+  const int fitted_axes = 3 - mode / 9 % 3;  // the model's fitted_axes
+  std::function<std::size_t(std::string_view)> split = handshake_frame;
+  std::function<ParsedReply(std::string_view)> parse = parse_handshake;
   switch (mode % 3) {
     case 0:
-      split_frames(wire, handshake_frame, [](std::string_view f) { (void)parse_handshake(f); });
       break;
     case 1: {
       const auto reply = static_cast<PositionReply>(mode / 3 % 3);
-      split_frames(
-          wire, [reply](std::string_view b) { return position_frame(b, reply); },
-          [](std::string_view f) { (void)parse_positions(f); });
+      kind = TechnoReply::positions;
+      split = [reply](std::string_view b) { return position_frame(b, reply); };
+      parse = [fitted_axes](std::string_view f) { return parse_positions(f, fitted_axes); };
       break;
     }
     default:
-      split_frames(wire, peek_frame, [](std::string_view f) { (void)parse_peek(f); });
+      kind = TechnoReply::peek;
+      split = peek_frame;
+      parse = parse_peek;
   }
+  // Every reply the parser accepts is one the manual allows, with the values it prints; an
+  // error is one of the manual's error characters.
+  const auto check = [&](std::string_view frame) {
+    const ParsedReply reply = parse(frame);
+    if (reply.kind == ParsedReply::Kind::malformed) return;
+    if (reply.kind == ParsedReply::Kind::error) {
+      FUZZ_CHECK(std::string_view("2345678BcDGz\r").find(reply.code) != std::string_view::npos);
+      FUZZ_CHECK(!frame.empty() && frame.front() == reply.code);
+      return;
+    }
+    std::vector<int64_t> values;
+    FUZZ_CHECK(techno_grammar(frame, kind, fitted_axes, values));
+    FUZZ_CHECK(values == reply.values);
+  };
+  split_frames(wire, split, check);
+  // A query's reply may end without a terminator: the family then parses what came before the
+  // idle gap (TechnoFamily::transact_node), which no splitter has cut.
+  std::string_view rest = wire;
+  while (const std::size_t n = rest.empty() ? 0 : split(rest)) rest.remove_prefix(n);
+  if (!rest.empty()) check(rest);
 }
 
 void whedco(std::string_view wire, std::uint8_t mode) {

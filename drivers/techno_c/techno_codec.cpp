@@ -290,14 +290,19 @@ ParsedReply parse_handshake(std::string_view frame) {
   return malformed(fmt::format("unexpected character '{}'", printable_bytes(frame)));
 }
 
-ParsedReply parse_positions(std::string_view frame) {
+ParsedReply parse_positions(std::string_view frame, int fitted_axes) {
   frame = strip_terminator(frame);
   if (frame.empty()) return malformed("empty position reply");
   if (frame.size() == 1) return single_character(frame.front(), "position data");
   if (frame.size() % 6 == 1 && frame.front() == kAck) frame.remove_prefix(1);
-  if (frame.size() % 6 != 0 || frame.size() > kPositionDigits)
+  // 18 digits, or 6 per axis of a controller with fewer (the manual gives no length for those).
+  const std::size_t fitted_digits = static_cast<std::size_t>(std::clamp(fitted_axes, 1, 3)) * 6;
+  if (frame.size() != kPositionDigits && frame.size() != fitted_digits)
     return malformed(
-        fmt::format("expected 18 hex digits (X Y Z), got '{}'", printable_bytes(frame)));
+        fitted_digits == kPositionDigits
+            ? fmt::format("expected 18 hex digits (X Y Z), got '{}'", printable_bytes(frame))
+            : fmt::format("expected 18 or {} hex digits, got '{}'", fitted_digits,
+                          printable_bytes(frame)));
   ParsedReply r;
   r.kind = ParsedReply::Kind::ok;
   r.code = kAck;

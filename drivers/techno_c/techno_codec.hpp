@@ -104,9 +104,11 @@ struct ParsedReply {
 };
 
 ParsedReply parse_handshake(std::string_view frame);
-// `@0P`: optional leading `0` handshake, 6/12/18 hex digits, optional CR/LF. Fewer than three
-// axes are padded with 0 so field numbers stay X=0, Y=1, Z=2.
-ParsedReply parse_positions(std::string_view frame);
+// `@0P`: optional leading `0` handshake, 18 hex digits ("eighteen characters", p.43), optional
+// CR/LF. A controller with fewer axes (`fitted_axes` 1 or 2, the model's) may also answer 6 or
+// 12 digits, padded with 0 so field numbers stay X=0, Y=1, Z=2. Fewer digits than that are a
+// reply cut short (an idle gap inside it), never an axis at 0.
+ParsedReply parse_positions(std::string_view frame, int fitted_axes = 3);
 // `@0b`/`@0c`: `0` then two hex digits.
 ParsedReply parse_peek(std::string_view frame);
 

@@ -54,9 +54,10 @@ Reply from_parsed(const techno::ParsedReply& parsed, std::string_view frame) {
 
 }  // namespace
 
-Reply interpret_techno_reply(const Request& request, std::string_view frame) {
+Reply interpret_techno_reply(const Request& request, std::string_view frame, int fitted_axes) {
   const Command c = techno::classify(request.command);
-  if (c.kind == CommandKind::position) return from_parsed(techno::parse_positions(frame), frame);
+  if (c.kind == CommandKind::position)
+    return from_parsed(techno::parse_positions(frame, fitted_axes), frame);
   if (c.kind == CommandKind::peek) return from_parsed(techno::parse_peek(frame), frame);
   Reply r = from_parsed(techno::parse_handshake(frame), frame);
   if (r.status == Reply::Status::ok && request.expect == Request::Expect::values)
@@ -397,9 +398,9 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, BoundNode& bound, cons
   Reply reply;
   switch (waited.read.status) {
     case LinkRead::Status::frame:
-      reply = interpret_techno_reply(request, waited.read.frame);
+      reply = interpret_techno_reply(request, waited.read.frame, bound.profile.fitted_axes);
       if (reply.status == Reply::Status::garbled && c.kind == CommandKind::position)
-        take_leading_motion_error(bound.state, request, waited.read.frame, reply);
+        take_leading_motion_error(bound, request, waited.read.frame, reply);
       if (c.kind != CommandKind::position && c.kind != CommandKind::peek)
         co_await check_single_handshake(link, c, reply, timing);
       else
@@ -408,7 +409,7 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, BoundNode& bound, cons
     case LinkRead::Status::timeout:
       if (!waited.read.partial.empty()) {
         // Queries may end without a terminator: the idle gap ends them (digest §5).
-        reply = interpret_techno_reply(request, waited.read.partial);
+        reply = interpret_techno_reply(request, waited.read.partial, bound.profile.fitted_axes);
       } else if (waited.interrupted) {
         reply = device_error(last_interrupt_);
       } else {
@@ -481,13 +482,14 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, BoundNode& bound, cons
   co_return reply;
 }
 
-void TechnoFamily::take_leading_motion_error(NodeState& state, const Request& request,
+void TechnoFamily::take_leading_motion_error(BoundNode& node, const Request& request,
                                              std::string_view frame, Reply& reply) {
   // The error that ended a lower-case motion, sent just before this query's answer.
+  NodeState& state = node.state;
   if (!state.motion_pending || frame.size() < 2) return;
   const char first = frame.front();
   if (first == techno::kAck || first == '\r' || !techno::is_error_code(first)) return;
-  Reply rest = interpret_techno_reply(request, frame.substr(1));
+  Reply rest = interpret_techno_reply(request, frame.substr(1), node.profile.fitted_axes);
   if (rest.status != Reply::Status::ok) return;
   state.motion_error = static_cast<unsigned char>(first);
   reply = std::move(rest);

@@ -109,7 +109,7 @@ class TechnoFamily final : public ProtocolFamily {
                                              const LinkTiming& timing);
   int64_t in_motion(BoundNode& node, const std::array<int64_t, 3>& xyz, bool at_rest);
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
-  void take_leading_motion_error(NodeState& state, const Request& request, std::string_view frame,
+  void take_leading_motion_error(BoundNode& node, const Request& request, std::string_view frame,
                                  Reply& reply);
   asio::awaitable<void> take_optional_terminator(Link& link, std::string_view frame, Reply& reply,
                                                  const LinkTiming& timing);
@@ -129,6 +129,7 @@ class TechnoFamily final : public ProtocolFamily {
 
 // The decision part of transact(): what a complete reply (or the bytes an idle gap ended) means
 // for this request. Position replies carry X Y Z only; the family adds in_motion and units.
-Reply interpret_techno_reply(const Request& request, std::string_view frame);
+// fitted_axes (the model's) says which shorter position replies a controller may give.
+Reply interpret_techno_reply(const Request& request, std::string_view frame, int fitted_axes = 3);
 
 }  // namespace fieldgate

@@ -134,10 +134,26 @@ TEST(TechnoPositions, TolerantOfHandshakeTerminatorAndCase) {
     ASSERT_EQ(r.kind, ParsedReply::Kind::ok) << reply;
     EXPECT_EQ(r.values, (std::vector<int64_t>{16, 8192, -2})) << reply;
   }
-  // Fewer axes: fields stay X Y Z.
-  const auto one = parse_positions("000010\r");
+  // Fewer axes fitted (the model's fitted_axes): 6 or 12 digits, fields stay X Y Z.
+  const auto one = parse_positions("000010\r", 1);
   ASSERT_EQ(one.kind, ParsedReply::Kind::ok);
   EXPECT_EQ(one.values, (std::vector<int64_t>{16, 0, 0}));
+  const auto two = parse_positions("0000010002000", 2);
+  ASSERT_EQ(two.kind, ParsedReply::Kind::ok);
+  EXPECT_EQ(two.values, (std::vector<int64_t>{16, 8192, 0}));
+  EXPECT_EQ(parse_positions("000010002000FFFFFE", 1).values, (std::vector<int64_t>{16, 8192, -2}));
+}
+
+// Found by the Techno grammar of fuzz_serial_codecs (at once, on `000010` CR for a three-axis
+// controller): a `@0P` reply cut short, e.g. by an idle gap ("000010002000", the `FFFFFE` of Z
+// still on its way), was served with Z = 0, a position the controller never sent. The manual gives
+// "eighteen characters" (p.43); a shorter reply is taken only from a controller with fewer axes
+// fitted, and only at its length.
+TEST(TechnoPositions, AReplyCutShortIsNoPosition) {
+  for (const char* cut : {"000010002000", "0000010002000", "000010\r", "0000010", "000010002000\r"})
+    EXPECT_EQ(parse_positions(cut).kind, ParsedReply::Kind::malformed) << cut;
+  EXPECT_EQ(parse_positions("0000010", 2).kind, ParsedReply::Kind::malformed);
+  EXPECT_EQ(parse_positions("000010002000", 1).kind, ParsedReply::Kind::malformed);
 }
 
 TEST(TechnoPositions, ErrorsAndGarbage) {

@@ -127,6 +127,10 @@ TEST(TechnoInterpret, HandshakesAndQueries) {
   EXPECT_EQ(p.values, (std::vector<int64_t>{16, 8192, -2}));
   EXPECT_EQ(interpret_techno_reply(query("P"), "4").device_code, '4');
   EXPECT_EQ(interpret_techno_reply(query("P"), "0").status, Reply::Status::garbled);
+  // The digits an idle gap ended: a three-axis reply cut short is garbled, not Z = 0.
+  EXPECT_EQ(interpret_techno_reply(query("P"), "000010002000").status, Reply::Status::garbled);
+  EXPECT_EQ(interpret_techno_reply(query("P"), "000010", 1).values,
+            (std::vector<int64_t>{16, 0, 0}));
   EXPECT_EQ(interpret_techno_reply(query("b65531", NumberFormat::hex), "0FF\r").values,
             std::vector<int64_t>{255});
   EXPECT_EQ(interpret_techno_reply(ack("n7"), "x").status, Reply::Status::garbled);
