@@ -6,6 +6,8 @@
 namespace {
 
 using namespace fieldgate::canopen;
+using fieldgate::CanFrame;
+using fieldgate::parse_frame;
 
 void check_step(const SdoStep& step, const SdoClient& client) {
   if (step.send) FUZZ_CHECK(step.send->len <= 8);
