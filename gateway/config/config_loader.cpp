@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <set>
 #include <sstream>
@@ -574,13 +575,17 @@ class ConfigParser {
     const std::string link = "\n--- link " + bus.protocol + " " + bus.transport.serial.device +
                              " " + bus.transport.host + " " + bus.transport.can_interface + "\n";
     bus.signature = YAML::Dump(node) + link;
-    std::map<const Model*, std::string> models;  // each model's text once
+    // Each model's text once in the signature; a node's identity names its model by a hash of
+    // that text, so that a bus of many nodes does not hold a copy of the model per node.
+    std::map<const Model*, std::string> models;
     for (auto& n : bus.nodes) {
       if (!n.model) continue;
       auto [it, fresh] = models.try_emplace(n.model.get());
       if (fresh) {
-        it->second = "\n--- model " + n.model->name + "\n" + file_text(n.model->mark.file);
-        bus.signature += it->second;
+        const std::string text = file_text(n.model->mark.file);
+        bus.signature += "\n--- model " + n.model->name + "\n" + text;
+        it->second =
+            fmt::format("\n--- model {} {:016x}", n.model->name, std::hash<std::string>{}(text));
       }
       n.identity = link + "--- address " + n.address.text + it->second;
     }
