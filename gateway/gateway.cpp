@@ -28,6 +28,13 @@ std::shared_ptr<Gateway::Generation> Gateway::build(std::shared_ptr<const Loaded
   Generation* raw = g.get();
   const auto on_update = [raw](int node_index) { raw->actions->node_updated(node_index); };
   std::vector<std::shared_ptr<NodeImage>> images;
+  PreviousNodes previous_nodes;  // node names are unique in a configuration
+  if (previous) {
+    int index = 0;
+    for (const auto& old_bus : previous->config->gateway.buses)
+      for (const auto& old : old_bus.nodes)
+        previous_nodes.emplace(old.name, std::pair{index++, &old});
+  }
   int first = 0;
   for (const auto& bus_config : config->gateway.buses) {
     std::shared_ptr<Bus> bus;
@@ -41,7 +48,7 @@ std::shared_ptr<Gateway::Generation> Gateway::build(std::shared_ptr<const Loaded
       bus->rebind(first, on_update);
     } else {
       bus = make_bus(io_.get_executor(), config, bus_config, first, on_update);
-      if (previous) carry_over(*previous, bus_config, *bus);
+      if (previous) carry_over(*previous, previous_nodes, bus_config, *bus);
       fresh.push_back(bus);
     }
     for (auto& image : bus->node_images()) images.push_back(std::move(image));
@@ -66,27 +73,25 @@ std::shared_ptr<Gateway::Generation> Gateway::build(std::shared_ptr<const Loaded
 // every node afresh. A node that is itself unchanged keeps serving what the replaced bus last
 // read, with its age, until the new bus has been in touch with it; and it keeps the setpoints the
 // PLC wrote unless its configured ones changed.
-void Gateway::carry_over(const Generation& previous, const BusConfig& bus_config, const Bus& bus) {
+void Gateway::carry_over(const Generation& previous, const PreviousNodes& previous_nodes,
+                         const BusConfig& bus_config, const Bus& bus) {
   const auto images = bus.node_images();
-  const auto& old_buses = previous.config->gateway.buses;
   for (std::size_t i = 0; i < bus_config.nodes.size() && i < images.size(); ++i) {
     const NodeConfig& node = bus_config.nodes[i];
-    int old_index = 0;
-    for (const auto& old_bus : old_buses)
-      for (const auto& old : old_bus.nodes) {
-        const int index = old_index++;
-        if (old.name != node.name || old.identity != node.identity) continue;
-        const NodeImage& from = previous.image.node(index);
-        NodeImage& to = *images[i];
-        if (from.points.size() != to.points.size()) continue;
-        to.points = from.points;
-        to.counters.last_good = from.counters.last_good;
-        to.counters.ever_good = from.counters.ever_good;
-        if (old.setpoints == node.setpoints && from.setpoints.size() == to.setpoints.size())
-          to.setpoints = from.setpoints;
-        to.carried_over = std::any_of(to.points.begin(), to.points.end(),
-                                      [](const PointValue& v) { return v.valid; });
-      }
+    const auto found = previous_nodes.find(node.name);
+    if (found == previous_nodes.end()) continue;
+    const auto [index, old] = found->second;
+    if (old->identity != node.identity) continue;
+    const NodeImage& from = previous.image.node(index);
+    NodeImage& to = *images[i];
+    if (from.points.size() != to.points.size()) continue;
+    to.points = from.points;
+    to.counters.last_good = from.counters.last_good;
+    to.counters.ever_good = from.counters.ever_good;
+    if (old->setpoints == node.setpoints && from.setpoints.size() == to.setpoints.size())
+      to.setpoints = from.setpoints;
+    to.carried_over = std::any_of(to.points.begin(), to.points.end(),
+                                  [](const PointValue& v) { return v.valid; });
   }
 }
 

@@ -4,6 +4,8 @@
 
 #include <memory>
 #include <string>
+#include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "gateway/bus/bus.hpp"
@@ -76,7 +78,10 @@ class Gateway {
                                     Generation* previous, std::vector<std::shared_ptr<Bus>>& fresh);
   // The one place a listener's handler is made (every server of the listener shares it).
   std::shared_ptr<RegisterMapHandler> make_handler(Generation& g, std::size_t listener);
-  static void carry_over(const Generation& previous, const BusConfig& bus_config, const Bus& bus);
+  // The nodes of the configuration a reload replaces, by name: global index and configuration.
+  using PreviousNodes = std::unordered_map<std::string, std::pair<int, const NodeConfig*>>;
+  static void carry_over(const Generation& previous, const PreviousNodes& previous_nodes,
+                         const BusConfig& bus_config, const Bus& bus);
   // What DCMD may change on each node: what the Modbus listener that owns the node allows.
   static std::vector<WritePolicy> node_policies(const Generation& g);
   // The handler of the listener whose unit-ID space the RTU port serves (null without one).
