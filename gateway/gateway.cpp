@@ -39,14 +39,18 @@ std::shared_ptr<Gateway::Generation> Gateway::build(std::shared_ptr<const Loaded
   for (const auto& bus_config : config->gateway.buses) {
     std::shared_ptr<Bus> bus;
     if (previous) {
-      for (const auto& old : previous->buses)
-        if (old->config().name == bus_config.name &&
-            old->config().signature == bus_config.signature)
+      for (const auto& old : previous->buses) {
+        if (old->config().name != bus_config.name) continue;
+        if (old->config().signature == bus_config.signature) {
+          old->rebind(first, on_update);
           bus = old;
+        } else if (old->reconfigure(config, bus_config, first, on_update)) {
+          ++g->reconfigured;
+          bus = old;
+        }
+      }
     }
-    if (bus) {
-      bus->rebind(first, on_update);
-    } else {
+    if (!bus) {
       bus = make_bus(io_.get_executor(), config, bus_config, first, on_update);
       if (previous) carry_over(*previous, previous_nodes, bus_config, *bus);
       fresh.push_back(bus);
@@ -238,8 +242,12 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
     sparkplug_->bind(current_->config, current_->image, current_->control,
                      node_policies(*current_));
   for (auto& bus : fresh) spawn(bus);
-  return fmt::format("{} bus(es) kept running, {} started, {} stopped{}", kept, fresh.size(),
-                     stopped, listener_summary);
+  const std::string in_place =
+      next->reconfigured == 0
+          ? ""
+          : fmt::format(" ({} of them with node changes applied in place)", next->reconfigured);
+  return fmt::format("{} bus(es) kept running, {} started, {} stopped{}{}", kept, fresh.size(),
+                     stopped, in_place, listener_summary);
 }
 
 // A listener of the same name keeps its socket and clients (new requests get the new handler);

@@ -27,7 +27,8 @@ struct SessionStats;
 // The running gateway: buses, process image, actions and the Modbus listeners (one TCP server
 // per listener, each with its own unit-ID space) on one io_context.
 // A configuration in force is a generation; a reload builds the next one, keeping every bus
-// whose configuration did not change (and its nodes' state) and the Modbus clients.
+// whose configuration did not change (and its nodes' state) and the Modbus clients. A bus whose
+// nodes alone changed takes them in place where it can (Bus::reconfigure).
 class Gateway {
  public:
   Gateway(asio::io_context& io, std::shared_ptr<const LoadedConfig> config);
@@ -71,6 +72,7 @@ class Gateway {
     std::unique_ptr<ActionRunner> actions;
     std::shared_ptr<ControlService> control;                    // every front door's writes
     std::vector<std::shared_ptr<RegisterMapHandler>> handlers;  // by listener index
+    std::size_t reconfigured = 0;  // buses a reload kept with their nodes changed in place
   };
 
   // Builds a generation, taking buses from `previous` whose signature is unchanged.

@@ -8,6 +8,7 @@
 #include <functional>
 #include <iterator>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "drivers/protocol_family.hpp"
@@ -91,6 +92,24 @@ class Bus {
   virtual std::vector<std::shared_ptr<NodeImage>> node_images() const = 0;
   // After a reload that kept this bus: its first node's new gateway-wide number.
   virtual void rebind(int first_node_index, NodeUpdated on_update) = 0;
+  // After a reload that changed only the bus's nodes (its link, protocol and timing as they
+  // were): takes the new configuration without reopening the link, so its other nodes are not
+  // disturbed. Each node it already runs keeps its state, values and place in the family; new
+  // nodes start. False, with nothing changed, when the bus must be rebuilt instead.
+  virtual bool reconfigure(std::shared_ptr<const void> /*config_owner*/,
+                           const BusConfig& /*config*/, int /*first_node_index*/,
+                           NodeUpdated /*on_update*/) {
+    return false;
+  }
+  virtual int first_node_index() const = 0;
+  // Counts the reloads that may have renumbered the bus's nodes (rebind, reconfigure): a caller
+  // that looked a node's number up before (an action's later step) looks it up again.
+  uint64_t numbering() const { return numbering_; }
+  // The gateway-wide number of the node with this image now; none when the bus no longer runs it.
+  std::optional<int> number_of(const NodeImage& image) const;
+
+ protected:
+  uint64_t numbering_ = 0;
 };
 
 std::shared_ptr<Bus> make_bus(asio::any_io_executor executor,

@@ -233,6 +233,7 @@ std::vector<std::shared_ptr<NodeImage>> CanBus::node_images() const {
 }
 
 void CanBus::rebind(int first_node_index, NodeUpdated on_update) {
+  ++numbering_;
   first_node_index_ = first_node_index;
   on_update_ = std::move(on_update);
 }

@@ -56,6 +56,7 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   const NodeConfig& node_config(int node_index) const override;
   std::vector<std::shared_ptr<NodeImage>> node_images() const override;
   void rebind(int first_node_index, NodeUpdated on_update) override;
+  int first_node_index() const override { return first_node_index_; }
 
   // The port the nodes' transfers use.
   asio::awaitable<bool> send(const CanFrame& frame, std::string_view outcome = {}) override;

@@ -51,8 +51,8 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
                      const BusConfig& config, int first_node_index, NodeUpdated on_update,
                      std::unique_ptr<ByteTransport> transport)
     : executor_(executor),
-      config_owner_(std::move(config_owner)),
-      config_(config),
+      config_owners_{std::move(config_owner)},
+      config_(&config),
       family_(stream_family(config)),
       first_node_index_(first_node_index),
       on_update_(std::move(on_update)),
@@ -75,16 +75,25 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
                fmt::format("bus {}: {}", bus, text));
   });
   int index = 0;  // local: position on this bus; the gateway's number is first_node_index_ + index
-  for (const auto& n : config.nodes) {
-    NodeRuntime rt;
-    rt.index = index;
-    rt.config = &n;
-    rt.timing = node_link_timing(config, n);
-    rt.family_context = family_.bind_node(n.address, *n.model);
-    rt.image = make_node_image(n);
-    nodes_.push_back(rt);
-    auto& img = *rt.image;
-    // One poll item per distinct request: points that share a reply share a transaction.
+  for (const auto& n : config.nodes) nodes_.push_back(bind(n, index++));
+  plan_polls();
+}
+
+std::shared_ptr<SerialBus::NodeRuntime> SerialBus::bind(const NodeConfig& node, int index) {
+  auto rt = std::make_shared<NodeRuntime>();
+  rt->index = index;
+  rt->config = &node;
+  rt->timing = node_link_timing(*config_, node);
+  rt->family_context = family_.bind_node(node.address, *node.model);
+  rt->image = make_node_image(node);
+  return rt;
+}
+
+void SerialBus::plan_polls() {
+  plan_ = PollPlan{};
+  ++plan_number_;
+  for (auto& rt : nodes_) {
+    const NodeConfig& n = *rt->config;
     std::vector<PollItem> items;
     for (std::size_t p = 0; p < n.model->points.size(); ++p) {
       const auto& point = n.model->points[p];
@@ -96,7 +105,7 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
       });
       if (existing == items.end()) {
         PollItem item;
-        item.node = index;
+        item.node = rt->index;
         item.request = Request{command, Request::Expect::values, point.read->format};
         item.period = period;
         items.push_back(std::move(item));
@@ -104,14 +113,59 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
       }
       existing->targets.push_back({static_cast<int>(p), point.read->field});
     }
-    nodes_.back().poll_items = static_cast<int>(items.size());
+    rt->poll_items = static_cast<int>(items.size());
     // Before the items move into the plan: the data age covers the polled points.
-    img.polled.assign(n.model->points.size(), false);
+    auto& polled = rt->image->polled;
+    polled.assign(n.model->points.size(), false);
     for (const auto& it : items)
-      for (const auto& t : it.targets) img.polled[static_cast<std::size_t>(t.point)] = true;
+      for (const auto& t : it.targets) polled[static_cast<std::size_t>(t.point)] = true;
     for (auto& it : items) plan_.add(std::move(it));
-    ++index;
   }
+}
+
+bool SerialBus::reconfigure(std::shared_ptr<const void> config_owner, const BusConfig& config,
+                            int first_node_index, NodeUpdated on_update) {
+  if (config.name != config_->name || config.link_signature != config_->link_signature)
+    return false;
+  std::vector<std::shared_ptr<NodeRuntime>> next;
+  std::size_t kept = 0;
+  for (const auto& n : config.nodes) {
+    const auto same = std::find_if(nodes_.begin(), nodes_.end(),
+                                   [&](const auto& rt) { return rt->config->name == n.name; });
+    if (same != nodes_.end() && (*same)->config->identity != n.identity) return false;
+    next.push_back(same != nodes_.end() ? *same : nullptr);
+    kept += same != nodes_.end() ? 1 : 0;
+  }
+  if (kept != nodes_.size()) return false;  // a node was taken away
+
+  config_owners_.push_back(std::move(config_owner));
+  config_ = &config;
+  std::vector<int> moved_to(nodes_.size());
+  for (std::size_t i = 0; i < next.size(); ++i) {
+    const NodeConfig& n = config.nodes[i];
+    const int index = static_cast<int>(i);
+    if (!next[i]) {
+      next[i] = bind(n, index);
+      log::notice("bus {}: node {} ({}) added", config.name, n.name, n.address.text);
+      continue;
+    }
+    auto& rt = *next[i];
+    moved_to[static_cast<std::size_t>(rt.index)] = index;
+    // The PLC's setpoints stay unless the site changed the node's configured ones.
+    if (rt.config->setpoints != n.setpoints) rt.image->setpoints = make_node_image(n)->setpoints;
+    rt.index = index;
+    rt.config = &n;
+    rt.timing = node_link_timing(config, n);
+  }
+  for (auto& cmd : commands_) cmd->node = moved_to[static_cast<std::size_t>(cmd->node)];
+  last_command_node_ = -1;
+  nodes_ = std::move(next);
+  plan_polls();
+  plan_.start(Clock::now());
+  ++numbering_;
+  first_node_index_ = first_node_index;
+  on_update_ = std::move(on_update);
+  return true;
 }
 
 SerialBus::~SerialBus() = default;
@@ -122,20 +176,21 @@ bool SerialBus::owns_node(int node_index) const {
 }
 
 const NodeConfig& SerialBus::node_config(int node_index) const {
-  return *nodes_.at(static_cast<std::size_t>(node_index - first_node_index_)).config;
+  return *nodes_.at(static_cast<std::size_t>(node_index - first_node_index_))->config;
 }
 
 SerialBus::NodeRuntime& SerialBus::node(int node_index) {
-  return nodes_.at(static_cast<std::size_t>(node_index - first_node_index_));
+  return *nodes_.at(static_cast<std::size_t>(node_index - first_node_index_));
 }
 
 std::vector<std::shared_ptr<NodeImage>> SerialBus::node_images() const {
   std::vector<std::shared_ptr<NodeImage>> images;
-  for (const auto& n : nodes_) images.push_back(n.image);
+  for (const auto& n : nodes_) images.push_back(n->image);
   return images;
 }
 
 void SerialBus::rebind(int first_node_index, NodeUpdated on_update) {
+  ++numbering_;
   first_node_index_ = first_node_index;
   on_update_ = std::move(on_update);
 }
@@ -209,27 +264,27 @@ void SerialBus::set_state(NodeRuntime& n, NodeState state, std::string_view why)
   const auto old = img.state;
   img.state = state;
   if (state == NodeState::online) {
-    log::notice("bus {}: node {} ({}) online{}", config_.name, n.config->name,
+    log::notice("bus {}: node {} ({}) online{}", config_->name, n.config->name,
                 n.config->address.text, old == NodeState::offline ? " again" : "");
     plan_.restart_node(n.index, Clock::now());
   } else if (state == NodeState::offline) {
-    log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name,
+    log::warning("bus {}: node {} ({}) offline: {}", config_->name, n.config->name,
                  n.config->address.text, why);
-    n.next_probe = Clock::now() + config_.timing.probe_interval;
+    n.next_probe = Clock::now() + config_->timing.probe_interval;
   } else if (state == NodeState::faulted) {
     log::warning("bus {}: node {} ({}) faulted: it answers but refuses every poll ({})",
-                 config_.name, n.config->name, n.config->address.text, why);
+                 config_->name, n.config->name, n.config->address.text, why);
   }
 }
 
 bool SerialBus::all_nodes_offline_now() const {
   for (const auto& n : nodes_)
-    if (n.image->state != NodeState::offline) return false;
+    if (n->image->state != NodeState::offline) return false;
   return true;
 }
 
 void SerialBus::all_nodes_offline(std::string_view why) {
-  for (auto& n : nodes_) set_state(n, NodeState::offline, why);
+  for (auto& n : nodes_) set_state(*n, NodeState::offline, why);
 }
 
 void SerialBus::record(NodeRuntime& n, const Reply& reply, bool poll) {
@@ -250,7 +305,7 @@ void SerialBus::record(NodeRuntime& n, const Reply& reply, bool poll) {
     case ReplyOutcome::garbled:
       break;
     case ReplyOutcome::failed:
-      if (c.consecutive_timeouts >= static_cast<uint32_t>(config_.timing.offline_after) ||
+      if (c.consecutive_timeouts >= static_cast<uint32_t>(config_->timing.offline_after) ||
           (*n.image).state == NodeState::offline)
         // Named apart: a forwarding device's "node unreachable" (Copley e 32) is not silence.
         set_state(n, NodeState::offline,
@@ -287,7 +342,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     trace_transaction(n,
                       reply.status == Reply::Status::garbled ? "garbled" : to_string(reply.status));
     record_latency(std::chrono::duration<double>(Clock::now() - started).count());
-    for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_.name, note);
+    for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_->name, note);
     ++counters_.transactions;
     ++(*n.image).counters.transactions;
     if (link_.buffered() > 0 && reply.status != Reply::Status::timeout &&
@@ -316,10 +371,10 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
   }
   record(n, reply, poll);
   if (reply.status == Reply::Status::link_down) {
-    log::error("bus {}: link failed: {}", config_.name, reply.text);
+    log::error("bus {}: link failed: {}", config_->name, reply.text);
     transport_->close();
   }
-  co_await link_.pause(config_.timing.inter_frame_gap);
+  co_await link_.pause(config_->timing.inter_frame_gap);
   co_return reply;
 }
 
@@ -349,15 +404,15 @@ asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed, boo
         "bus {}: resync after {} from node {} ({}): drained {} byte(s) '{}' in {} ms (a reply "
         "late, cut or corrupted on the line; none of it is used, and the line is proven in step "
         "before a reply is trusted again)",
-        config_.name, after, n.config->name, n.config->address.text, found.drained.size(),
+        config_->name, after, n.config->name, n.config->address.text, found.drained.size(),
         printable_bytes(found.drained, 80), ms);
   else
-    log::debug("bus {}: resync after {} from node {} ({}): line quiet after {} ms", config_.name,
+    log::debug("bus {}: resync after {} from node {} ({}): line quiet after {} ms", config_->name,
                after, n.config->name, n.config->address.text, ms);
   if (!found.quiet) {
     // A line that never goes quiet cannot carry an untagged exchange: reopen it.
     log::error("bus {}: line still busy {} ms after the {} from node {}; reopening the link",
-               config_.name, ms, after, n.config->name);
+               config_->name, ms, after, n.config->name);
     transport_->close();
     aligned_ = false;
     co_return;
@@ -386,11 +441,11 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
   if (heard && answering(&failed)) add(&failed);
   if (answering(last_answered_) && (heard || last_answered_ != &failed)) add(last_answered_);
   for (auto& n : nodes_)
-    if (answering(&n) && (heard || &n != &failed)) add(&n);
+    if (answering(n.get()) && (heard || n.get() != &failed)) add(n.get());
   for (auto& n : nodes_)
-    if (n.image->state == NodeState::starting && (heard || &n != &failed)) add(&n);
+    if (n->image->state == NodeState::starting && (heard || n.get() != &failed)) add(n.get());
   add(&failed);
-  for (auto& n : nodes_) add(&n);
+  for (auto& n : nodes_) add(n.get());
   // Attempts are bounded per call, so a command queued behind a proof on a bad line waits for a
   // few reply timeouts, not for every node's attempts: a Modbus client's own timeout is near.
   int attempts_left = kProofAttemptsPerCall;
@@ -428,7 +483,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
         strays += (i ? ", '" : "'") + printable_bytes(result.strays[i], 40) + "'";
       if (result.strays.size() > 4) strays += ", ...";
       log::warning("bus {}: drained {} late or stray repl{} ({}) while proving the line in step",
-                   config_.name, result.strays.size(), result.strays.size() == 1 ? "y" : "ies",
+                   config_->name, result.strays.size(), result.strays.size() == 1 ? "y" : "ies",
                    strays);
     }
     if (!transport_->is_open()) break;
@@ -438,7 +493,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
           result.lost > 1 ? log::Level::warning : log::Level::debug,
           fmt::format("bus {}: {} repl{} never came and {} taken as lost (the device did not hear "
                       "the request)",
-                      config_.name, result.lost, result.lost == 1 ? "y" : "ies",
+                      config_->name, result.lost, result.lost == 1 ? "y" : "ies",
                       result.lost == 1 ? "is" : "are"));
     // Each attempt the node did not answer as it must is an exchange that failed with it, even
     // when a later attempt proves the line: a garbled echo is counted wherever it lands.
@@ -453,7 +508,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
     }
     if (result.proved) {
       if (!aligned_ || alignment_failure_logged_)
-        log::info("bus {}: line in step again ({}, {} attempt(s))", config_.name, proof->name,
+        log::info("bus {}: line in step again ({}, {} attempt(s))", config_->name, proof->name,
                   result.attempts);
       aligned_ = true;
       alignment_failure_logged_ = false;
@@ -481,7 +536,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
     log::warning(
         "bus {}: cannot prove the line in step ({}); no reply is trusted and nothing is "
         "sent until a proof passes",
-        config_.name, why);
+        config_->name, why);
   alignment_failure_logged_ = true;
 }
 
@@ -493,15 +548,17 @@ void SerialBus::record_latency(double seconds) {
 
 asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
   auto& item = plan_.item(item_index);
-  auto& n = nodes_[static_cast<std::size_t>(item.node)];
+  const auto runtime = nodes_[static_cast<std::size_t>(item.node)];
+  auto& n = *runtime;
+  const auto plan = plan_number_;
   const bool probing = (*n.image).state == NodeState::offline;
   const Request request = item.request;
   const auto targets = item.targets;
-  Reply reply = co_await transact(n, request, probing ? 0 : config_.timing.retries, false, true);
+  Reply reply = co_await transact(n, request, probing ? 0 : config_->timing.retries, false, true);
   const auto now = Clock::now();
   if (probing) {
-    n.next_probe = now + config_.timing.probe_interval;
-  } else {
+    n.next_probe = now + config_->timing.probe_interval;
+  } else if (plan == plan_number_) {
     plan_.completed(item_index, now);
   }
   if (reply.status != Reply::Status::ok) co_return;
@@ -519,7 +576,7 @@ asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
 }
 
 asio::awaitable<void> SerialBus::open_link() {
-  auto delay = config_.timing.reconnect_min;
+  auto delay = config_->timing.reconnect_min;
   while (!stopping_) {
     const auto ec = co_await transport_->open();
     counters_.open_attempted = true;
@@ -530,37 +587,37 @@ asio::awaitable<void> SerialBus::open_link() {
       // periodic reopen of a line where nothing answers. Once per kReopenReminder, not each time.
       const bool churn = counters_.reconnects > 0 && !link_error_logged_ &&
                          now - opened_at_ < std::max<Clock::duration>(
-                                                kBriefLink, 2 * config_.timing.probe_interval);
+                                                kBriefLink, 2 * config_->timing.probe_interval);
       const bool remind = churn && now - open_noticed_at_ >= kReopenReminder;
       opened_at_ = now;
       ++counters_.reconnects;
       quiet_reopens_ = churn ? quiet_reopens_ + 1 : 0;
       const auto level = churn && !remind ? log::Level::debug : log::Level::notice;
       if (log::enabled(level))
-        log::write(level,
-                   remind ? fmt::format("bus {}: reopened {} {} time(s): nothing answers "
-                                        "(reminded every {} min)",
-                                        config_.name, transport_->describe(), quiet_reopens_,
-                                        kReopenReminder.count())
-                          : fmt::format("bus {}: opened {}", config_.name, transport_->describe()));
+        log::write(level, remind ? fmt::format("bus {}: reopened {} {} time(s): nothing answers "
+                                               "(reminded every {} min)",
+                                               config_->name, transport_->describe(),
+                                               quiet_reopens_, kReopenReminder.count())
+                                 : fmt::format("bus {}: opened {}", config_->name,
+                                               transport_->describe()));
       if (level == log::Level::notice) open_noticed_at_ = now;
       link_error_logged_ = false;
       // A reopened port starts with nothing owed (what the old one was owed is discarded).
       debt_.clear();
       drained_before_proof_.clear();
-      co_await family_.on_link_open(link_, config_.timing.link);
+      co_await family_.on_link_open(link_, config_->timing.link);
       for (const auto& note : link_.take_notes())
-        if (log::enabled(level)) log::write(level, fmt::format("bus {}: {}", config_.name, note));
+        if (log::enabled(level)) log::write(level, fmt::format("bus {}: {}", config_->name, note));
       for (auto& n : nodes_)
-        if ((*n.image).state == NodeState::offline) n.next_probe = Clock::now();
+        if (n->image->state == NodeState::offline) n->next_probe = Clock::now();
       co_return;
     }
     counters_.link_up = false;
     if (!link_error_logged_) {
       log::error(
-          "bus {}: cannot open {}: {} (retrying with back-off up to {} s)", config_.name,
+          "bus {}: cannot open {}: {} (retrying with back-off up to {} s)", config_->name,
           transport_->describe(), ec.message(),
-          std::chrono::duration_cast<std::chrono::seconds>(config_.timing.reconnect_max).count());
+          std::chrono::duration_cast<std::chrono::seconds>(config_->timing.reconnect_max).count());
       link_error_logged_ = true;
     }
     all_nodes_offline("bus link is down");
@@ -570,7 +627,7 @@ asio::awaitable<void> SerialBus::open_link() {
     }
     wake_.expires_after(delay);
     co_await wake_.async_wait(use_tuple);
-    delay = std::min(delay * 2, config_.timing.reconnect_max);
+    delay = std::min(delay * 2, config_->timing.reconnect_max);
   }
 }
 
@@ -586,30 +643,31 @@ asio::awaitable<void> SerialBus::run() {
     // The next poll: a due item of a node that is not offline (rate-monotonic, see PollPlan),
     // or the probe of an offline node, whichever is due first.
     auto due = plan_.pick(now, [&](int local) {
-      return nodes_[static_cast<std::size_t>(local)].image->state != NodeState::offline;
+      return nodes_[static_cast<std::size_t>(local)]->image->state != NodeState::offline;
     });
     BusTurnInput in;
     in.now = now;
     in.commands_queued = !commands_.empty();
     if (due) in.poll = BusTurnInput::Poll{due->item, due->when, plan_.item(due->item).period};
-    for (auto& n : nodes_) {
-      if ((*n.image).state != NodeState::offline) continue;
-      if (!in.probe || n.next_probe < in.probe->when)
-        if (auto item = plan_.probe_item(n.index))
-          in.probe = BusTurnInput::Poll{*item, n.next_probe, plan_.item(*item).period};
+    for (const auto& n : nodes_) {
+      if (n->image->state != NodeState::offline) continue;
+      if (!in.probe || n->next_probe < in.probe->when)
+        if (auto item = plan_.probe_item(n->index))
+          in.probe = BusTurnInput::Poll{*item, n->next_probe, plan_.item(*item).period};
     }
     in.commands_in_row = commands_in_row_;
     in.polls_in_row = polls_in_row_;
     in.all_nodes_offline = all_nodes_offline_now();
     in.link_opened = opened_at_;
-    in.probe_interval = config_.timing.probe_interval;
+    in.probe_interval = config_->timing.probe_interval;
     const BusTurn turn = next_bus_turn(in);
     if (turn.kind == BusTurn::Kind::command) {
       auto cmd = take_command();
       ++commands_in_row_;
       polls_in_row_ = 0;
       ++counters_.commands;
-      auto& n = nodes_[static_cast<std::size_t>(cmd->node)];
+      const auto runtime = nodes_[static_cast<std::size_t>(cmd->node)];
+      auto& n = *runtime;
       Reply reply;
       if ((*n.image).state == NodeState::offline && !cmd->request.bus_wide) {
         reply = Reply::of(Reply::Status::unreachable, "node is offline");
@@ -620,7 +678,7 @@ asio::awaitable<void> SerialBus::run() {
         if (reply.status == Reply::Status::timeout || reply.status == Reply::Status::garbled) {
           ++(*n.image).counters.unknown_writes;
           log::warning("bus {}: node {} ({}): '{}' got {}: outcome unknown, not retried",
-                       config_.name, n.config->name, n.config->address.text, cmd->request.command,
+                       config_->name, n.config->name, n.config->address.text, cmd->request.command,
                        reply.text.empty() ? std::string(to_string(reply.status)) : reply.text);
           reply.text = "no reply, outcome unknown (" +
                        (reply.text.empty() ? std::string(to_string(reply.status)) : reply.text) +

@@ -44,7 +44,7 @@ class SerialBus final : public Bus {
   asio::awaitable<Reply> submit(int node_index, Request request,
                                 CommandOptions options = {}) override;
 
-  const BusConfig& config() const override { return config_; }
+  const BusConfig& config() const override { return *config_; }
   const BusCounters& counters() const override { return counters_; }
   const LinkStats& link_stats() const { return link_.stats(); }
   WireTrace& trace() override { return trace_; }
@@ -52,6 +52,13 @@ class SerialBus final : public Bus {
   const NodeConfig& node_config(int node_index) const override;
   std::vector<std::shared_ptr<NodeImage>> node_images() const override;
   void rebind(int first_node_index, NodeUpdated on_update) override;
+  // In place when the bus's own part of the configuration (all but `nodes:`) is unchanged and
+  // every node it runs is still configured as the same device (NodeConfig::identity): a family
+  // keeps what it learned of the nodes bound to it, so a node taken away or changed rebuilds the
+  // bus (Gateway::carry_over keeps its neighbours served meanwhile).
+  bool reconfigure(std::shared_ptr<const void> config_owner, const BusConfig& config,
+                   int first_node_index, NodeUpdated on_update) override;
+  int first_node_index() const override { return first_node_index_; }
 
  private:
   struct NodeRuntime {
@@ -67,6 +74,11 @@ class SerialBus final : public Bus {
   static constexpr int kProofAttemptsPerCall = 3;
   static constexpr std::chrono::milliseconds kCommandPatience{1000};
 
+  // A node's runtime, bound to the family (which may learn from it, e.g. a chain's units).
+  std::shared_ptr<NodeRuntime> bind(const NodeConfig& node, int index);
+  // The poll plan of nodes_: one poll item per distinct request (points that share a reply share
+  // a transaction), and each image's polled points.
+  void plan_polls();
   asio::awaitable<void> open_link();
   asio::awaitable<Reply> transact(NodeRuntime& node, const Request& request, int retries,
                                   bool accept_no_reply, bool poll);
@@ -88,15 +100,19 @@ class SerialBus final : public Bus {
   NodeRuntime& node(int node_index);
 
   asio::any_io_executor executor_;
-  std::shared_ptr<const void> config_owner_;
-  const BusConfig& config_;
-  ProtocolFamily& family_;  // the stream shape of config_.family
+  // Every configuration this bus has run: the first owns family_ and the node contexts it bound,
+  // a later one (reconfigure) the nodes' configurations.
+  std::vector<std::shared_ptr<const void>> config_owners_;
+  const BusConfig* config_;
+  ProtocolFamily& family_;  // the stream shape of the first configuration's family
   int first_node_index_;
   NodeUpdated on_update_;
   std::unique_ptr<ByteTransport> transport_;
   Link link_;
   PollPlan plan_;
-  std::vector<NodeRuntime> nodes_;
+  uint64_t plan_number_ = 0;  // a poll under way completes its item only in the plan it ran from
+  // Shared: a transaction under way holds its node across a reconfigure, which reorders them.
+  std::vector<std::shared_ptr<NodeRuntime>> nodes_;
   std::deque<std::shared_ptr<PendingCommand>> commands_;
   asio::steady_timer wake_;
   BusCounters counters_;

@@ -575,6 +575,9 @@ class ConfigParser {
     const std::string link = "\n--- link " + bus.protocol + " " + bus.transport.serial.device +
                              " " + bus.transport.host + " " + bus.transport.can_interface + "\n";
     bus.signature = YAML::Dump(node) + link;
+    YAML::Node without_nodes = YAML::Clone(node);
+    without_nodes.remove("nodes");
+    bus.link_signature = YAML::Dump(without_nodes) + link;
     // Each model's text once in the signature; a node's identity names its model by a hash of
     // that text, so that a bus of many nodes does not hold a copy of the model per node.
     std::map<const Model*, std::string> models;

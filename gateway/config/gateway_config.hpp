@@ -118,6 +118,9 @@ struct BusConfig {
   // The bus's YAML and the text of the models it uses: equal signatures across a reload mean
   // the bus can keep running untouched.
   std::string signature;
+  // The same without the nodes: equal across a reload, the bus may take node changes in place
+  // (Bus::reconfigure).
+  std::string link_signature;
 };
 
 // A node's timing: the bus's, with the node's reply_timeout, or where none is configured (node

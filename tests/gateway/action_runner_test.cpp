@@ -55,6 +55,7 @@ class QueueingBus : public Bus {
   const NodeConfig& node_config(int) const override { return node_; }
   std::vector<std::shared_ptr<NodeImage>> node_images() const override { return {}; }
   void rebind(int, NodeUpdated) override {}
+  int first_node_index() const override { return 0; }
 
  private:
   asio::steady_timer send_, answer_;

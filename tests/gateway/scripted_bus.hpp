@@ -38,6 +38,7 @@ class ScriptedBus : public Bus {
   const NodeConfig& node_config(int) const override { return node_; }
   std::vector<std::shared_ptr<NodeImage>> node_images() const override { return {}; }
   void rebind(int, NodeUpdated) override {}
+  int first_node_index() const override { return 0; }
 
  private:
   BusConfig config_;

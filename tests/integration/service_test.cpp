@@ -176,6 +176,54 @@ TEST_F(ServiceTest, BadReloadKeepsTheRunningConfiguration) {
   EXPECT_TRUE(plant_->daemon().running());
 }
 
+// Issue 31, item 3: a node's poll period changed and a node added. The bus takes both in place:
+// its link is not reopened, and its other node answers every read across the reload.
+TEST_F(ServiceTest, ANodeChangeIsAppliedToTheNodeAloneWithoutReopeningTheBus) {
+  std::string config = read_file(plant_->config_path());
+  const std::string amp3 =
+      "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2}\n";
+  const auto at = config.find(amp3);
+  ASSERT_NE(at, std::string::npos) << config;
+  config.replace(at, amp3.size(),
+                 "      - {name: amp7, address: 7, model: copley-amplifier, unit_id: 3}\n"
+                 "      - {name: amp3, address: 3, model: copley-amplifier, unit_id: 2,"
+                 " poll: {fast: 50ms}}\n");
+  const auto count = [](const std::string& log, const std::string& what) {
+    std::size_t n = 0;
+    for (auto p = log.find(what); p != std::string::npos; p = log.find(what, p + 1)) ++n;
+    return n;
+  };
+  const std::size_t opens_before = count(plant_->daemon().log(), "bus copley: opened");
+  ASSERT_GE(opens_before, 1u) << "the bus logs its opening";
+  const uint32_t before = transactions(*client_, 2);
+  std::ofstream(plant_->config_path()) << config;
+  plant_->daemon().signal(SIGHUP);
+  int failed = 0, reads = 0;
+  while (plant_->daemon().log().find("reloaded:") == std::string::npos && reads < 500) {
+    failed += client_->read_input(2, 0, 2).ok() ? 0 : 1;
+    ++reads;
+    std::this_thread::sleep_for(5ms);
+  }
+  for (int i = 0; i < 40; ++i) {
+    failed += client_->read_input(2, 0, 2).ok() ? 0 : 1;
+    std::this_thread::sleep_for(10ms);
+  }
+  const std::string log = plant_->daemon().log();
+  EXPECT_NE(log.find("1 bus(es) kept running, 0 started, 0 stopped (1 of them with node changes "
+                     "applied in place)"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find("bus copley: node amp7 (7) added"), std::string::npos);
+  EXPECT_EQ(failed, 0) << "the unchanged neighbour answered every read";
+  EXPECT_EQ(count(log, "bus copley: opened"), opens_before) << "the link was not reopened";
+  EXPECT_GT(transactions(*client_, 2), before) << "its counters carry on";
+  // The added node is polled: absent behind the amplifier, it goes offline (0x0B) on its own.
+  EXPECT_TRUE(wait_until(
+      [&] { return plant_->daemon().log().find("node amp7 (7) offline") != std::string::npos; }));
+  EXPECT_EQ(client_->read_input(3, 0, 2).exception, 0x0B);
+  EXPECT_TRUE(client_->read_input(2, 0, 2).ok());
+}
+
 TEST_F(ServiceTest, ReloadWithChangedBusReopensItAndKeepsTheClient) {
   std::string config = read_file(plant_->config_path());
   const auto pos = config.find("reply_timeout: 50ms");
