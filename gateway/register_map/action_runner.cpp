@@ -125,7 +125,7 @@ asio::awaitable<void> ActionRunner::run_in_background(int node_index, ModelPtr m
                      confirmation);
 }
 
-asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index,
+asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index, int number,
                                                        const Request& request,
                                                        CommandOptions options,
                                                        std::chrono::microseconds patience,
@@ -141,8 +141,7 @@ asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index,
     *sent = true;
     sent_signal->cancel();
   };
-  asio::co_spawn(executor_, submit_into(bus, node_index, request, options, pending),
-                 asio::detached);
+  asio::co_spawn(executor_, submit_into(bus, number, request, options, pending), asio::detached);
   if (!*sent) {
     auto queued =
         co_await (pending->async_receive(use_tuple) || sent_signal->async_wait(use_tuple));
@@ -172,7 +171,11 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
   const Model& model = *model_ptr;
   auto& state = state_of(node_index, slot);
   auto& bus = bus_of_(node_index);
-  const auto& setpoints = image_.node(node_index).setpoints;
+  const NodeImage& node = image_.node(node_index);
+  const auto& setpoints = node.setpoints;
+  const std::string node_name = bus.node_config(node_index).name;
+  // A reload between two steps may renumber the node on its bus (a node added before it).
+  const uint64_t numbering = bus.numbering();
   const auto lookup = [&](std::string_view name) -> int64_t {
     for (std::size_t i = 0; i < model.setpoints.size(); ++i)
       if (model.setpoints[i].name == name) return setpoints[i];
@@ -190,11 +193,15 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
     CommandOptions options;
     options.accept_no_reply = step.accept_no_reply;
     options.urgent = step.urgent;
-    if (step.confirm_after && confirmation && !confirmation->given) {
-      reply = co_await submit_confirming(bus, node_index, request, options, *step.confirm_after,
-                                         *confirmation, action.code, slot);
+    const auto number =
+        bus.numbering() == numbering ? std::optional<int>(node_index) : bus.number_of(node);
+    if (!number) {
+      reply = Reply::of(Reply::Status::unreachable, "the node was taken off its bus by a reload");
+    } else if (step.confirm_after && confirmation && !confirmation->given) {
+      reply = co_await submit_confirming(bus, node_index, *number, request, options,
+                                         *step.confirm_after, *confirmation, action.code, slot);
     } else {
-      reply = co_await bus.submit(node_index, request, options);
+      reply = co_await bus.submit(*number, request, options);
     }
     // A device code the step accepts (e.g. Copley's e 32 after a remote reset) is success,
     // whether the family classed it as a device error or as the node being unreachable.
@@ -208,8 +215,7 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
         state.status = ActionStatus::error;
         state.error = action_error_of(reply);
       }
-      log::warning("node {}: action {} failed at '{}': {}", bus.node_config(node_index).name,
-                   action.name, request.command,
+      log::warning("node {}: action {} failed at '{}': {}", node_name, action.name, request.command,
                    reply.text.empty() ? std::string(to_string(reply.status)) : reply.text);
       if (confirmation) confirmation->give(reply);
       co_return reply;

@@ -47,8 +47,9 @@ class ActionRunner {
   asio::awaitable<Reply> run_steps(int node_index, ModelPtr model, const ActionDef& action,
                                    uint64_t generation, std::shared_ptr<ActionState> slot,
                                    std::shared_ptr<Confirmation> confirmation);
-  asio::awaitable<Reply> submit_confirming(Bus& bus, int node_index, const Request& request,
-                                           CommandOptions options,
+  // `number`: the node's number on the bus now (node_index, unless a reload renumbered it).
+  asio::awaitable<Reply> submit_confirming(Bus& bus, int node_index, int number,
+                                           const Request& request, CommandOptions options,
                                            std::chrono::microseconds patience,
                                            Confirmation& confirmation, uint16_t code,
                                            std::shared_ptr<ActionState> slot);

@@ -11,6 +11,8 @@
 #include <boost/asio/steady_timer.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
+#include <optional>
+
 #include "gateway/bus/bus.hpp"
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/register_map/action_runner.hpp"
@@ -111,6 +113,98 @@ actions:
   EXPECT_EQ(image.node(0).action.status, ActionStatus::done);
   EXPECT_FALSE(image.node(0).action.holding_line);
   runner.stop();
+}
+
+// Answers every command at once, recording the node number it was sent to; a reload may
+// renumber its nodes (a node added before them) or take one away.
+class RenumberingBus : public Bus {
+ public:
+  explicit RenumberingBus(std::vector<std::shared_ptr<NodeImage>> images)
+      : images_(std::move(images)), trace_("test") {}
+  void reload(std::vector<std::shared_ptr<NodeImage>> images) {
+    images_ = std::move(images);
+    ++numbering_;
+  }
+  std::vector<int> sent_to;
+
+  asio::awaitable<void> run() override { co_return; }
+  void stop() override {}
+  asio::awaitable<Reply> submit(int node, Request, CommandOptions) override {
+    sent_to.push_back(node);
+    co_return Reply::of(Reply::Status::ok);
+  }
+  const BusConfig& config() const override { return config_; }
+  const BusCounters& counters() const override { return counters_; }
+  WireTrace& trace() override { return trace_; }
+  const NodeConfig& node_config(int) const override { return node_; }
+  std::vector<std::shared_ptr<NodeImage>> node_images() const override { return images_; }
+  void rebind(int, NodeUpdated) override {}
+  int first_node_index() const override { return 0; }
+
+ private:
+  std::vector<std::shared_ptr<NodeImage>> images_;
+  BusConfig config_;
+  BusCounters counters_;
+  WireTrace trace_;
+  NodeConfig node_;
+};
+
+class ActionRunnerAcrossAReload : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Diagnostics d;
+    model_ = load_model_text(R"(model: m
+family: techno-c
+actions:
+  home:
+    code: 1
+    steps:
+      - {send: "@0R1"}
+      - {delay: 50ms}
+      - {send: "@0R2"}
+)",
+                             "m.yaml", d);
+    ASSERT_TRUE(model_) << d.to_text();
+    runner_.emplace(io_.get_executor(), image_, [&](int) -> Bus& { return bus_; });
+    asio::co_spawn(
+        io_,
+        [&]() -> asio::awaitable<void> {
+          reply_ = co_await runner_->start(1, model_, model_->actions.front());
+        },
+        asio::detached);
+    io_.run_for(10ms);
+    ASSERT_EQ(bus_.sent_to, std::vector<int>{1});
+  }
+  void TearDown() override { runner_->stop(); }
+  // Until the action ends (its second step comes after a 50 ms delay).
+  void run_action() {
+    for (int i = 0; i < 500 && image_.node(1).action.status == ActionStatus::busy; ++i)
+      io_.run_for(10ms);
+  }
+
+  asio::io_context io_;
+  std::shared_ptr<NodeImage> a_ = std::make_shared<NodeImage>(), b_ = std::make_shared<NodeImage>();
+  ProcessImage image_{{a_, b_}};
+  RenumberingBus bus_{{a_, b_}};
+  ModelPtr model_;
+  std::optional<ActionRunner> runner_;
+  std::optional<Reply> reply_;
+};
+
+// Found by reading, with issue 31's in-place reload: an action's later step went to the node
+// number its first step had, whatever a reload had made of it since.
+TEST_F(ActionRunnerAcrossAReload, ALaterStepGoesToTheNodeWhereverTheReloadPutIt) {
+  bus_.reload({std::make_shared<NodeImage>(), a_, b_});
+  run_action();
+  EXPECT_EQ(bus_.sent_to, (std::vector<int>{1, 2}));
+  EXPECT_EQ(image_.node(1).action.status, ActionStatus::done);
+}
+
+TEST_F(ActionRunnerAcrossAReload, ALaterStepForANodeTheReloadTookAwayFailsUnsent) {
+  bus_.reload({a_});
+  run_action();
+  EXPECT_EQ(bus_.sent_to, std::vector<int>{1});
+  EXPECT_EQ(image_.node(1).action.status, ActionStatus::error);
 }
 
 }  // namespace
