@@ -162,11 +162,13 @@ for node in ttyUSB ttyACM; do
     bad "sandbox: the $node rule does not let the node through: $(grep "$node" <<<"$probe")"
 done
 
-step "systemctl reload with a good configuration (a node on the CAN bus's neighbour bus)"
+step "systemctl reload with a good configuration (the watched bus: a node added and a0's poll period; its neighbour bus: its timing)"
 before_ok=$(counts ok)
 before_conn=$(counts connections)
 before_fail=$(($(counts failures) + $(counts exceptions)))
-site_config "" | sed 's/probe_interval: 500ms}/probe_interval: 700ms}/' >/etc/fieldgate/fieldgate.yaml
+site_config "      - {name: a3, address: 3, model: copley-amplifier, unit_id: 4}" |
+  sed -e 's/probe_interval: 500ms}/probe_interval: 700ms}/' \
+    -e 's/unit_id: 1}/unit_id: 1, poll: {slow: 2s}}/' >/etc/fieldgate/fieldgate.yaml
 t=$(date +%s%N)
 systemctl reload fieldgate
 rc=$?
@@ -180,6 +182,11 @@ say "StatusText: $status"
 expect "good reload: the client kept its connection" "$before_conn" "$(counts connections)"
 expect "good reload: no read failed" "$before_fail" "$(($(counts failures) + $(counts exceptions)))"
 [ "$(counts ok)" -gt "$before_ok" ] && ok "reads go on" || bad "no read after the reload"
+summary=$(journalctl -b -u fieldgate -o cat | grep 'reloaded:' | tail -n 1)
+say "journal: $summary"
+[[ $summary == *"(1 of them with node changes applied in place)"* ]] &&
+  ok "the watched bus took its node changes in place, its link not reopened" || bad "the watched bus was not changed in place"
+journalctl -b -u fieldgate -o cat | grep -q 'bus copley: node a3 (3) added' && ok "node a3 added to the running bus" || bad "no 'node a3 (3) added' line"
 
 step "systemctl reload with a broken configuration"
 cp /etc/fieldgate/fieldgate.yaml /run/good.yaml
