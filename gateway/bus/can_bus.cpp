@@ -41,11 +41,11 @@ struct CanBus::NodeRuntime final : RequestHost {
         config(&nc),
         points(id, *nc.model,
                [&](const PointDef& point, const std::string& error) {
-                 log::error("bus {}: node {}: point {}: {}", bus.config_.name, nc.name, point.name,
+                 log::error("bus {}: node {}: point {}: {}", bus.config_->name, nc.name, point.name,
                             error);
                }),
         wake(ex),
-        sdo(id, bus.config_.timing.link.reply_timeout, wake),
+        sdo(id, bus.config_->timing.link.reply_timeout, wake),
         nmt(id, nc.name, timing, *this),
         requests(id, nc.model.get(), sdo, nmt, points, *this),
         tpdos(points.tpdo_cobs()) {}
@@ -83,7 +83,7 @@ struct CanBus::NodeRuntime final : RequestHost {
   void wake_worker() override { wake.cancel(); }
   void log(int level, std::string text) override {
     log::write(static_cast<log::Level>(std::clamp(level, 3, 7)),
-               fmt::format("bus {}: {}", bus.config_.name, text));
+               fmt::format("bus {}: {}", bus.config_->name, text));
   }
   SteadyTime now() const override { return BusClock::now(); }
 
@@ -139,8 +139,8 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
                const BusConfig& config, int first_node_index, NodeUpdated on_update,
                std::unique_ptr<CanChannel> channel)
     : executor_(executor),
-      config_owner_(std::move(config_owner)),
-      config_(config),
+      config_owners_{std::move(config_owner)},
+      config_(&config),
       family_(frame_family(config)),
       first_node_index_(first_node_index),
       on_update_(std::move(on_update)),
@@ -165,18 +165,30 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
     const Model& model = *nc.model;
     for (const uint32_t cob : family_.receive_ids(nc.address, model)) by_cob_[cob] = &n;
 
-    // One poll item per object and period: points that share an object share its upload.
+    nodes_.push_back(std::move(rt));
+    ++index;
+  }
+  plan_polls();
+}
+
+void CanBus::plan_polls() {
+  plan_ = PollPlan{};
+  jobs_.clear();
+  for (auto& rt : nodes_) {
+    auto& n = *rt;
+    const NodeConfig& nc = *n.config;
+    const Model& model = *nc.model;
     const auto add_target = [&](const PollJob& job, int point, SteadyTime::duration period) {
       const auto us = std::chrono::duration_cast<std::chrono::microseconds>(period);
       for (std::size_t i = 0; i < jobs_.size(); ++i) {
         auto& item = plan_.item(i);
-        if (item.node == index && item.period == us && jobs_[i] == job) {
+        if (item.node == n.index && item.period == us && jobs_[i] == job) {
           item.targets.push_back({point, 0});
           return;
         }
       }
       PollItem item;
-      item.node = index;
+      item.node = n.index;
       item.period = us;
       item.request = poll_request(job);
       item.targets.push_back({point, 0});
@@ -193,12 +205,47 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
     // The data age covers the polled points only (a write-only point is never read).
     n.polled.assign(model.points.size(), false);
     for (const auto& item : plan_.items())
-      if (item.node == index)
+      if (item.node == n.index)
         for (const auto& t : item.targets) n.polled[static_cast<std::size_t>(t.point)] = true;
     n.image->polled = n.polled;
-    nodes_.push_back(std::move(rt));
-    ++index;
   }
+}
+
+bool CanBus::reconfigure(std::shared_ptr<const void> config_owner, const BusConfig& config,
+                         int first_node_index, NodeUpdated on_update) {
+  if (config.name != config_->name || config.link_signature != config_->link_signature ||
+      config.nodes.size() != nodes_.size())
+    return false;
+  for (std::size_t i = 0; i < nodes_.size(); ++i)
+    if (nodes_[i]->config->name != config.nodes[i].name ||
+        nodes_[i]->config->identity != config.nodes[i].identity)
+      return false;
+  config_owners_.push_back(std::move(config_owner));
+  config_ = &config;
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    auto& n = *nodes_[i];
+    const NodeConfig& nc = config.nodes[i];
+    // The PLC's setpoints stay unless the site changed the node's configured ones.
+    if (n.config->setpoints != nc.setpoints) n.image->setpoints = make_node_image(nc)->setpoints;
+    n.config = &nc;
+  }
+  // Points of objects a device was found to lack stay out of its data age.
+  std::vector<std::vector<std::size_t>> absent(nodes_.size());
+  for (std::size_t i = 0; i < nodes_.size(); ++i)
+    for (std::size_t p = 0; p < nodes_[i]->polled.size(); ++p)
+      if (nodes_[i]->polled[p] && !nodes_[i]->image->polled[p]) absent[i].push_back(p);
+  const PollPlan previous = std::move(plan_);
+  plan_polls();
+  for (std::size_t i = 0; i < nodes_.size(); ++i)
+    for (const auto p : absent[i]) nodes_[i]->image->polled[p] = false;
+  std::vector<int> same(nodes_.size());
+  for (std::size_t i = 0; i < same.size(); ++i) same[i] = static_cast<int>(i);
+  plan_.start_after(previous, same, BusClock::now());
+  ++numbering_;
+  first_node_index_ = first_node_index;
+  on_update_ = std::move(on_update);
+  for (auto& n : nodes_) n->wake.cancel();  // each worker picks its next poll from the new plan
+  return true;
 }
 
 CanBus::~CanBus() = default;
@@ -283,7 +330,7 @@ asio::awaitable<void> CanBus::run() {
         executor_, [self]() -> asio::awaitable<void> { co_await self->heartbeat_supervisor(); },
         asio::detached);
   }
-  auto delay = config_.timing.reconnect_min;
+  auto delay = config_->timing.reconnect_min;
   while (!stopping_) {
     const auto ec = channel_->open(receive_ids());
     counters_.open_attempted = true;
@@ -293,8 +340,8 @@ asio::awaitable<void> CanBus::run() {
         log::error(
             "bus {}: cannot open {}: {} (retrying with back-off up to {} ms; its nodes are "
             "offline meanwhile)",
-            config_.name, channel_->describe(), ec.message(),
-            std::chrono::duration_cast<std::chrono::milliseconds>(config_.timing.reconnect_max)
+            config_->name, channel_->describe(), ec.message(),
+            std::chrono::duration_cast<std::chrono::milliseconds>(config_->timing.reconnect_max)
                 .count());
         link_error_logged_ = true;
       }
@@ -304,17 +351,17 @@ asio::awaitable<void> CanBus::run() {
       }
       fail_commands("bus link is down");
       co_await sleep_until(wake_, BusClock::now() + delay);
-      delay = std::min(delay * 2, config_.timing.reconnect_max);
+      delay = std::min(delay * 2, config_->timing.reconnect_max);
       continue;
     }
-    delay = config_.timing.reconnect_min;
+    delay = config_->timing.reconnect_min;
     link_error_logged_ = false;
     link_up_ = true;
     counters_.link_up = true;
     ++counters_.reconnects;
-    log::notice("bus {}: opened {} ({} nodes{}{})", config_.name, channel_->describe(),
+    log::notice("bus {}: opened {} ({} nodes{}{})", config_->name, channel_->describe(),
                 nodes_.size(), heartbeat_consumer() ? ", heartbeat consumer" : "",
-                config_.timing.start_nodes ? ", NMT start" : "");
+                config_->timing.start_nodes ? ", NMT start" : "");
     const auto now = BusClock::now();
     for (auto& n : nodes_) {
       n->nmt.bring_up(true);
@@ -346,7 +393,7 @@ asio::awaitable<void> CanBus::run() {
 
 void CanBus::link_failed(std::error_code ec) {
   if (!link_up_) return;
-  log::error("bus {}: {} failed: {}; reopening", config_.name, channel_->describe(), ec.message());
+  log::error("bus {}: {} failed: {}; reopening", config_->name, channel_->describe(), ec.message());
   link_up_ = false;
   counters_.link_up = false;
   channel_->close();  // ends read_loop
@@ -393,7 +440,7 @@ void CanBus::trace_frame(const CanFrame& frame, TraceDirection direction, Steady
 
 asio::awaitable<bool> CanBus::send(const CanFrame& frame, std::string_view outcome) {
   if (!link_up_) co_return false;
-  const auto ec = co_await channel_->send(frame, config_.timing.link.reply_timeout);
+  const auto ec = co_await channel_->send(frame, config_->timing.link.reply_timeout);
   if (!ec) {
     trace_frame(frame, TraceDirection::tx, BusClock::now(), outcome);
     ++can_counters_.frames_sent;
@@ -461,7 +508,7 @@ void CanBus::on_error_frame(const CanFrame& frame, SteadyTime now) {
     ++can_counters_.bus_off;
     // The controller stops until it restarts (restart-ms, or `ip link set ... type can restart`):
     // nodes time out or lose their heartbeat meanwhile and come back by themselves.
-    log::error("bus {}: CAN controller bus-off ({})", config_.name, to_string(frame));
+    log::error("bus {}: CAN controller bus-off ({})", config_->name, to_string(frame));
     error_frames_logged_ = now;
     return;
   }
@@ -470,10 +517,10 @@ void CanBus::on_error_frame(const CanFrame& frame, SteadyTime now) {
     return;
   }
   if (error_frames_unlogged_ > 0)
-    log::warning("bus {}: CAN error frame: {} ({}; {} more since the last report)", config_.name,
+    log::warning("bus {}: CAN error frame: {} ({}; {} more since the last report)", config_->name,
                  info.text, to_string(frame), error_frames_unlogged_);
   else
-    log::warning("bus {}: CAN error frame: {} ({})", config_.name, info.text, to_string(frame));
+    log::warning("bus {}: CAN error frame: {} ({})", config_->name, info.text, to_string(frame));
   error_frames_logged_ = now;
   error_frames_unlogged_ = 0;
 }
@@ -522,16 +569,16 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
   img.state = state;
   const auto now = BusClock::now();
   if (state == NodeState::online) {
-    log::notice("bus {}: node {} ({}) online{}", config_.name, n.config->name, n.id,
+    log::notice("bus {}: node {} ({}) online{}", config_->name, n.config->name, n.id,
                 old == NodeState::offline ? " again" : "");
     n.nmt.went_online(old == NodeState::offline);
     resume_polls(n, now);
     n.tpdos.restart(now);
     refresh_local_points(n, now);
   } else if (state == NodeState::offline) {
-    log::warning("bus {}: node {} ({}) offline: {}", config_.name, n.config->name, n.id, why);
+    log::warning("bus {}: node {} ({}) offline: {}", config_->name, n.config->name, n.id, why);
     img.counters.last_error_text = std::string(why);
-    n.next_probe = now + config_.timing.probe_interval;
+    n.next_probe = now + config_->timing.probe_interval;
     n.nmt.went_offline();
   }
   n.wake.cancel();
@@ -558,7 +605,7 @@ void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {
       break;
     case ReplyOutcome::failed:
       if (reply.status == Reply::Status::timeout &&
-          c.consecutive_timeouts >= static_cast<uint32_t>(config_.timing.offline_after)) {
+          c.consecutive_timeouts >= static_cast<uint32_t>(config_->timing.offline_after)) {
         n.nmt.sdo_silent();  // its heartbeat may go on while SDO is dead
         set_state(n, NodeState::offline, "no SDO response");
       }
@@ -617,7 +664,7 @@ asio::awaitable<void> CanBus::run_poll(NodeRuntime& n, std::size_t item_index, S
   // takes runs straight after it.
   plan_.completed(item_index, now);
   // poll() stores the value in every point of the object, the targets among them.
-  co_await n.requests.poll(info.object, config_.timing.retries, now);
+  co_await n.requests.poll(info.object, config_->timing.retries, now);
 }
 
 asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
@@ -631,7 +678,7 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
     }
     // Bring-up, a report and node guarding go before commands and polls.
     const bool reachable = n.image->state != NodeState::offline;
-    if (co_await n.requests.run_supervision_duty(reachable, config_.timing.retries)) continue;
+    if (co_await n.requests.run_supervision_duty(reachable, config_->timing.retries)) continue;
     if (!n.commands.empty()) {
       auto cmd = n.commands.front();
       n.commands.pop_front();
@@ -673,7 +720,7 @@ asio::awaitable<void> CanBus::node_worker(NodeRuntime& n) {
     }
     if (when <= now) {
       if (offline) {
-        n.next_probe = now + config_.timing.probe_interval;
+        n.next_probe = now + config_->timing.probe_interval;
         co_await n.requests.probe(now);
       } else {
         co_await run_poll(n, *due, now);

@@ -49,13 +49,19 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   asio::awaitable<Reply> submit(int node_index, Request request,
                                 CommandOptions options = {}) override;
 
-  const BusConfig& config() const override { return config_; }
+  const BusConfig& config() const override { return *config_; }
   const BusCounters& counters() const override { return counters_; }
   const CanCounters* can_counters() const override { return &can_counters_; }
   WireTrace& trace() override { return trace_; }
   const NodeConfig& node_config(int node_index) const override;
   std::vector<std::shared_ptr<NodeImage>> node_images() const override;
   void rebind(int first_node_index, NodeUpdated on_update) override;
+  // In place when the bus's own part of the configuration (all but `nodes:`) is unchanged and
+  // it keeps the same nodes, in the same order, as the same devices: a node's poll periods,
+  // limits, setpoints, unit or listener. A node added or taken away rebuilds the bus (the
+  // socket's receive filter names every node's COB-IDs).
+  bool reconfigure(std::shared_ptr<const void> config_owner, const BusConfig& config,
+                   int first_node_index, NodeUpdated on_update) override;
   int first_node_index() const override { return first_node_index_; }
 
   // The port the nodes' transfers use.
@@ -76,6 +82,9 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   // True when the time came, false when the timer was cancelled (woken).
   asio::awaitable<bool> sleep_until(asio::steady_timer& timer, SteadyTime when);
 
+  // One poll item per object and period (points that share an object share its upload), and
+  // each node's polled points.
+  void plan_polls();
   void trace_frame(const CanFrame& frame, TraceDirection direction, SteadyTime at,
                    std::string_view outcome);
   asio::awaitable<void> run_poll(NodeRuntime& n, std::size_t item_index, SteadyTime now);
@@ -93,14 +102,17 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   void fail_commands(std::string_view why);
   void wake_all();
   void notify(NodeRuntime& n);
-  bool heartbeat_consumer() const { return config_.timing.heartbeat_timeout.count() > 0; }
+  bool heartbeat_consumer() const { return config_->timing.heartbeat_timeout.count() > 0; }
   std::vector<uint32_t> receive_ids() const;
   NodeRuntime& node(int node_index);
   const NodeRuntime& node(int node_index) const;
 
   asio::any_io_executor executor_;
-  std::shared_ptr<const void> config_owner_;
-  const BusConfig& config_;
+  // Every configuration this bus has run: the first owns family_ and what each node's runtime
+  // was built from (its model, name and address, the same in a later one), a later one
+  // (reconfigure) the nodes' configurations.
+  std::vector<std::shared_ptr<const void>> config_owners_;
+  const BusConfig* config_;
   const FrameFamily& family_;
   int first_node_index_;
   NodeUpdated on_update_;

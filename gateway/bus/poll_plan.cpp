@@ -29,6 +29,33 @@ void PollPlan::start(SteadyTime start) {
   stagger([](const PollItem&) { return true; }, start);
 }
 
+void PollPlan::start_after(const PollPlan& previous, const std::vector<int>& moved_to,
+                           SteadyTime start) {
+  start_ = start;
+  picks_ = previous.picks_;
+  std::vector<bool> kept(items_.size(), false);
+  for (const auto& old : previous.items_) {
+    const auto to = static_cast<std::size_t>(old.node);
+    if (to >= moved_to.size() || moved_to[to] < 0) continue;
+    for (std::size_t i = 0; i < items_.size(); ++i) {
+      auto& it = items_[i];
+      if (kept[i] || it.node != moved_to[to] || it.period != old.period ||
+          it.request.command != old.request.command)
+        continue;
+      it.next_due = old.next_due;
+      it.slot = old.slot;
+      it.last_run = old.last_run;
+      it.overruns = old.overruns;
+      kept[i] = true;
+      break;
+    }
+  }
+  std::vector<bool> fresh(items_.size());
+  for (std::size_t i = 0; i < items_.size(); ++i) fresh[i] = !kept[i];
+  stagger([&](const PollItem& it) { return fresh[static_cast<std::size_t>(&it - items_.data())]; },
+          start);
+}
+
 std::optional<PollPlan::Due> PollPlan::next(const std::function<bool(int)>& eligible) const {
   std::optional<Due> best;
   for (std::size_t i = 0; i < items_.size(); ++i) {

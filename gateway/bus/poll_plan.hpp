@@ -36,6 +36,11 @@ class PollPlan {
   void add(PollItem item);
   // Spreads first due times from start; call once after adding all items.
   void start(SteadyTime start);
+  // Instead of start(), for the plan a reload made of `previous` (its nodes renumbered by
+  // `moved_to`, old number -> new, -1 for a node not carried over): an item the previous plan had
+  // (same node, request and period) keeps its schedule, its last run and its overruns; the
+  // others are spread from `start` as start() spreads them.
+  void start_after(const PollPlan& previous, const std::vector<int>& moved_to, SteadyTime start);
 
   struct Due {
     std::size_t item;

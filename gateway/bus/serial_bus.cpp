@@ -160,8 +160,9 @@ bool SerialBus::reconfigure(std::shared_ptr<const void> config_owner, const BusC
   for (auto& cmd : commands_) cmd->node = moved_to[static_cast<std::size_t>(cmd->node)];
   last_command_node_ = -1;
   nodes_ = std::move(next);
+  const PollPlan previous = std::move(plan_);
   plan_polls();
-  plan_.start(Clock::now());
+  plan_.start_after(previous, moved_to, Clock::now());
   ++numbering_;
   first_node_index_ = first_node_index;
   on_update_ = std::move(on_update);

@@ -35,6 +35,35 @@ TEST(PollPlan, ItemsOfAPeriodAreSpreadEvenly) {
   EXPECT_EQ(offsets, (std::set<SteadyTime::duration::rep>{0, 25, 50, 75}));
 }
 
+// A reload that changed one node's period and added a node ahead of the others: every other
+// item keeps its schedule; the changed and the new items are spread from the reload's time.
+TEST(PollPlan, AReloadsPlanKeepsTheScheduleOfEveryItemItDidNotChange) {
+  PollPlan before;
+  before.add(item(0, "a", 100ms));
+  before.add(item(0, "b", 1s));
+  before.add(item(1, "a", 100ms));
+  const SteadyTime t0{};
+  before.start(t0);
+  before.completed(0, t0 + 3ms);
+  before.completed(2, t0 + 53ms);
+
+  PollPlan after;
+  after.add(item(0, "a", 100ms));  // the new node, ahead of the others
+  after.add(item(1, "a", 100ms));  // node 0 before the reload, unchanged
+  after.add(item(1, "b", 500ms));  // its period changed
+  after.add(item(2, "a", 100ms));  // node 1 before the reload, unchanged
+  const SteadyTime reload = t0 + 60ms;
+  after.start_after(before, {1, 2}, reload);
+
+  EXPECT_EQ(after.items()[1].next_due, before.items()[0].next_due);
+  EXPECT_EQ(after.items()[1].last_run, before.items()[0].last_run);
+  EXPECT_EQ(after.items()[3].next_due, before.items()[2].next_due);
+  EXPECT_EQ(after.items()[3].slot, before.items()[2].slot);
+  EXPECT_EQ(after.items()[0].next_due, reload) << "the new node's first item, at once";
+  EXPECT_EQ(after.items()[2].next_due, reload) << "alone in its period: at once";
+  EXPECT_FALSE(after.items()[2].last_run);
+}
+
 TEST(PollPlan, NextPicksEarliestEligible) {
   PollPlan plan;
   plan.add(item(0, "a", 100ms));

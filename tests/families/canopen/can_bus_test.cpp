@@ -776,5 +776,58 @@ TEST_F(CanBusTest, WireTraceShowsFramesWithNodeAndSdoOutcome) {
   EXPECT_TRUE(saw_rx) << all;
 }
 
+// Issue 31, item 3: a reload that changes one node's poll period is applied to that node alone:
+// the interface is not reopened, both nodes stay online, and the new period is what the node is
+// polled at. A node added is not taken in place (the receive filter names every node).
+TEST_F(CanBusTest, ANodesPollPeriodChangeIsAppliedInPlace) {
+  const std::string nodes =
+      "      - {name: a, address: 2, model: canopen-cia301, unit_id: 1}\n"
+      "      - {name: b, address: 3, model: canopen-cia301, unit_id: 2}\n";
+  start("2,3", nodes);
+  ASSERT_TRUE(run_until([&] { return online(0) && online(1); }));
+  run_until([] { return false; }, 300ms);  // the identity class (10 s) has had its first round
+  const auto images = bus_->node_images();
+  const std::string a_identity = "602#4018100[1-4]00000000";
+  const std::string b_identity = "603#4018100[1-4]00000000";
+  const std::size_t from = wire_->wire.size();
+
+  const std::string changed =
+      "      - {name: a, address: 2, model: canopen-cia301, unit_id: 1, poll: {identity: "
+      "100ms}}\n"
+      "      - {name: b, address: 3, model: canopen-cia301, unit_id: 2}\n";
+  std::ofstream(dir_ / "gw2.yaml") << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
+                                   << "buses:\n  - name: can\n    protocol: canopen\n"
+                                   << "    can: {interface: vcan0}\n"
+                                   << "    timing: {" << kTiming << "}\n"
+                                   << "    nodes:\n"
+                                   << changed;
+  Diagnostics d;
+  auto loaded = load_gateway_config((dir_ / "gw2.yaml").string(), d);
+  ASSERT_TRUE(loaded) << d.to_text();
+  const auto next = std::make_shared<const LoadedConfig>(std::move(*loaded));
+  ASSERT_TRUE(bus_->reconfigure(next, next->gateway.buses[0], 0, [this](int) { ++updates_; }));
+  EXPECT_EQ(bus_->node_images(), images) << "the same nodes, with their images";
+
+  EXPECT_TRUE(stays_online(0, 600ms) && online(1));
+  EXPECT_GE(wire_count(a_identity, from), 8u) << "a's identity objects, every 100 ms now";
+  // b's seven identity objects keep their places in its 10 s (one every 1.4 s or so).
+  EXPECT_LE(wire_count(b_identity, from), 1u) << "b keeps its 10 s";
+  EXPECT_EQ(bus_->counters().reconnects, 1u) << "the interface was not reopened";
+
+  std::ofstream(dir_ / "gw3.yaml") << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
+                                   << "buses:\n  - name: can\n    protocol: canopen\n"
+                                   << "    can: {interface: vcan0}\n"
+                                   << "    timing: {" << kTiming << "}\n"
+                                   << "    nodes:\n"
+                                   << nodes
+                                   << "      - {name: c, address: 4, model: canopen-cia301, "
+                                      "unit_id: 3}\n";
+  auto added = load_gateway_config((dir_ / "gw3.yaml").string(), d);
+  ASSERT_TRUE(added) << d.to_text();
+  const auto third = std::make_shared<const LoadedConfig>(std::move(*added));
+  EXPECT_FALSE(bus_->reconfigure(third, third->gateway.buses[0], 0, nullptr));
+  EXPECT_EQ(bus_->config().nodes.size(), 2u);
+}
+
 }  // namespace
 }  // namespace fieldgate
