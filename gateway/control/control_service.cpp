@@ -18,6 +18,8 @@ ControlService::ControlService(std::shared_ptr<const LoadedConfig> config, Proce
     : config_(std::move(config)), image_(image), actions_(actions), bus_of_(std::move(bus_of)) {
   for (const auto& bus : config_->gateway.buses)
     for (const auto& node : bus.nodes) nodes_.push_back(&node);
+  for (std::size_t n = 0; n < nodes_.size(); ++n)
+    numbering_.push_back(bus_of_(static_cast<int>(n)).numbering());
 }
 
 ControlResult ControlService::check_range(const NodeConfig& node, const std::string& name,
@@ -131,7 +133,14 @@ asio::awaitable<ControlResult> ControlService::apply(ControlWrite w) {
       const int64_t v = w.value;
       Request request{p.write->request.render([v](std::string_view) { return v; }),
                       Request::Expect::ack, NumberFormat::decimal};
-      const Reply reply = co_await bus_of_(w.node).submit(w.node, request);
+      Bus& bus = bus_of_(w.node);
+      const auto number = bus.numbering() == numbering_[static_cast<std::size_t>(w.node)]
+                              ? std::optional<int>(w.node)
+                              : bus.number_of(image);
+      if (!number)
+        co_return ControlResult::of(ControlStatus::unreachable,
+                                    "the node was taken off its bus by a reload");
+      const Reply reply = co_await bus.submit(*number, request);
       ControlResult result = control_result_of(reply);
       if (!result.ok()) {
         log::warning("node {}: write of {} = {} failed: {}", node.name, p.name, w.value,

@@ -85,6 +85,9 @@ class ControlService {
   ActionRunner& actions_;
   BusOf bus_of_;
   std::vector<const NodeConfig*> nodes_;  // by the gateway's node number
+  // Each node's bus's numbering when this configuration was put in force: a write still under
+  // way after a later reload renumbered the bus finds its node again (Bus::number_of).
+  std::vector<uint64_t> numbering_;
 };
 
 }  // namespace fieldgate
