@@ -24,11 +24,6 @@ Reply refused(const ims::RefusalReply& refusal) {
   return Reply::of(Reply::Status::device_error, refusal.text, static_cast<int64_t>(refusal.code));
 }
 
-bool expects_result(const Request& request) {
-  return request.expect == Request::Expect::values ||
-         ims::classify(request.command) == ims::CommandClass::query;
-}
-
 std::size_t one_byte(std::string_view buf) {
   return buf.empty() ? 0 : 1;
 }
@@ -57,9 +52,6 @@ std::optional<Reply> failed_read(const LinkRead& read, std::string_view what, ch
   return std::nullopt;
 }
 
-// Stray blank lines (a late completion of an earlier command) are skipped, a few at most.
-constexpr int kMaxBlankLines = 3;
-
 struct LineRead {
   std::optional<Reply> failure;
   std::string line;
@@ -80,7 +72,8 @@ asio::awaitable<LineRead> read_line(Link& link, const LinkTiming& timing, std::s
       co_return out;
     }
     out.line = std::string(prefix) + read.frame;
-    if (!ims::is_blank_line(out.line) || blank == kMaxBlankLines || !prefix.empty()) co_return out;
+    if (!ims::is_blank_line(out.line) || blank == ims::kMaxBlankLines || !prefix.empty())
+      co_return out;
   }
 }
 
@@ -142,22 +135,6 @@ asio::awaitable<std::pair<std::optional<Reply>, std::string>> send_paced(Link& l
   co_return std::pair{failure, echoed};
 }
 
-std::string pin_hint(std::string_view option, std::string_view value) {
-  return fmt::format(" (the model pins {}: {}; set it to auto to accept both)", option, value);
-}
-
-// A result line found where the unit's pinned result_placement says it cannot be.
-std::string misplaced_result(const NodeAddress& node, ims::ResultPlacement found,
-                             std::string_view line) {
-  const bool on_echo_line = found == ims::ResultPlacement::echo_line;
-  return fmt::format("unit {}: result {} '{}'", node.text,
-                     on_echo_line ? "on the echo's line" : "on a line of its own",
-                     ims::printable(line)) +
-         pin_hint("result_placement",
-                  ims::to_string(on_echo_line ? ims::ResultPlacement::next_line
-                                              : ims::ResultPlacement::echo_line));
-}
-
 }  // namespace
 
 ImsPartyLineFamily::ImsPartyLineFamily()
@@ -182,87 +159,6 @@ std::optional<NodeAddress> ImsPartyLineFamily::parse_address(std::string_view te
   n.text = std::string(1, *name);
   n.number = static_cast<unsigned char>(*name);
   return n;
-}
-
-std::optional<Reply> check_ims_echo(const NodeAddress& node, const Request& request,
-                                    std::string_view echo) {
-  if (ims::parse_echo_line(name_of(node), request.command, echo).match != ims::EchoMatch::mismatch)
-    return std::nullopt;
-  return Reply::of(Reply::Status::garbled,
-                   fmt::format("echo '{}' does not match '{}'", ims::printable(echo),
-                               ims::printable(ims::encode_line(name_of(node), request.command))));
-}
-
-Reply interpret_ims_result(const NodeAddress& node, const Request& request, std::string_view line) {
-  const auto result = ims::parse_result(line);
-  if (!result)
-    return Reply::of(Reply::Status::garbled,
-                     fmt::format("unit {}: '{}' is no result line for '{}'", node.text,
-                                 ims::printable(line), ims::printable(request.command)));
-  Reply r = Reply::of(Reply::Status::ok);
-  r.values = result->values;
-  return r;
-}
-
-namespace {
-
-// What an echo line says, whichever reading the unit uses; nullopt: a result line follows.
-std::optional<Reply> interpret_echo(const NodeAddress& node, const Request& request,
-                                    const ims::EchoLine& echo, std::string_view line) {
-  if (echo.match == ims::EchoMatch::mismatch)
-    return Reply::of(Reply::Status::garbled,
-                     fmt::format("echo '{}' does not match '{}'", ims::printable(line),
-                                 ims::printable(ims::encode_line(name_of(node), request.command))));
-  if (!expects_result(request)) {
-    if (echo.result)
-      return Reply::of(
-          Reply::Status::garbled,
-          fmt::format("unit {}: a value '{}' after the echo of '{}', which has no "
-                      "result",
-                      node.text, ims::printable(echo.rest), ims::printable(request.command)));
-    return Reply::of(Reply::Status::ok);
-  }
-  if (echo.result) {
-    Reply r = Reply::of(Reply::Status::ok);
-    r.values = echo.result->values;
-    return r;
-  }
-  return std::nullopt;
-}
-
-}  // namespace
-
-Reply interpret_ims_reply(const NodeAddress& node, const Request& request,
-                          std::string_view received) {
-  const auto next_line = [&](std::string_view& rest) -> std::optional<std::string_view> {
-    for (int blank = 0;; ++blank) {
-      const std::size_t n = ims::line_length(rest);
-      if (n == 0) return std::nullopt;
-      const std::string_view line = rest.substr(0, n);
-      rest.remove_prefix(n);
-      if (!ims::is_blank_line(line) || blank == kMaxBlankLines) return line;
-    }
-  };
-  std::string_view rest = received;
-  const auto echo = next_line(rest);
-  if (!echo) {
-    if (ims::is_blank_line(rest))
-      return Reply::of(Reply::Status::timeout, "no echo from unit " + node.text);
-    return Reply::of(Reply::Status::garbled,
-                     fmt::format("incomplete echo '{}'", ims::printable(rest)));
-  }
-  const auto parsed = ims::parse_echo_line(name_of(node), request.command, *echo);
-  if (auto reply = interpret_echo(node, request, parsed, *echo)) return *reply;
-  const auto result = next_line(rest);
-  if (!result) {
-    if (rest.empty())
-      return Reply::of(Reply::Status::garbled,
-                       fmt::format("unit {} echoed '{}' but sent no result line", node.text,
-                                   ims::printable(request.command)));
-    return Reply::of(Reply::Status::garbled,
-                     fmt::format("incomplete result line '{}'", ims::printable(rest)));
-  }
-  return interpret_ims_result(node, request, *result);
 }
 
 namespace {
@@ -353,37 +249,6 @@ asio::awaitable<void> ImsPartyLineFamily::drain(Link& link, const LinkTiming& ti
   }
   late_.stray(drained, Clock::now());
   link.discard_input();
-}
-
-Reply ImsPartyLineFamily::single_mode_reply(const NodeAddress& node, const Request& request,
-                                            Reply failure, std::string_view partial) {
-  const char name = name_of(node);
-  if (!ims::single_mode_echo(name, request.command, partial)) {
-    single_mode_echoes_[name] = 0;
-    return failure;
-  }
-  if (++single_mode_echoes_[name] < 2) return failure;
-  // The mode is the Party input's level at reset (p.5, 10): no command switches it.
-  const std::string what = fmt::format(
-      "unit {} answers as an indexer in Single mode: it echoed '{}' with the name and without "
-      "the LF, {} times in a row (in Single mode every character is echoed and only CR ends a "
-      "line, p.10-11; after a reset it waits for a Space and takes the first character as its "
-      "name). The mode is read from the Party input at reset: ground the Party input and "
-      "power-cycle the unit. Nothing the gateway sends is executed until then",
-      node.text, ims::printable(partial), single_mode_echoes_[name]);
-  if (single_mode_echoes_[name] == 2) log(4, what);
-  failure.text = what;
-  return failure;
-}
-
-asio::awaitable<void> ImsPartyLineFamily::after_failure(Link& link, const LinkTiming& timing,
-                                                        char name, const Request& request,
-                                                        const Reply& reply) {
-  // A unit that had answered and now is silent may only be slow: its echo may still come.
-  if (reply.status == Reply::Status::timeout && answering_[name])
-    late_.silent(name, ims::normalize_command(request.command), Clock::now());
-  if (reply.status == Reply::Status::timeout) answering_[name] = false;
-  if (reply.status == Reply::Status::garbled) co_await drain(link, timing);
 }
 
 asio::awaitable<LinkResync> ImsPartyLineFamily::resync_after_failure(Link& link,
@@ -513,169 +378,43 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
                                                     const Request& request, const LinkTiming& t,
                                                     bool paced) {
   const char name = name_of(node);
-  const bool query = expects_result(request);
-  const ims::ReadingPins pins = readings_.pins(name);
-  Reply bad;
-
-  // The echo line. After the echoed command a unit may pause to execute before the rest of the
-  // line (a result on the echo's line, or the held LF), so the gap may run to the reply timeout.
+  ims::Exchange x(node, request, readings_, late_, units_[name], late_window(t));
+  // After the echoed command a unit may pause to execute before the rest of the line (a result
+  // on the echo's line, or the held LF), so the gap may run to the reply timeout.
   const LinkTiming echo_timing{t.reply_timeout, std::max(t.byte_timeout, t.reply_timeout)};
-  LineRead echo;
+  std::string echoed;
   if (paced) {
-    auto [failure, echoed] = co_await send_paced(link, node, request, t);
-    if (failure) {
-      if (failure->status == Reply::Status::link_down) co_return *failure;
-      late_.stray(echoed, Clock::now());
-      bad = *failure;
-      co_await after_failure(link, t, name, request, bad);
-      co_return bad;
-    }
-    echo = co_await read_line(link, echo_timing, "echo", name, echoed);
-  } else {
-    if (auto ec = co_await link.send(ims::encode_line(name, request.command)))
-      co_return Reply::of(Reply::Status::link_down, ec.message());
-    echo = co_await read_line(link, echo_timing, "echo", name);
+    auto [failure, so_far] = co_await send_paced(link, node, request, t);
+    if (failure) x.on_send_failure(*failure, so_far, Clock::now());
+    echoed = std::move(so_far);
+  } else if (auto ec = co_await link.send(ims::encode_line(name, request.command))) {
+    x.on_link_down(ec.message());
   }
-  if (echo.failure) {
-    if (echo.failure->status == Reply::Status::link_down) co_return *echo.failure;
-    echo.failure = single_mode_reply(node, request, *echo.failure, echo.partial);
-    // A query's echo that stopped before its LF: the rest (its result) may still come.
-    if (query && echo.failure->status == Reply::Status::garbled &&
-        ims::parse_echo_line(name, request.command, echo.partial + "\n").match !=
-            ims::EchoMatch::mismatch)
-      late_.owe_result(Clock::now());
-    bad = *echo.failure;
-    co_await after_failure(link, t, name, request, bad);
-    co_return bad;
+  if (x.next() == ims::Exchange::Next::echo) {
+    const LineRead echo = co_await read_line(link, echo_timing, "echo", name, echoed);
+    if (echo.failure)
+      x.on_echo_failure(*echo.failure, echo.partial, Clock::now());
+    else
+      x.on_echo(echo.line, Clock::now());
   }
-
-  single_mode_echoes_[name] = 0;
-  const ims::EchoLine parsed = ims::parse_echo_line(name, request.command, echo.line);
-  if (parsed.match == ims::EchoMatch::mismatch) late_.stray(echo.line, Clock::now());
-  // A value after a non-query's echo is the rest of another unit's late line.
-  if (!query && parsed.result) late_.pay();
-  if (auto early = interpret_echo(node, request, parsed, echo.line);
-      early && early->status != Reply::Status::ok) {
-    bad = *early;
-    co_await after_failure(link, t, name, request, bad);
-    co_return bad;
+  if (x.next() == ims::Exchange::Next::completion) {
+    const LinkTiming completion{t.byte_timeout, t.byte_timeout};
+    const LinkRead done = co_await link.read_frame(ims::line_length, completion);
+    if (done.status == LinkRead::Status::error)
+      x.on_link_down(done.error.message());
+    else
+      x.on_completion(done.status == LinkRead::Status::frame ? done.frame : "", Clock::now());
   }
-
-  const bool with_name = parsed.match == ims::EchoMatch::with_name;
-  if (!with_name) {
-    // Without the name, the echo could be another unit's late echo of the same command.
-    if (readings_.echoes_name(name) == true) {
-      bad = Reply::of(
-          Reply::Status::garbled,
-          fmt::format("unit {} echoes its name, but '{}' came without it: another unit's late "
-                      "echo?",
-                      node.text, ims::printable(echo.line)));
-      co_await after_failure(link, t, name, request, bad);
-      co_return bad;
-    }
-    if (late_.suspicious(name, ims::normalize_command(request.command), Clock::now(),
-                         late_window(t))) {
-      bad = Reply::of(
-          Reply::Status::garbled,
-          fmt::format("echo '{}' without a name may be the late echo of a unit that went silent "
-                      "on the same command",
-                      ims::printable(echo.line)));
-      co_await after_failure(link, t, name, request, bad);
-      co_return bad;
-    }
+  if (x.next() == ims::Exchange::Next::result) {
+    const LineRead result = co_await read_line(link, t, "result line", name);
+    if (result.failure)
+      x.on_result_failure(*result.failure, Clock::now());
+    else
+      x.on_result(result.line, Clock::now());
   }
-  log(5, readings_.seen_name_echo(name, with_name));
-  answering_[name] = true;
-
-  if (!query) {
-    const auto linefeed =
-        parsed.carriage_return ? ims::EchoLinefeed::at_execution : ims::EchoLinefeed::at_once;
-    if (pins.linefeed && *pins.linefeed != linefeed) {
-      bad = Reply::of(
-          Reply::Status::garbled,
-          fmt::format("unit {}: echo '{}' has its LF {}", node.text, ims::printable(echo.line),
-                      linefeed == ims::EchoLinefeed::at_execution ? "after a CR (held until "
-                                                                    "execution)"
-                                                                  : "at once") +
-              pin_hint("echo_linefeed", ims::to_string(*pins.linefeed)));
-      co_await after_failure(link, t, name, request, bad);
-      co_return bad;
-    }
-    log(5, readings_.seen(name, linefeed));
-    if (linefeed == ims::EchoLinefeed::at_once) {
-      // The CR LF of "execution complete" (p.12) usually follows at once; wait one byte timeout
-      // for it so it does not spill into the next exchange.
-      const LinkTiming completion{t.byte_timeout, t.byte_timeout};
-      const LinkRead done = co_await link.read_frame(ims::line_length, completion);
-      if (done.status == LinkRead::Status::error)
-        co_return Reply::of(Reply::Status::link_down, done.error.message());
-      if (done.status == LinkRead::Status::frame) late_.stray(done.frame, Clock::now());
-    }
-    co_return Reply::of(Reply::Status::ok);
-  }
-
-  if (parsed.result && late_.owed() > 0) {
-    // The unit holds the echo's LF back: a late result of another unit can end its line.
-    bad = Reply::of(Reply::Status::garbled,
-                    fmt::format("unit {}: '{}' may end with the late answer to an earlier "
-                                "request ({} owed); not taken",
-                                node.text, ims::printable(echo.line), late_.owed()));
-    co_await after_failure(link, t, name, request, bad);
-    co_return bad;
-  }
-  if (parsed.result) {
-    if (pins.placement == ims::ResultPlacement::next_line) {
-      bad = Reply::of(Reply::Status::garbled,
-                      misplaced_result(node, ims::ResultPlacement::echo_line, echo.line));
-      co_await after_failure(link, t, name, request, bad);
-      co_return bad;
-    }
-    log(5, readings_.seen(name, ims::ResultPlacement::echo_line));
-    Reply r = Reply::of(Reply::Status::ok);
-    r.values = parsed.result->values;
-    co_return r;
-  }
-
-  LineRead result = co_await read_line(link, t, "result line", name);
-  if (result.failure) {
-    if (result.failure->status == Reply::Status::link_down) co_return *result.failure;
-    late_.owe_result(Clock::now());
-    if (result.failure->status == Reply::Status::timeout)
-      result.failure = Reply::of(Reply::Status::garbled,
-                                 fmt::format("unit {} echoed '{}' but sent no result line",
-                                             node.text, ims::printable(request.command)));
-    bad = *result.failure;
-    co_await after_failure(link, t, name, request, bad);
-    co_return bad;
-  }
-  Reply r = interpret_ims_result(node, request, result.line);
-  if (r.status != Reply::Status::ok) {
-    late_.owe_result(Clock::now());
-    late_.stray(result.line, Clock::now());
-    bad = r;
-    co_await after_failure(link, t, name, request, bad);
-    co_return bad;
-  }
-  if (late_.owed() > 0) {
-    // One of the results still owed may be this one: ours is owed instead.
-    {
-      bad = Reply::of(
-          Reply::Status::garbled,
-          fmt::format("unit {}: result '{}' may be the late answer to an earlier request ({} "
-                      "owed); not taken",
-                      node.text, ims::printable(result.line), late_.owed()));
-      co_await after_failure(link, t, name, request, bad);
-      co_return bad;
-    }
-  }
-  if (pins.placement == ims::ResultPlacement::echo_line) {
-    bad = Reply::of(Reply::Status::garbled,
-                    misplaced_result(node, ims::ResultPlacement::next_line, result.line));
-    co_await after_failure(link, t, name, request, bad);
-    co_return bad;
-  }
-  log(5, readings_.seen(name, ims::ResultPlacement::next_line));
-  co_return r;
+  for (auto& line : x.take_log()) log(line.level, std::move(line.text));
+  if (x.reply().status == Reply::Status::garbled) co_await drain(link, t);
+  co_return x.reply();
 }
 #pragma GCC diagnostic pop
 
@@ -684,7 +423,7 @@ std::size_t ImsPartyLineFamily::estimate_wire_chars(const NodeAddress& node,
   if (request.bus_wide) return ims::encode_global(request.command).size();
   const std::size_t line = ims::encode_line(name_of(node), request.command).size();
   // The echo (name included, the longer case), then "   1000\r\n" or a bare CR LF.
-  return 2 * line + (expects_result(request) ? 10 : 2);
+  return 2 * line + (ims::expects_result(request) ? 10 : 2);
 }
 
 // --- model validation -----------------------------------------------------------------------

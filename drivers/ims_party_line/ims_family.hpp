@@ -8,6 +8,7 @@
 #include <string_view>
 
 #include "drivers/ims_party_line/ims_chain.hpp"
+#include "drivers/ims_party_line/ims_exchange.hpp"
 #include "drivers/ims_party_line/ims_readings.hpp"
 #include "drivers/protocol_family.hpp"
 
@@ -63,6 +64,8 @@ class ImsPartyLineFamily final : public ProtocolFamily {
  private:
   asio::awaitable<Reply> transact_global(Link& link, const Request& request,
                                          const LinkTiming& timing);
+  // The glue of an ims::Exchange: sends the line, reads what the exchange asks for, writes its
+  // log lines, and drains the line after a garbled reply.
   asio::awaitable<Reply> exchange(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing, bool paced);
   // M0, then `^` until the unit is idle: the jog a new index for it aborts.
@@ -74,33 +77,13 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   asio::awaitable<void> flush(Link& link);
   // After a bad reply: read until the line has been quiet for a byte timeout, accounting it.
   asio::awaitable<void> drain(Link& link, const LinkTiming& timing);
-  asio::awaitable<void> after_failure(Link& link, const LinkTiming& timing, char name,
-                                      const Request& request, const Reply& reply);
   void log(int level, const std::optional<std::string>& text);
 
   ims::ChainShadow shadow_;
   ims::UnitReadings readings_;
   ims::LateReplies late_;
-  std::map<char, bool> answering_;  // the unit's echo came on its last exchange
-  // Exchanges in a row whose echo looked like a unit in Single mode's (ims::single_mode_echo).
-  std::map<char, int> single_mode_echoes_;
-  // A Single mode echo (or more) in a row is what the unit does, not a glitch: the reply says so.
-  Reply single_mode_reply(const NodeAddress& node, const Request& request, Reply failure,
-                          std::string_view partial);
+  std::map<char, ims::UnitTrack> units_;
   LogSink log_;
 };
-
-// The decision parts of transact(), pure so the digest's transcripts test them.
-
-// nullopt when `echo` (one line, LF included) is the echo of the request to `node`; else the
-// garbled reply that says why not.
-std::optional<Reply> check_ims_echo(const NodeAddress& node, const Request& request,
-                                    std::string_view echo);
-// What a result line means for a query.
-Reply interpret_ims_result(const NodeAddress& node, const Request& request, std::string_view line);
-// Everything a unit sent back after the request, as if it all arrived before the deadline:
-// stray blank lines, the echo, and the result line or completion.
-Reply interpret_ims_reply(const NodeAddress& node, const Request& request,
-                          std::string_view received);
 
 }  // namespace fieldgate
