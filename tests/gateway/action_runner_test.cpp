@@ -17,6 +17,7 @@
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/register_map/action_runner.hpp"
 #include "mapping/model_loader.hpp"
+#include "scripted_bus.hpp"
 
 namespace fieldgate {
 namespace {
@@ -115,40 +116,6 @@ actions:
   runner.stop();
 }
 
-// Answers every command at once, recording the node number it was sent to; a reload may
-// renumber its nodes (a node added before them) or take one away.
-class RenumberingBus : public Bus {
- public:
-  explicit RenumberingBus(std::vector<std::shared_ptr<NodeImage>> images)
-      : images_(std::move(images)), trace_("test") {}
-  void reload(std::vector<std::shared_ptr<NodeImage>> images) {
-    images_ = std::move(images);
-    ++numbering_;
-  }
-  std::vector<int> sent_to;
-
-  asio::awaitable<void> run() override { co_return; }
-  void stop() override {}
-  asio::awaitable<Reply> submit(int node, Request, CommandOptions) override {
-    sent_to.push_back(node);
-    co_return Reply::of(Reply::Status::ok);
-  }
-  const BusConfig& config() const override { return config_; }
-  const BusCounters& counters() const override { return counters_; }
-  WireTrace& trace() override { return trace_; }
-  const NodeConfig& node_config(int) const override { return node_; }
-  std::vector<std::shared_ptr<NodeImage>> node_images() const override { return images_; }
-  void rebind(int, NodeUpdated) override {}
-  int first_node_index() const override { return 0; }
-
- private:
-  std::vector<std::shared_ptr<NodeImage>> images_;
-  BusConfig config_;
-  BusCounters counters_;
-  WireTrace trace_;
-  NodeConfig node_;
-};
-
 class ActionRunnerAcrossAReload : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -185,7 +152,7 @@ actions:
   asio::io_context io_;
   std::shared_ptr<NodeImage> a_ = std::make_shared<NodeImage>(), b_ = std::make_shared<NodeImage>();
   ProcessImage image_{{a_, b_}};
-  RenumberingBus bus_{{a_, b_}};
+  test::ScriptedBus bus_{{a_, b_}};
   ModelPtr model_;
   std::optional<ActionRunner> runner_;
   std::optional<Reply> reply_;

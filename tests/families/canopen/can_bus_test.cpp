@@ -53,16 +53,8 @@ class CanBusTest : public ::testing::Test {
            ("fieldgate-canbus-" + std::to_string(::getpid()) + "-" +
             ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::create_directories(dir_);
-    std::ofstream(dir_ / "gw.yaml") << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
-                                    << "buses:\n  - name: can\n    protocol: canopen\n"
-                                    << "    can: {interface: vcan0}\n"
-                                    << "    timing: {" << timing << "}\n"
-                                    << "    nodes:\n"
-                                    << nodes_yaml;
-    Diagnostics d;
-    auto loaded = load_gateway_config((dir_ / "gw.yaml").string(), d);
-    ASSERT_TRUE(loaded) << d.to_text();
-    config_ = std::make_shared<LoadedConfig>(std::move(*loaded));
+    config_ = load("gw.yaml", nodes_yaml, timing);
+    ASSERT_TRUE(config_);
     auto channel = std::make_unique<SimChannel>(io_.get_executor(), wire_, sim_nodes, nc);
     sim_ = channel.get();
     bus_ = std::make_shared<CanBus>(
@@ -70,6 +62,22 @@ class CanBusTest : public ::testing::Test {
         std::move(channel));
     asio::co_spawn(
         io_, [bus = bus_]() -> asio::awaitable<void> { co_await bus->run(); }, asio::detached);
+  }
+
+  // A configuration of the bus `can` with these nodes, written to `file` in the test's folder.
+  std::shared_ptr<const LoadedConfig> load(const std::string& file, const std::string& nodes_yaml,
+                                           const std::string& timing = kTiming) {
+    std::ofstream(dir_ / file) << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
+                               << "buses:\n  - name: can\n    protocol: canopen\n"
+                               << "    can: {interface: vcan0}\n"
+                               << "    timing: {" << timing << "}\n"
+                               << "    nodes:\n"
+                               << nodes_yaml;
+    Diagnostics d;
+    auto loaded = load_gateway_config((dir_ / file).string(), d);
+    EXPECT_TRUE(loaded) << d.to_text();
+    if (!loaded) return nullptr;
+    return std::make_shared<const LoadedConfig>(std::move(*loaded));
   }
 
   bool run_until(const std::function<bool()>& pred, std::chrono::milliseconds limit = 3s) {
@@ -791,20 +799,11 @@ TEST_F(CanBusTest, ANodesPollPeriodChangeIsAppliedInPlace) {
   const std::string b_identity = "603#4018100[1-4]00000000";
   const std::size_t from = wire_->wire.size();
 
-  const std::string changed =
-      "      - {name: a, address: 2, model: canopen-cia301, unit_id: 1, poll: {identity: "
-      "100ms}}\n"
-      "      - {name: b, address: 3, model: canopen-cia301, unit_id: 2}\n";
-  std::ofstream(dir_ / "gw2.yaml") << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
-                                   << "buses:\n  - name: can\n    protocol: canopen\n"
-                                   << "    can: {interface: vcan0}\n"
-                                   << "    timing: {" << kTiming << "}\n"
-                                   << "    nodes:\n"
-                                   << changed;
-  Diagnostics d;
-  auto loaded = load_gateway_config((dir_ / "gw2.yaml").string(), d);
-  ASSERT_TRUE(loaded) << d.to_text();
-  const auto next = std::make_shared<const LoadedConfig>(std::move(*loaded));
+  const auto next = load("gw2.yaml",
+                         "      - {name: a, address: 2, model: canopen-cia301, unit_id: 1, "
+                         "poll: {identity: 100ms}}\n"
+                         "      - {name: b, address: 3, model: canopen-cia301, unit_id: 2}\n");
+  ASSERT_TRUE(next);
   ASSERT_TRUE(bus_->reconfigure(next, next->gateway.buses[0], 0, [this](int) { ++updates_; }));
   EXPECT_EQ(bus_->node_images(), images) << "the same nodes, with their images";
 
@@ -814,17 +813,9 @@ TEST_F(CanBusTest, ANodesPollPeriodChangeIsAppliedInPlace) {
   EXPECT_LE(wire_count(b_identity, from), 1u) << "b keeps its 10 s";
   EXPECT_EQ(bus_->counters().reconnects, 1u) << "the interface was not reopened";
 
-  std::ofstream(dir_ / "gw3.yaml") << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
-                                   << "buses:\n  - name: can\n    protocol: canopen\n"
-                                   << "    can: {interface: vcan0}\n"
-                                   << "    timing: {" << kTiming << "}\n"
-                                   << "    nodes:\n"
-                                   << nodes
-                                   << "      - {name: c, address: 4, model: canopen-cia301, "
-                                      "unit_id: 3}\n";
-  auto added = load_gateway_config((dir_ / "gw3.yaml").string(), d);
-  ASSERT_TRUE(added) << d.to_text();
-  const auto third = std::make_shared<const LoadedConfig>(std::move(*added));
+  const auto third = load(
+      "gw3.yaml", nodes + "      - {name: c, address: 4, model: canopen-cia301, unit_id: 3}\n");
+  ASSERT_TRUE(third);
   EXPECT_FALSE(bus_->reconfigure(third, third->gateway.buses[0], 0, nullptr));
   EXPECT_EQ(bus_->config().nodes.size(), 2u);
 }
