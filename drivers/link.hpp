@@ -83,10 +83,15 @@ class Link {
   // Waits without touching the line (inter-frame gap, pacing).
   asio::awaitable<void> pause(std::chrono::microseconds duration);
 
-  // Messages a family wants in the gateway's log (e.g. what a link-open procedure did); the
-  // bus logs and clears them after each family call that may leave some.
-  void note(std::string message) { notes_.push_back(std::move(message)); }
-  std::vector<std::string> take_notes() { return std::exchange(notes_, {}); }
+  // A line a family wants in the gateway's log, at a syslog level (4 warning, 5 notice, 6 info,
+  // 7 debug). Every stream family logs this way: the bus logs the notes with its name and
+  // clears them after each family call that may leave some (drivers/README.md).
+  struct Note {
+    int level = 5;
+    std::string text;
+  };
+  void note(std::string text, int level = 5) { notes_.push_back({level, std::move(text)}); }
+  std::vector<Note> take_notes() { return std::exchange(notes_, {}); }
 
   // Sees every byte the link sends (tx) and every frame, partial frame or drained run it
   // receives (rx), for the wire trace.
@@ -106,7 +111,7 @@ class Link {
   std::chrono::steady_clock::time_point tx_done_{};
   std::string buffer_;
   LinkStats stats_;
-  std::vector<std::string> notes_;
+  std::vector<Note> notes_;
   Tap tap_;
 };
 

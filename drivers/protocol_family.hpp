@@ -119,10 +119,6 @@ class Family {
   virtual NodeTimingNeed node_timing_need(const NodeAddress& node, const LinkTiming& bus) const;
   // Characters on the wire for a request and its typical reply (poll budget estimate).
   virtual std::size_t estimate_wire_chars(const NodeAddress& node, const Request& request) const;
-  // The bus hands families that log on their own (syslog level, text) its log, so their lines
-  // carry the bus's name. The default: the family does not log.
-  using LogRoute = std::function<void(int level, std::string_view text)>;
-  virtual void route_log(LogRoute) {}
 };
 
 // The stream shape of a family: addressing, framing and reply grammar of one controller family

@@ -21,11 +21,6 @@ constexpr int kMaxLinesPerExchange = 64;
 
 const FrameSplitter kLineSplitter = cn0170::frame_length;
 
-void write_to_stderr(int level, std::string_view text) {
-  const std::string line = fmt::format("<{}>{}\n", level, text);
-  std::fwrite(line.data(), 1, line.size(), stderr);
-}
-
 // Whether a field of a read is written in hex on the wire; nullopt for the status and motion
 // words the family computes from position replies.
 std::optional<bool> field_is_hex(const std::vector<cn0170::Query>& queries, int field) {
@@ -46,8 +41,6 @@ std::string join(const std::vector<int>& units) {
 }
 
 }  // namespace
-
-CententFamily::CententFamily() : log_sink_(write_to_stderr) {}
 
 std::optional<NodeAddress> CententFamily::parse_address(std::string_view text,
                                                         std::string& error) const {
@@ -192,10 +185,8 @@ NodeContextPtr CententFamily::bind_node(const NodeAddress& node, const Model& mo
 }
 
 void CententFamily::flush_log(Link& link) {
-  if (chain_.events.empty()) return;
-  const std::string where = routed_ ? "" : " on " + link.transport().describe();
   for (const auto& e : chain_.events)
-    if (log_sink_) log_sink_(e.level, fmt::format("centent-cn0170 chain{}: {}", where, e.text));
+    link.note(fmt::format("centent-cn0170 chain: {}", e.text), e.level);
   chain_.events.clear();
 }
 

@@ -13,12 +13,6 @@ namespace fieldgate {
 // object belongs to one bus and holds the chain's sticky unit selection (README).
 class CententFamily final : public ProtocolFamily {
  public:
-  // Where the family's own log lines go (chain discovery, resets, overflow warnings). The
-  // default writes them to stderr with the journald priority prefix the daemon uses.
-  using LogSink = std::function<void(int level, std::string_view text)>;
-
-  CententFamily();
-
   std::string_view name() const override { return "centent-cn0170"; }
   std::optional<NodeAddress> parse_address(std::string_view text,
                                            std::string& error) const override;
@@ -42,11 +36,6 @@ class CententFamily final : public ProtocolFamily {
   std::optional<AlignmentProof> alignment_proof(NodeContext& node,
                                                 const LinkTiming& timing) override;
 
-  void set_log_sink(LogSink sink) { log_sink_ = std::move(sink); }
-  void route_log(LogRoute route) override {
-    log_sink_ = std::move(route);
-    routed_ = true;
-  }
   const cn0170::Chain& chain() const { return chain_; }
   const cn0170::Options& options() const { return options_; }
 
@@ -77,8 +66,6 @@ class CententFamily final : public ProtocolFamily {
   std::set<int> configured_;  // the bound units
   cn0170::Options options_;
   bool options_bound_ = false;
-  LogSink log_sink_;
-  bool routed_ = false;          // the sink names the bus: lines need not name the device
   bool crlf_line_ends_ = false;  // a reply line was seen ending in CR LF
 };
 

@@ -137,13 +137,8 @@ asio::awaitable<std::pair<std::optional<Reply>, std::string>> send_paced(Link& l
 
 }  // namespace
 
-ImsPartyLineFamily::ImsPartyLineFamily()
-    : log_([](int level, const std::string& text) {
-        std::fprintf(stderr, "<%d>ims-party-line: %s\n", level, text.c_str());
-      }) {}
-
-void ImsPartyLineFamily::log(int level, const std::optional<std::string>& text) {
-  if (text && log_) log_(level, *text);
+void ImsPartyLineFamily::log(Link& link, int level, const std::optional<std::string>& text) {
+  if (text) link.note(*text, level);
 }
 
 std::chrono::microseconds ImsPartyLineFamily::late_window(const LinkTiming& timing) {
@@ -318,7 +313,7 @@ asio::awaitable<Reply> ImsPartyLineFamily::transact(Link& link, const NodeAddres
   // Serial handling slows while a unit steps fast (manual p.14); digest §9 doubles the timeout.
   if (paced) t.reply_timeout *= 2;
   co_await flush(link);
-  log(5, late_.expire(Clock::now(), late_window(t)));
+  log(link, 5, late_.expire(Clock::now(), late_window(t)));
 
   if (ims::classify(request.command) == ims::CommandClass::no_echo) {
     // P, Q, q and X do not echo in party mode (§2); X answers a garbled '"32.'. Nothing to
@@ -369,8 +364,9 @@ asio::awaitable<Reply> ImsPartyLineFamily::end_jog(Link& link, const NodeAddress
                          r.text.empty() ? std::string(to_string(r.status)) : r.text);
     co_return r;
   }
-  log(6, fmt::format("unit {}: jog ramped down (M0) before '{}'", name,
-                     ims::printable(request.command)));
+  log(link, 6,
+      fmt::format("unit {}: jog ramped down (M0) before '{}'", name,
+                  ims::printable(request.command)));
   co_return r;
 }
 
@@ -412,7 +408,7 @@ asio::awaitable<Reply> ImsPartyLineFamily::exchange(Link& link, const NodeAddres
     else
       x.on_result(result.line, Clock::now());
   }
-  for (auto& line : x.take_log()) log(line.level, std::move(line.text));
+  for (auto& line : x.take_log()) log(link, line.level, std::move(line.text));
   if (x.reply().status == Reply::Status::garbled) co_await drain(link, t);
   co_return x.reply();
 }

@@ -19,11 +19,6 @@ namespace fieldgate {
 // readings of the manual's ambiguities.
 class ImsPartyLineFamily final : public ProtocolFamily {
  public:
-  // Log lines with a syslog priority (5 notice, 4 warning): the reading each unit was found to
-  // use, late replies written off. Default: stderr with journald's "<N>" prefix.
-  using LogSink = std::function<void(int level, const std::string& text)>;
-  ImsPartyLineFamily();
-
   std::string_view name() const override { return "ims-party-line"; }
   std::optional<NodeAddress> parse_address(std::string_view text,
                                            std::string& error) const override;
@@ -52,11 +47,6 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   const ims::UnitReadings& readings() const { return readings_; }
   const ims::LateReplies& late_replies() const { return late_; }
   void pin(char name, ims::ReadingPins pins) { readings_.pin(name, pins); }
-  void set_log_sink(LogSink sink) { log_ = std::move(sink); }
-  void route_log(LogRoute route) override {
-    // The route names the bus; the family's name would only repeat what the bus is.
-    log_ = [route = std::move(route)](int level, const std::string& text) { route(level, text); };
-  }
 
   // How long a debt of late replies is kept (README "Late replies").
   static std::chrono::microseconds late_window(const LinkTiming& timing);
@@ -77,13 +67,14 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   asio::awaitable<void> flush(Link& link);
   // After a bad reply: read until the line has been quiet for a byte timeout, accounting it.
   asio::awaitable<void> drain(Link& link, const LinkTiming& timing);
-  void log(int level, const std::optional<std::string>& text);
+  // A line for the gateway's log (a link note): the reading each unit was found to use, late
+  // replies written off.
+  static void log(Link& link, int level, const std::optional<std::string>& text);
 
   ims::ChainShadow shadow_;
   ims::UnitReadings readings_;
   ims::LateReplies late_;
   std::map<char, ims::UnitTrack> units_;
-  LogSink log_;
 };
 
 }  // namespace fieldgate

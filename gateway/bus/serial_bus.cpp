@@ -70,10 +70,6 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
     trace_.emit(Clock::now(), {}, tx ? TraceDirection::tx : TraceDirection::rx, {},
                 printable_bytes(bytes));
   });
-  family_.route_log([bus = config.name](int level, std::string_view text) {
-    log::write(static_cast<log::Level>(std::clamp(level, 3, 7)),
-               fmt::format("bus {}: {}", bus, text));
-  });
   int index = 0;  // local: position on this bus; the gateway's number is first_node_index_ + index
   for (const auto& n : config.nodes) nodes_.push_back(bind(n, index++));
   plan_polls();
@@ -343,7 +339,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     trace_transaction(n,
                       reply.status == Reply::Status::garbled ? "garbled" : to_string(reply.status));
     record_latency(std::chrono::duration<double>(Clock::now() - started).count());
-    for (const auto& note : link_.take_notes()) log::notice("bus {}: {}", config_->name, note);
+    log_notes(false);
     ++counters_.transactions;
     ++(*n.image).counters.transactions;
     if (link_.buffered() > 0 && reply.status != Reply::Status::timeout &&
@@ -377,6 +373,15 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
   }
   co_await link_.pause(config_->timing.inter_frame_gap);
   co_return reply;
+}
+
+void SerialBus::log_notes(bool quiet) {
+  for (auto& note : link_.take_notes()) {
+    const int level = quiet && note.level >= 5 ? 7 : std::clamp(note.level, 3, 7);
+    if (log::enabled(static_cast<log::Level>(level)))
+      log::write(static_cast<log::Level>(level),
+                 fmt::format("bus {}: {}", config_->name, note.text));
+  }
 }
 
 void SerialBus::trace_transaction(const NodeRuntime& n, std::string_view outcome) {
@@ -474,6 +479,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
     LinkTiming patient = n->timing;
     patient.reply_timeout *= 2;
     const auto result = co_await prove_alignment(link_, *proof, patient, guard, attempts, debt_);
+    log_notes(false);
     trace_collecting_ = false;
     attempts_left -= std::max(result.attempts, 1);
     trace_transaction(*n, result.proved ? "proof" : "proof failed");
@@ -607,8 +613,7 @@ asio::awaitable<void> SerialBus::open_link() {
       debt_.clear();
       drained_before_proof_.clear();
       co_await family_.on_link_open(link_, config_->timing.link);
-      for (const auto& note : link_.take_notes())
-        if (log::enabled(level)) log::write(level, fmt::format("bus {}: {}", config_->name, note));
+      log_notes(level == log::Level::debug);
       for (auto& n : nodes_)
         if (n->image->state == NodeState::offline) n->next_probe = Clock::now();
       co_return;

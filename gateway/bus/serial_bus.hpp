@@ -142,6 +142,9 @@ class SerialBus final : public Bus {
   bool trace_collecting_ = false;
   std::vector<TracedBytes> traced_;
   void trace_transaction(const NodeRuntime& node, std::string_view outcome);
+  // What the family noted on the link, at its levels, with the bus's name. `quiet`: the routine
+  // reopen of a line where nothing answers, whose notices are logged at debug.
+  void log_notes(bool quiet);
   SteadyTime opened_at_{};
 };
 

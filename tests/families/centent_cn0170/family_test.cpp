@@ -32,9 +32,6 @@ class FamilyOnChain : public ::testing::Test {
     transport_->keep_order();  // late replies keep their order, as a chain delivers them
     transport_->set_far_end([this](std::string_view bytes) { hear(bytes); });
     link_ = std::make_unique<Link>(*transport_);
-    family_.set_log_sink([this](int level, std::string_view text) {
-      log_ += std::to_string(level) + " " + std::string(text) + "\n";
-    });
     std::string error;
     Model model;  // no options: the defaults
     model.family = "centent-cn0170";
@@ -76,6 +73,12 @@ class FamilyOnChain : public ::testing::Test {
   CententFamily family_;
   std::map<int, NodeAddress> nodes_;
   LinkTiming timing_{30ms, 10ms};
+  // What the family noted on the link so far, a line each: "level text".
+  const std::string& log() {
+    for (const auto& note : link_->take_notes())
+      log_ += std::to_string(note.level) + " " + note.text + "\n";
+    return log_;
+  }
   std::string log_;
   std::string wire_;
   std::chrono::milliseconds reply_delay_{0};
@@ -87,16 +90,15 @@ TEST_F(FamilyOnChain, LinkOpenAutobaudsAndDiscoversTheChain) {
   o.power_up = true;
   start({0, 1, 4}, o, {"0", "1", "2"});
   EXPECT_EQ(wire_, "\r.U?\r");
-  EXPECT_NE(
-      log_.find("5 centent-cn0170 chain on test-pair: auto-baud CR answered by unit(s) 0, 1, 4"),
-      std::string::npos)
-      << log_;
-  EXPECT_NE(log_.find("chain order from .U?: 0, 1, 4"), std::string::npos) << log_;
-  EXPECT_NE(log_.find("4 centent-cn0170 chain on test-pair: unit 2 is configured but did not "
-                      "answer .U?"),
+  EXPECT_NE(log().find("5 centent-cn0170 chain: auto-baud CR answered by unit(s) 0, 1, 4"),
             std::string::npos)
-      << log_;
-  EXPECT_NE(log_.find("unit 4 is on the chain but not configured"), std::string::npos) << log_;
+      << log();
+  EXPECT_NE(log().find("chain order from .U?: 0, 1, 4"), std::string::npos) << log();
+  EXPECT_NE(log().find("4 centent-cn0170 chain: unit 2 is configured but did not "
+                       "answer .U?"),
+            std::string::npos)
+      << log();
+  EXPECT_NE(log().find("unit 4 is on the chain but not configured"), std::string::npos) << log();
   EXPECT_EQ(family_.chain().chain_position(4), 3);
 }
 
@@ -118,7 +120,7 @@ TEST_F(FamilyOnChain, PlainOverflowMnemonicWhenTheBackslashFormIsRejected) {
   start({0, 1}, o, {"0", "1"});
   ASSERT_EQ(call(0, "M?").status, Reply::Status::ok);
   EXPECT_NE(wire_.find("M1-\r"), std::string::npos) << wire_;
-  EXPECT_NE(log_.find("unit 0: overflow warning mode set (M1-)"), std::string::npos) << log_;
+  EXPECT_NE(log().find("unit 0: overflow warning mode set (M1-)"), std::string::npos) << log();
   EXPECT_EQ(family_.chain().units[0].counters.rejects, 1u);
 }
 
@@ -183,7 +185,7 @@ TEST_F(FamilyOnChain, ResetMessageResynchronisesTheSelection) {
   wire_.clear();
   EXPECT_EQ(call(1, "XP?").status, Reply::Status::ok);
   EXPECT_NE(wire_.find("M1\\-"), std::string::npos) << wire_;
-  EXPECT_NE(log_.find("unit 1 reset (unsolicited 'U1')"), std::string::npos) << log_;
+  EXPECT_NE(log().find("unit 1 reset (unsolicited 'U1')"), std::string::npos) << log();
 }
 
 TEST_F(FamilyOnChain, ResetBeforeACommandCannotMisdirectIt) {
@@ -215,7 +217,7 @@ TEST_F(FamilyOnChain, KillFallsBackToEveryUnitWhenTheFirstIsSilent) {
   chain_->control("unit-off", std::vector<std::string>{"0"}, sim::SimClock::now());
   const Reply r = call(1, "K", Request::Expect::ack, true);
   EXPECT_NE(r.status, Reply::Status::ok) << "nothing reaches units behind an unpowered unit";
-  EXPECT_NE(log_.find("kill: unit 0 did not confirm"), std::string::npos) << log_;
+  EXPECT_NE(log().find("kill: unit 0 did not confirm"), std::string::npos) << log();
 }
 
 TEST_F(FamilyOnChain, QueueWarningBlocksMovesUntilQueueEmpty) {
@@ -257,10 +259,10 @@ TEST_F(FamilyOnChain, UnitFoundInOperateModeIsSwitchedToImmediateMode) {
   EXPECT_EQ(wire_.substr(0, wire_.find("X+100")),
             "\r.U1\rM?\r\r.U1\rM1\rM?\r\r.U1\rM1\\-\rM?\r\r.U1\r");
   EXPECT_EQ(chain_->unit_at(1).mode(), 1);
-  EXPECT_NE(log_.find("5 centent-cn0170 chain on test-pair: unit 1 was in Operate Mode (M3) at "
-                      "first contact"),
+  EXPECT_NE(log().find("5 centent-cn0170 chain: unit 1 was in Operate Mode (M3) at "
+                       "first contact"),
             std::string::npos)
-      << log_;
+      << log();
   // Put back in M3 on purpose (run_program), it gets no motor command until M1.
   EXPECT_EQ(command(1, "M3").status, Reply::Status::ok);
   const Reply refused = command(1, "X+100");
@@ -428,8 +430,8 @@ TEST_P(CententEveryReading, PowerUpReadMoveReadBack) {
   o.prefix_unit_messages = reading.prefix_unit_messages;
   o.unit.accept_backslash_overflow = !reading.plain_overflow;
   start({0, 1, 2}, o);
-  EXPECT_NE(log_.find("auto-baud CR answered by unit(s) 0, 1, 2"), std::string::npos) << log_;
-  EXPECT_NE(log_.find("chain order from .U?: 0, 1, 2"), std::string::npos) << log_;
+  EXPECT_NE(log().find("auto-baud CR answered by unit(s) 0, 1, 2"), std::string::npos) << log();
+  EXPECT_NE(log().find("chain order from .U?: 0, 1, 2"), std::string::npos) << log();
   for (int unit : {0, 1, 2}) {
     const Reply r = call(unit, "XP?;YP?");
     ASSERT_EQ(r.status, Reply::Status::ok) << unit << ": " << r.text;

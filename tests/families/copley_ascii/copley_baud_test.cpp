@@ -100,7 +100,9 @@ std::vector<std::string> open_link(AmplifierOnUart& uart) {
   auto done = asio::co_spawn(io, family.on_link_open(link, timing), asio::use_future);
   io.run();
   done.get();
-  return link.take_notes();
+  std::vector<std::string> texts;
+  for (auto& note : link.take_notes()) texts.push_back(std::move(note.text));
+  return texts;
 }
 
 TEST(CopleyBaud, SwitchesAnAmplifierAtItsPowerUpRate) {

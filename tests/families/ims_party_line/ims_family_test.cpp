@@ -257,10 +257,7 @@ TEST(ImsSingleMode, TheUnitIsNamedAsInSingleMode) {
   ScriptedLine line(io, {"A^", "A^", "AZ", "A^\n  0\r\n"});
   Link link(line);
   ImsPartyLineFamily family;
-  std::vector<std::string> logged;
-  family.set_log_sink([&](int level, const std::string& text) {
-    if (level <= 4) logged.push_back(text);
-  });
+  std::vector<std::string> logged;  // warnings
   const auto exchange = [&](const char* command) {
     const Request request = read(command);  // outlives the coroutine, which holds a reference
     const NodeAddress node = unit('A');
@@ -268,6 +265,8 @@ TEST(ImsSingleMode, TheUnitIsNamedAsInSingleMode) {
         asio::co_spawn(io, family.transact(link, node, request, timing), asio::use_future);
     io.restart();
     while (future.wait_for(0s) != std::future_status::ready) io.run_one_for(10ms);
+    for (auto& note : link.take_notes())
+      if (note.level <= 4) logged.push_back(std::move(note.text));
     return future.get();
   };
   Reply r = exchange("^");

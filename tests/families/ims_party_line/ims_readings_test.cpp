@@ -193,10 +193,11 @@ class ChainFixture : protected test::ImsChainBench {
     options.result_format.end = reading.end;
     options.result_format.decimals = reading.decimals;
     attach(std::move(options));
-    family_.set_log_sink([this](int, const std::string& text) { log_.push_back(text); });
   }
 
-  bool logged(const std::string& text) const {
+  // What the family noted on the link so far.
+  bool logged(const std::string& text) {
+    for (auto& note : link_->take_notes()) log_.push_back(std::move(note.text));
     for (const auto& l : log_)
       if (l.find(text) != std::string::npos) return true;
     return false;

@@ -161,7 +161,7 @@ TEST_F(TechnoBench, PowerUpStateIsInitialisedAtFirstContact) {
   EXPECT_EQ(transport_->writes(), (std::vector<std::string>{"@0P\r", "@07\r", "@0P\r"}));
   const auto notes = link_->take_notes();
   ASSERT_EQ(notes.size(), 1u);
-  EXPECT_NE(notes[0].find("at first contact"), std::string::npos) << notes[0];
+  EXPECT_NE(notes[0].text.find("at first contact"), std::string::npos) << notes[0].text;
   // A move works at once.
   EXPECT_EQ(transact(ack("M100,5000,0,30,0,30,0,30")).status, Reply::Status::ok);
 }

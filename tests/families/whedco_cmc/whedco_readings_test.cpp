@@ -44,7 +44,11 @@ class Reading {
     return test::run(io_, family_.transact(link_, node_, r, kTiming));
   }
   sim::whedco::CmcUnit& unit() { return *line_.unit(4); }
-  std::vector<std::string> notes() { return link_.take_notes(); }
+  std::vector<std::string> notes() {
+    std::vector<std::string> texts;
+    for (auto& note : link_.take_notes()) texts.push_back(std::move(note.text));
+    return texts;
+  }
   test::LineTransport& transport() { return transport_; }
   const std::vector<std::string>& writes() const { return transport_.writes(); }
 
