@@ -107,6 +107,11 @@ class Bus {
   uint64_t numbering() const { return numbering_; }
   // The gateway-wide number of the node with this image now; none when the bus no longer runs it.
   std::optional<int> number_of(const NodeImage& image) const;
+  // The node looked up as `number` while the bus's numbering was `numbering`: the same number
+  // unless a reload renumbered the bus since, else number_of(image).
+  std::optional<int> number_now(int number, uint64_t numbering, const NodeImage& image) const {
+    return numbering == numbering_ ? std::optional<int>(number) : number_of(image);
+  }
 
  protected:
   uint64_t numbering_ = 0;

@@ -225,8 +225,7 @@ bool CanBus::reconfigure(std::shared_ptr<const void> config_owner, const BusConf
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     auto& n = *nodes_[i];
     const NodeConfig& nc = config.nodes[i];
-    // The PLC's setpoints stay unless the site changed the node's configured ones.
-    if (n.config->setpoints != nc.setpoints) n.image->setpoints = make_node_image(nc)->setpoints;
+    apply_setpoint_changes(*n.image, *n.config, nc);
     n.config = &nc;
   }
   // Points of objects a device was found to lack stay out of its data age.

@@ -10,5 +10,8 @@ namespace fieldgate {
 // A configured node's image before anything was read from it, on every kind of bus: each point
 // invalid, each setpoint at the node's configured value or else the model's default.
 std::shared_ptr<NodeImage> make_node_image(const NodeConfig& node);
+// A node a reload kept on its bus (`was` -> `now`): the setpoints the PLC wrote stay unless the
+// site changed the node's configured ones, which then take their configured values.
+void apply_setpoint_changes(NodeImage& image, const NodeConfig& was, const NodeConfig& now);
 
 }  // namespace fieldgate

@@ -147,8 +147,7 @@ bool SerialBus::reconfigure(std::shared_ptr<const void> config_owner, const BusC
     }
     auto& rt = *next[i];
     moved_to[static_cast<std::size_t>(rt.index)] = index;
-    // The PLC's setpoints stay unless the site changed the node's configured ones.
-    if (rt.config->setpoints != n.setpoints) rt.image->setpoints = make_node_image(n)->setpoints;
+    apply_setpoint_changes(*rt.image, *rt.config, n);
     rt.index = index;
     rt.config = &n;
     rt.timing = node_link_timing(config, n);

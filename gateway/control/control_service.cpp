@@ -134,9 +134,8 @@ asio::awaitable<ControlResult> ControlService::apply(ControlWrite w) {
       Request request{p.write->request.render([v](std::string_view) { return v; }),
                       Request::Expect::ack, NumberFormat::decimal};
       Bus& bus = bus_of_(w.node);
-      const auto number = bus.numbering() == numbering_[static_cast<std::size_t>(w.node)]
-                              ? std::optional<int>(w.node)
-                              : bus.number_of(image);
+      const auto number =
+          bus.number_now(w.node, numbering_[static_cast<std::size_t>(w.node)], image);
       if (!number)
         co_return ControlResult::of(ControlStatus::unreachable,
                                     "the node was taken off its bus by a reload");

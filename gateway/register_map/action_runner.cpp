@@ -193,8 +193,7 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
     CommandOptions options;
     options.accept_no_reply = step.accept_no_reply;
     options.urgent = step.urgent;
-    const auto number =
-        bus.numbering() == numbering ? std::optional<int>(node_index) : bus.number_of(node);
+    const auto number = bus.number_now(node_index, numbering, node);
     if (!number) {
       reply = Reply::of(Reply::Status::unreachable, "the node was taken off its bus by a reload");
     } else if (step.confirm_after && confirmation && !confirmation->given) {
