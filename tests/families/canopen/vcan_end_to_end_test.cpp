@@ -282,9 +282,15 @@ TEST_F(VcanEndToEnd, PdoPointsUpdateWithoutSdo) {
 }
 
 TEST_F(VcanEndToEnd, EnableAndMoveAbsolute) {
+  const auto before_enable = p->candump->size();
   ASSERT_EQ(action(1, 1), 0) << "enable";
   EXPECT_EQ(action_status(1), 2);
   ASSERT_TRUE(wait_until([] { return (input(1, "statusword").value_or(0) & 0x6F) == 0x27; }));
+  // candump is another process and may print the enable's last controlword after the daemon has
+  // seen its effect: mark the move's frames only once candump has caught up with the enable.
+  ASSERT_TRUE(wait_until([&] {
+    return p->candump->count("602#2B4060000F000000", before_enable) >= 1;
+  })) << p->candump->text();
   const auto target = address(1, Table::holding_registers, "target");
   ASSERT_TRUE(p->client->write_i32(1, target, 4000).ok());
   const auto velocity = address(1, Table::holding_registers, "velocity");
