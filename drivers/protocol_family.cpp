@@ -29,6 +29,8 @@ void Family::validate_model(const Model& model, Diagnostics& diagnostics) const 
   check_model_options(model, name(), model_options(), diagnostics);
 }
 
+void Family::compile_commands(Model&) const {}
+
 NodeContextPtr Family::bind_node(const NodeAddress& node, const Model&) {
   return std::make_shared<NodeContext>(node);
 }

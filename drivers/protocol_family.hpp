@@ -38,6 +38,20 @@ struct Request {
   // For every node on the link (a global stop or kill): the family sends it without a node
   // address, as its manual defines the broadcast form.
   bool bus_wide = false;
+  // A command from a model's template: the family's form of it compiled at load, and the
+  // template's argument values. A family that compiles its commands runs these; `command` is
+  // then only what logs and the wire trace show.
+  std::shared_ptr<const CompiledCommand> compiled = {};
+  std::vector<int64_t> arguments = {};
+
+  // The command `command` makes with the values `lookup` gives its placeholders.
+  static Request of_template(const CommandTemplate& command,
+                             const std::function<int64_t(std::string_view)>& lookup,
+                             bool bus_wide = false) {
+    return Request{command.render(lookup), Expect::ack,
+                   NumberFormat::decimal,  bus_wide,
+                   command.compiled(),     command.arguments(lookup)};
+  }
 };
 
 struct Reply {
@@ -103,6 +117,10 @@ class Family {
   // Family-specific checks of a model once its family is known. The default checks the model's
   // options against model_options().
   virtual void validate_model(const Model& model, Diagnostics& diagnostics) const;
+  // Compiles the model's command templates (point writes, action steps) into the form the
+  // family runs, once, while the configuration loads; validate_model has reported any template
+  // the family cannot compile. The default keeps none: the family sends the rendered text.
+  virtual void compile_commands(Model& model) const;
   // Called once for every configured node when its bus is built, with the node's model (which
   // validate_model accepted): the family reads what changes the exchange with that node (its
   // model options) and returns the node's context, which transact() then receives. The default

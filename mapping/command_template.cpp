@@ -90,4 +90,12 @@ std::string CommandTemplate::render(const std::function<int64_t(std::string_view
   return out;
 }
 
+std::vector<int64_t> CommandTemplate::arguments(
+    const std::function<int64_t(std::string_view)>& lookup) const {
+  std::vector<int64_t> values;
+  for (const auto& p : pieces_)
+    if (!p.name.empty()) values.push_back(lookup(p.name));
+  return values;
+}
+
 }  // namespace fieldgate

@@ -472,7 +472,7 @@ void ModelLibrary::load_directory(const std::string& directory, Diagnostics& dia
 
 void ModelLibrary::add(ModelPtr model, Diagnostics& diagnostics) {
   if (!model || model->name.empty()) return;
-  auto [it, fresh] = models_.emplace(model->name, model);
+  auto [it, fresh] = models_.emplace(model->name, std::make_shared<Model>(*model));
   if (!fresh)
     diagnostics.error(model->mark, fmt::format("model '{}' is already defined in {}", model->name,
                                                to_string(it->second->mark)));
@@ -481,6 +481,11 @@ void ModelLibrary::add(ModelPtr model, Diagnostics& diagnostics) {
 ModelPtr ModelLibrary::find(const std::string& name) const {
   const auto it = models_.find(name);
   return it == models_.end() ? nullptr : it->second;
+}
+
+Model* ModelLibrary::for_compiling(const std::string& name) {
+  const auto it = models_.find(name);
+  return it == models_.end() ? nullptr : it->second.get();
 }
 
 std::vector<std::string> ModelLibrary::names() const {

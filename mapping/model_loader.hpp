@@ -24,9 +24,12 @@ class ModelLibrary {
   void add(ModelPtr model, Diagnostics& diagnostics);
   ModelPtr find(const std::string& name) const;
   std::vector<std::string> names() const;
+  // The library's own copy of the model, for its family to compile the command templates into
+  // while the configuration loads, before anything runs on it (Family::compile_commands).
+  Model* for_compiling(const std::string& name);
 
  private:
-  std::map<std::string, ModelPtr> models_;
+  std::map<std::string, std::shared_ptr<Model>> models_;
 };
 
 }  // namespace fieldgate

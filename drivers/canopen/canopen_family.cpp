@@ -18,7 +18,6 @@ std::optional<NodeAddress> CanopenFamily::parse_address(std::string_view text,
 
 void CanopenFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
   check_model_options(model, name(), model_options(), diagnostics);
-  const auto zero = [](std::string_view) { return int64_t{0}; };
   for (const auto& p : model.points) {
     const std::string where = fmt::format("model {}: point {}", model.name, p.name);
     if (p.read) {
@@ -38,11 +37,12 @@ void CanopenFamily::validate_model(const Model& model, Diagnostics& diagnostics)
       continue;
     }
     std::string error;
-    const auto op = parse_operation(p.write->request.render(zero), &model, error);
-    if (!op) {
+    const auto compiled = compile_operation(p.write->request, &model, error);
+    if (!compiled) {
       diagnostics.error(p.mark, fmt::format("{} write: {}", where, error));
       continue;
     }
+    const Operation* op = &compiled->operation();
     if (op->kind != Operation::Kind::write || !is_integer(op->object.type)) {
       diagnostics.error(p.mark, fmt::format("{} write: expected 'write OBJECT {{value}}' with an "
                                             "integer object, found '{}'",
@@ -73,18 +73,29 @@ void CanopenFamily::validate_model(const Model& model, Diagnostics& diagnostics)
       if (s.kind != ActionStep::Kind::send) continue;
       const std::string where = fmt::format("model {}: action {}", model.name, a.name);
       std::string error;
-      const auto op = parse_operation(s.command.render(zero), &model, error);
-      if (!op) {
+      const auto compiled = compile_operation(s.command, &model, error);
+      if (!compiled) {
         diagnostics.error(s.mark,
                           fmt::format("{}: step '{}': {}", where, s.command.source(), error));
         continue;
       }
-      if (a.bus_wide && op->kind != Operation::Kind::nmt)
+      if (a.bus_wide && compiled->operation().kind != Operation::Kind::nmt)
         diagnostics.error(s.mark, fmt::format("{}: step '{}': a bus-wide action may only send "
                                               "NMT commands (SDO has no broadcast)",
                                               where, s.command.source()));
     }
   }
+}
+
+void CanopenFamily::compile_commands(Model& model) const {
+  std::string error;  // validate_model reported it; a model with errors never runs
+  for (auto& p : model.points)
+    if (p.write && !p.write->request.empty())
+      p.write->request.set_compiled(compile_operation(p.write->request, &model, error));
+  for (auto& a : model.actions)
+    for (auto& s : a.steps)
+      if (s.kind == ActionStep::Kind::send)
+        s.command.set_compiled(compile_operation(s.command, &model, error));
 }
 
 std::vector<uint32_t> CanopenFamily::receive_ids(const NodeAddress& node,

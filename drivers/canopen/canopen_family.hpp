@@ -13,6 +13,7 @@ class CanopenFamily final : public FrameFamily {
   std::optional<NodeAddress> parse_address(std::string_view text,
                                            std::string& error) const override;
   void validate_model(const Model& model, Diagnostics& diagnostics) const override;
+  void compile_commands(Model& model) const override;
   std::vector<uint32_t> receive_ids(const NodeAddress& node, const Model& model) const override;
   FrameRole classify(const NodeAddress& node, const CanFrame& frame) const override;
   int frame_node(const CanFrame& frame) const override;

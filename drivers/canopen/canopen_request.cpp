@@ -332,6 +332,105 @@ std::optional<Operation> parse_operation(std::string_view text, const Model* mod
   return op;
 }
 
+namespace {
+
+// Whether b is a with its `slot` field (only) changed to `probe`.
+bool differs_only_in(const Operation& a, const Operation& b, CompiledOperation::Slot slot,
+                     int64_t probe) {
+  const bool rest = a.kind == b.kind && a.object == b.object && a.text == b.text &&
+                    a.within == b.within && a.nmt == b.nmt;
+  if (!rest) return false;
+  if (slot == CompiledOperation::Slot::value) return b.value == probe && a.mask == b.mask;
+  return b.mask == static_cast<uint64_t>(probe) && a.value == b.value;
+}
+
+bool ends_a_token(std::string_view literal) {
+  return literal.empty() || literal.back() == ' ' || literal.back() == '\t';
+}
+
+// Whether the placeholder at pieces[i] is a whole token: a decimal one alone, a hexadecimal one
+// right after "0x"; with a blank or the end after it.
+bool whole_token(const std::vector<CommandTemplate::Piece>& pieces, std::size_t i) {
+  const auto literal = [&](std::size_t k) -> std::optional<std::string_view> {
+    if (k >= pieces.size()) return std::string_view{};
+    if (!pieces[k].name.empty()) return std::nullopt;
+    return std::string_view(pieces[k].literal);
+  };
+  const auto before = i == 0 ? std::optional<std::string_view>{""} : literal(i - 1);
+  const auto after = literal(i + 1);
+  if (!before || !after) return false;
+  if (!after->empty() && after->front() != ' ' && after->front() != '\t') return false;
+  if (pieces[i].format == 'd') return ends_a_token(*before);
+  return before->size() >= 2 && before->substr(before->size() - 2) == "0x" &&
+         ends_a_token(before->substr(0, before->size() - 2));
+}
+
+}  // namespace
+
+std::shared_ptr<const CompiledOperation> compile_operation(const CommandTemplate& command,
+                                                           const Model* model, std::string& error) {
+  const auto& pieces = command.pieces();
+  // Each placeholder at 1, the others at 0 (values every integer type holds): the field that
+  // follows it is the one it fills.
+  const auto render = [&](std::size_t which) {
+    std::size_t k = 0;
+    return command.render([&](std::string_view) { return k++ == which ? 1 : 0; });
+  };
+  const auto whole = [](const std::string& name) {
+    return "{" + name + "} must stand for the whole value written or waited for (or a wait's mask)";
+  };
+  for (std::size_t i = 0; i < pieces.size(); ++i)
+    if (!pieces[i].name.empty() && !whole_token(pieces, i)) {
+      error = whole(pieces[i].name);
+      return nullptr;
+    }
+  const auto base = parse_operation(render(pieces.size()), model, error);
+  if (!base) return nullptr;
+  std::vector<CompiledOperation::Slot> slots;
+  std::size_t placeholder = 0;
+  for (const auto& piece : pieces) {
+    if (piece.name.empty()) continue;
+    const auto op = parse_operation(render(placeholder++), model, error);
+    if (!op) return nullptr;
+    std::optional<CompiledOperation::Slot> slot;
+    for (const auto s : {CompiledOperation::Slot::value, CompiledOperation::Slot::mask})
+      if (differs_only_in(*base, *op, s, 1)) slot = s;
+    if (!slot) {
+      error = whole(piece.name);
+      return nullptr;
+    }
+    if (std::find(slots.begin(), slots.end(), *slot) != slots.end()) {
+      error = "{" + piece.name + "} fills a field another placeholder fills already";
+      return nullptr;
+    }
+    slots.push_back(*slot);
+  }
+  return std::make_shared<const CompiledOperation>(*base, std::move(slots));
+}
+
+std::optional<Operation> CompiledOperation::with(std::span<const int64_t> arguments,
+                                                 std::string& error) const {
+  if (arguments.size() != slots_.size()) {
+    error = fmt::format("{} values for {} placeholders", arguments.size(), slots_.size());
+    return std::nullopt;
+  }
+  Operation op = operation_;
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    if (slots_[i] == Slot::mask) {
+      op.mask = static_cast<uint64_t>(arguments[i]);
+      continue;
+    }
+    op.value = arguments[i];
+    if (op.kind == Operation::Kind::write && !in_range(op.object.type, op.value)) {
+      error =
+          fmt::format("value {} does not fit {} (range {}..{})", op.value,
+                      to_string(op.object.type), min_of(op.object.type), max_of(op.object.type));
+      return std::nullopt;
+    }
+  }
+  return op;
+}
+
 std::optional<PointSource> compile_point_read(const PointDef& point, std::string& error) {
   if (!point.read) {
     error = "the point has no read";

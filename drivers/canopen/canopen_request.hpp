@@ -1,6 +1,6 @@
 // The canopen family's request grammar (action steps, point writes, point read sources) and
-// the decoding of point values. Pure: compiled against a model at load, parsed again at run
-// time once setpoints are substituted.
+// the decoding of point values. Pure: compiled against a model when the configuration loads;
+// at run time a command only has its placeholders' values filled in (CompiledOperation).
 //
 //   read OBJECT                              SDO upload
 //   write OBJECT VALUE                       SDO download; VALUE is an integer or "a string"
@@ -24,10 +24,12 @@
 
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "drivers/canopen/canopen_codec.hpp"
 #include "drivers/canopen/canopen_time.hpp"
@@ -59,6 +61,30 @@ struct Operation {
 // Parses one rendered request. model (may be null) resolves point names and data types.
 std::optional<Operation> parse_operation(std::string_view text, const Model* model,
                                          std::string& error);
+
+// A command template parsed once: the operation, and the field each placeholder fills (a
+// write's value, a wait's value or mask). Running it fills in the values, parsing nothing.
+class CompiledOperation : public CompiledCommand {
+ public:
+  enum class Slot { value, mask };
+
+  CompiledOperation(Operation operation, std::vector<Slot> slots)
+      : operation_(std::move(operation)), slots_(std::move(slots)) {}
+
+  // The operation with `arguments` (one per placeholder, in template order) in their fields;
+  // nullopt with error when their number is wrong or a written value does not fit its object.
+  std::optional<Operation> with(std::span<const int64_t> arguments, std::string& error) const;
+  const Operation& operation() const { return operation_; }
+
+ private:
+  Operation operation_;
+  std::vector<Slot> slots_;
+};
+
+// Compiles a template of `model` (may be null). A placeholder must stand for a whole integer
+// the operation takes as its value (or a wait's mask): anywhere else it is an error, at load.
+std::shared_ptr<const CompiledOperation> compile_operation(const CommandTemplate& command,
+                                                           const Model* model, std::string& error);
 
 enum class LocalValue { emcy_code, emcy_register, nmt_state, sdo_abort };
 

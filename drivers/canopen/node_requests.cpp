@@ -15,9 +15,9 @@ constexpr auto kWaitInterval = std::chrono::milliseconds(10);
 
 }  // namespace
 
-NodeRequests::NodeRequests(uint8_t id, const Model* model, SdoChannel& sdo, NodeSupervision& nmt,
+NodeRequests::NodeRequests(uint8_t id, SdoChannel& sdo, NodeSupervision& nmt,
                            const NodePoints& points, RequestHost& host)
-    : id_(id), model_(model), sdo_(sdo), nmt_(nmt), points_(points), host_(host) {}
+    : id_(id), sdo_(sdo), nmt_(nmt), points_(points), host_(host) {}
 
 void NodeRequests::note_abort(const SdoResult& result) {
   if (result.status != SdoResult::Status::server_abort) return;
@@ -190,17 +190,25 @@ asio::awaitable<void> NodeRequests::probe(TimePoint now) {
   co_await upload(kDeviceTypeObject, 0, now);
 }
 
+std::optional<Operation> NodeRequests::operation_of(const Request& request, std::string& error) {
+  const auto* compiled = dynamic_cast<const CompiledOperation*>(request.compiled.get());
+  if (!compiled) {
+    error = "not compiled when the configuration loaded";
+    return std::nullopt;
+  }
+  return compiled->with(request.arguments, error);
+}
+
 std::optional<CanFrame> NodeRequests::immediate_frame(const Request& request) const {
-  std::string error;
-  const auto op = parse_operation(request.command, model_, error);
-  if (!op || op->kind != Operation::Kind::nmt) return std::nullopt;
-  return nmt_frame(op->nmt, request.bus_wide ? 0 : id_);
+  const auto* compiled = dynamic_cast<const CompiledOperation*>(request.compiled.get());
+  if (!compiled || compiled->operation().kind != Operation::Kind::nmt) return std::nullopt;
+  return nmt_frame(compiled->operation().nmt, request.bus_wide ? 0 : id_);
 }
 
 asio::awaitable<Reply> NodeRequests::execute(const Request& request, bool accept_no_reply,
                                              TimePoint now) {
   std::string error;
-  const auto op = parse_operation(request.command, model_, error);
+  const auto op = operation_of(request, error);
   if (!op)
     co_return Reply::of(Reply::Status::device_error,
                         fmt::format("'{}' not sent: {}", request.command, error),

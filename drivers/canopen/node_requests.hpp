@@ -47,11 +47,12 @@ class RequestHost : public NodeHost {
 
 class NodeRequests {
  public:
-  NodeRequests(uint8_t id, const Model* model, SdoChannel& sdo, NodeSupervision& nmt,
-               const NodePoints& points, RequestHost& host);
+  NodeRequests(uint8_t id, SdoChannel& sdo, NodeSupervision& nmt, const NodePoints& points,
+               RequestHost& host);
 
-  // One request (a command); a write's timeout counts as done where the command accepts no
-  // reply.
+  // One request (a command), run in the form the family compiled at load with the request's
+  // arguments (a request without one is refused unsent); a write's timeout counts as done where
+  // the command accepts no reply.
   asio::awaitable<Reply> execute(const Request& request, bool accept_no_reply, TimePoint now);
   // The frame of a request that goes out at once, without a transfer (NMT), or none.
   std::optional<CanFrame> immediate_frame(const Request& request) const;
@@ -92,8 +93,10 @@ class NodeRequests {
   // Every point read from `object` takes the value its bytes hold (a confirmed write, a read).
   void store_object(uint16_t index, uint8_t sub, std::span<const uint8_t> bytes, TimePoint at);
 
+  // The request's compiled operation with its arguments filled in.
+  static std::optional<Operation> operation_of(const Request& request, std::string& error);
+
   uint8_t id_;
-  const Model* model_;
   SdoChannel& sdo_;
   NodeSupervision& nmt_;
   const NodePoints& points_;

@@ -47,7 +47,7 @@ struct CanBus::NodeRuntime final : RequestHost {
         wake(ex),
         sdo(id, bus.config_->timing.link.reply_timeout, wake),
         nmt(id, nc.name, timing, *this),
-        requests(id, nc.model.get(), sdo, nmt, points, *this),
+        requests(id, sdo, nmt, points, *this),
         tpdos(points.tpdo_cobs()) {}
 
   Presence presence() const override {

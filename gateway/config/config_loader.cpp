@@ -697,6 +697,7 @@ class ConfigParser {
                                    *name, n.model->family, bus.name, bus.protocol));
         } else if (bus.family && validated_.insert(n.model.get()).second) {
           bus.family->validate_model(*n.model, r_.diagnostics());
+          bus.family->compile_commands(*library_.for_compiling(*name));
         }
         if (bus.family && n.model && bus.family->model_options_apply_to_bus())
           for (const auto& other : bus.nodes)

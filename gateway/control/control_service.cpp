@@ -131,8 +131,7 @@ asio::awaitable<ControlResult> ControlService::apply(ControlWrite w) {
     case ControlWrite::Kind::point: {
       const auto& p = model->points[index];
       const int64_t v = w.value;
-      Request request{p.write->request.render([v](std::string_view) { return v; }),
-                      Request::Expect::ack, NumberFormat::decimal};
+      Request request = Request::of_template(p.write->request, [v](std::string_view) { return v; });
       Bus& bus = bus_of_(w.node);
       const auto number =
           bus.number_now(w.node, numbering_[static_cast<std::size_t>(w.node)], image);

@@ -188,8 +188,7 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
       co_await t.async_wait(use_tuple);
       continue;
     }
-    Request request{step.command.render(lookup), Request::Expect::ack, NumberFormat::decimal,
-                    action.bus_wide};
+    Request request = Request::of_template(step.command, lookup, action.bus_wide);
     CommandOptions options;
     options.accept_no_reply = step.accept_no_reply;
     options.urgent = step.urgent;

@@ -13,6 +13,7 @@
 #include <fstream>
 #include <regex>
 
+#include "compiled_request.hpp"
 #include "gateway/bus/can_bus.hpp"
 #include "gateway/config/config_loader.hpp"
 #include "sim_channel.hpp"
@@ -89,15 +90,23 @@ class CanBusTest : public ::testing::Test {
     return pred();
   }
 
+  // `command` compiled against the node's model, as the gateway compiles a model's templates.
+  Request request(int node, const std::string& command, std::vector<int64_t> arguments = {},
+                  bool bus_wide = false) {
+    const auto& model = *config_->gateway.buses[0].nodes.at(static_cast<size_t>(node)).model;
+    return test::compiled_request(command, &model, std::move(arguments), bus_wide);
+  }
+
   Reply submit(int node, const std::string& command, CommandOptions options = {},
                bool bus_wide = false) {
+    return submit(node, request(node, command, {}, bus_wide), options);
+  }
+
+  Reply submit(int node, Request request, CommandOptions options = {}) {
     std::optional<Reply> reply;
     asio::co_spawn(
         io_,
-        [&]() -> asio::awaitable<void> {
-          Request r{command, Request::Expect::ack, NumberFormat::decimal, bus_wide};
-          reply = co_await bus_->submit(node, r, options);
-        },
+        [&]() -> asio::awaitable<void> { reply = co_await bus_->submit(node, request, options); },
         asio::detached);
     run_until([&] { return reply.has_value(); }, 10s);
     if (!reply) return Reply{Reply::Status::timeout, {}, 0, "test: no reply"};
@@ -264,7 +273,8 @@ TEST_F(CanBusTest, AbortIsADeviceErrorWithItsCode) {
             "diag.last_device_error");
   EXPECT_EQ(config_->map_of(0).unit(1)->find(Table::input_registers, 1019)->name,
             "diag.unreachable");
-  r = submit(0, "write controlword 70000");  // rendered out of range: refused, not sent
+  // A setpoint outside the object's type: refused, not sent.
+  r = submit(0, request(0, "write controlword {value}", {70000}));
   EXPECT_EQ(r.status, Reply::Status::device_error);
   EXPECT_EQ(r.device_code, 0x06090030);
   EXPECT_NE(r.text.find("not sent"), std::string::npos) << r.text;
@@ -295,13 +305,18 @@ TEST_F(CanBusTest, ModelStepsEnableAndMove) {
     EXPECT_TRUE(a) << name;
     if (!a) return false;
     for (const auto& step : a->steps) {
-      const auto text = step.command.render([&](std::string_view k) {
-        const auto it = values.find(std::string(k));
-        return it == values.end() ? int64_t{0} : it->second;
-      });
-      const auto r = submit(0, text, {step.accept_no_reply, step.urgent, {}});
+      // The model's own templates, compiled when the configuration loaded.
+      const auto r =
+          submit(0,
+                 Request::of_template(step.command,
+                                      [&](std::string_view k) {
+                                        const auto it = values.find(std::string(k));
+                                        return it == values.end() ? int64_t{0} : it->second;
+                                      }),
+                 {step.accept_no_reply, step.urgent, {}});
       if (r.status != Reply::Status::ok) {
-        ADD_FAILURE() << name << ": '" << text << "': " << r.text << "\n" << wire_text();
+        ADD_FAILURE() << name << ": '" << step.command.source() << "': " << r.text << "\n"
+                      << wire_text();
         return false;
       }
     }
@@ -342,7 +357,7 @@ TEST_F(CanBusTest, UrgentCommandInterruptsAWait) {
   asio::co_spawn(
       io_,
       [&]() -> asio::awaitable<void> {
-        const Request wait{"wait statusword == 0x1234 within 5s"};
+        const Request wait = request(0, "wait statusword == 0x1234 within 5s");
         waited = co_await bus_->submit(0, wait);
       },
       asio::detached);

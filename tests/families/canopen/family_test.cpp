@@ -141,6 +141,36 @@ TEST(CanopenFamily, StepErrorsCarryTheirPosition) {
   EXPECT_EQ(e.find("m.yaml:22:"), std::string::npos) << e;
 }
 
+TEST(CanopenFamily, APlaceholderThatIsNotAWholeValueIsALoadErrorAtItsStep) {
+  const auto e = validate_text(std::string(kHeader) +
+                               "points:\n"
+                               "  controlword:\n"
+                               "    type: uint16\n"
+                               "    write: \"write 0x6040:0 UNSIGNED16 {value}\"\n"
+                               "  label:\n"
+                               "    type: uint16\n"
+                               "    write: \"write 0x2000:0 VISIBLE_STRING \\\"{value}\\\"\"\n"
+                               "setpoints:\n"
+                               "  index: {type: uint16}\n"
+                               "  word: {type: uint16}\n"
+                               "actions:\n"
+                               "  go:\n"
+                               "    code: 1\n"
+                               "    steps:\n"
+                               "      - write 0x{index:X}:0 UNSIGNED16 7\n"
+                               "      - write controlword 1{word}\n"
+                               "      - write controlword {word}\n");
+  test::expect_contains(
+      e, {"m.yaml:18:9: error: model m: action go: step 'write 0x{index:X}:0 UNSIGNED16 7': "
+          "{index} must stand for the whole value written or waited for (or a wait's mask)",
+          "m.yaml:19:9: error: model m: action go: step 'write controlword 1{word}': {word} "
+          "must stand for the whole value written or waited for (or a wait's mask)",
+          "m.yaml:9:5: error: model m: point label write: {value} must stand for the whole "
+          "value written or waited for (or a wait's mask)"});
+  EXPECT_EQ(e.find("m.yaml:20:"), std::string::npos) << e;
+  EXPECT_EQ(e.find("m.yaml:7:"), std::string::npos) << e;
+}
+
 TEST(CanopenFamily, NoOptions) {
   const auto e = validate_text(std::string(kHeader) + "options: {baud: 500k}\npoints: {}\n");
   EXPECT_NE(

@@ -48,6 +48,87 @@ TEST(Request, WriteByIndexAndByPointName) {
   EXPECT_EQ(*op.text, "axis \"two\"");
 }
 
+std::shared_ptr<const CompiledOperation> compile_ok(std::string_view text, const Model* model) {
+  std::string error;
+  const auto command = CommandTemplate::compile(text, error);
+  EXPECT_TRUE(command) << text << ": " << error;
+  if (!command) return nullptr;
+  auto compiled = compile_operation(*command, model, error);
+  EXPECT_TRUE(compiled) << text << ": " << error;
+  return compiled;
+}
+
+std::string compile_error(std::string_view text, const Model* model) {
+  std::string error;
+  const auto command = CommandTemplate::compile(text, error);
+  EXPECT_TRUE(command) << text << ": " << error;
+  if (!command) return error;
+  EXPECT_FALSE(compile_operation(*command, model, error)) << text;
+  return error;
+}
+
+TEST(CompiledOperation, PlaceholdersFillTheValueOrTheMaskWithoutParsing) {
+  const auto model = drive_model();
+  const auto write = compile_ok("write target_position {target}", model.get());
+  ASSERT_TRUE(write);
+  std::string error;
+  const std::vector<int64_t> target{-250000};
+  auto op = write->with(target, error);
+  ASSERT_TRUE(op) << error;
+  EXPECT_EQ(op->kind, Operation::Kind::write);
+  EXPECT_EQ(op->object, (ObjectAddress{0x607A, 0, DataType::integer32}));
+  EXPECT_EQ(op->value, -250000);
+
+  const auto wait = compile_ok("wait statusword & {mask} == {state} within 2s", model.get());
+  ASSERT_TRUE(wait);
+  const std::vector<int64_t> mask_and_state{0x6F, 0x27};
+  op = wait->with(mask_and_state, error);
+  ASSERT_TRUE(op) << error;
+  EXPECT_EQ(op->mask, 0x6Fu);
+  EXPECT_EQ(op->value, 0x27);
+  EXPECT_EQ(op->within, 2s);
+
+  // A hexadecimal placeholder written after 0x is the same whole value.
+  const auto hex = compile_ok("write controlword 0x{value:X}", model.get());
+  ASSERT_TRUE(hex);
+  const std::vector<int64_t> word{0x1F};
+  EXPECT_EQ(hex->with(word, error).value_or(Operation{}).value, 0x1F);
+
+  const auto nmt = compile_ok("nmt reset-communication", nullptr);
+  ASSERT_TRUE(nmt);
+  EXPECT_EQ(nmt->operation().kind, Operation::Kind::nmt);
+  EXPECT_EQ(nmt->operation().nmt, NmtCommand::reset_communication);
+}
+
+TEST(CompiledOperation, AValueOutsideTheObjectIsRefusedWhenFilledIn) {
+  const auto model = drive_model();
+  const auto write = compile_ok("write controlword {value}", model.get());
+  ASSERT_TRUE(write);
+  std::string error;
+  const std::vector<int64_t> too_big{70000};
+  EXPECT_FALSE(write->with(too_big, error));
+  EXPECT_EQ(error, "value 70000 does not fit UNSIGNED16 (range 0..65535)");
+  const std::vector<int64_t> none;
+  EXPECT_FALSE(write->with(none, error));
+  EXPECT_EQ(error, "0 values for 1 placeholders");
+}
+
+TEST(CompiledOperation, APlaceholderAnywhereElseDoesNotCompile) {
+  const auto model = drive_model();
+  const std::string whole =
+      " must stand for the whole value written or waited for (or a wait's mask)";
+  EXPECT_EQ(compile_error("write 0x{index:X}:0 UNSIGNED16 5", nullptr), "{index}" + whole);
+  EXPECT_EQ(compile_error("write controlword 1{value}", model.get()), "{value}" + whole);
+  EXPECT_EQ(compile_error("write 0x2000:0 VISIBLE_STRING \"{value}\"", nullptr), "{value}" + whole);
+  EXPECT_EQ(compile_error("write controlword {value}0", model.get()), "{value}" + whole);
+  EXPECT_EQ(compile_error("write controlword 0x{value}", model.get()), "{value}" + whole);
+  EXPECT_EQ(compile_error("write controlword {value:X}", model.get()), "{value}" + whole);
+  EXPECT_EQ(compile_error("wait statusword == 5 within {a}ms", model.get()), "{a}" + whole);
+  EXPECT_EQ(compile_error("write controlword {a}{b}", model.get()), "{a}" + whole);
+  EXPECT_EQ(compile_error("wait statusword & 3 == {a} within {b} s", model.get()),
+            "wait: '0' is not a duration (e.g. 500ms, 2s)");
+}
+
 TEST(Request, WriteErrors) {
   const auto model = drive_model();
   EXPECT_EQ(parse_error("write 0x2001:0 5", model.get()),

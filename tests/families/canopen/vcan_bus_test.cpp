@@ -9,6 +9,7 @@
 #include <boost/asio/detached.hpp>
 #include <boost/asio/io_context.hpp>
 
+#include "compiled_request.hpp"
 #include "gateway/bus/can_bus.hpp"
 #include "gateway/config/config_loader.hpp"
 #include "vcan_fixture.hpp"
@@ -74,12 +75,17 @@ class VcanBus : public ::testing::Test {
     }
     return pred();
   }
+  // `command` compiled against the node's model, as the gateway compiles a model's templates.
+  static Request request(int node, const std::string& command) {
+    const auto& model = *s->config->gateway.buses[0].nodes.at(static_cast<size_t>(node)).model;
+    return test::compiled_request(command, &model);
+  }
   static Reply submit(int node, const std::string& command) {
     std::optional<Reply> reply;
     asio::co_spawn(
         s->io,
         [&]() -> asio::awaitable<void> {
-          const Request r{command};
+          const Request r = request(node, command);
           reply = co_await s->bus->submit(node, r);
         },
         asio::detached);
@@ -241,7 +247,7 @@ TEST_F(VcanBus, TransfersToDifferentNodesOverlap) {
     asio::co_spawn(
         s->io,
         [node, out]() -> asio::awaitable<void> {
-          const Request r{"read 0x1008:0 VISIBLE_STRING"};
+          const Request r = request(node, "read 0x1008:0 VISIBLE_STRING");
           *out = co_await s->bus->submit(node, r);
         },
         asio::detached);
