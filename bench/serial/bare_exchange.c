@@ -316,7 +316,7 @@ int main(int argc, char** argv) {
   }
   printf(
       "bare_exchange exchanges %ld seconds %.3f per_s %.1f missing %ld overlong %ld "
-      "mean_gap_us %.0f\n",
+      "mean_gap_us %.1f\n",
       counted, window, (double)counted / window, missing, overlong,
       gaps ? gap_sum / (double)gaps * 1e6 : 0.0);
   return 0;
