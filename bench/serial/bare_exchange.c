@@ -29,10 +29,13 @@
  * drained until quiet and the next exchange follows: a missing reply never hangs the run. Bytes
  * read beyond a reply's expected length are counted (overlong) and dropped.
  *
- * Prints one line: "bare_exchange exchanges N seconds S per_s R missing M overlong O
- * mean_gap_us G", counting the exchanges written from --warmup seconds on (default 0) until
- * SECONDS, and G the mean time from the end of a reply (its last byte read) to the next request's
- * write, over exchanges that had a reply.
+ * Prints one line: "bare_exchange cycles C exchanges N seconds S per_s R missing M overlong O
+ * mean_gap_us G". The rate is taken over whole cycles, so that every request of the cycle
+ * weighs in it as often as in the gateway's (a cycle can mix 1 ms and 200 ms exchanges): from
+ * the first cycle start written after --warmup seconds (default 0) to the last one before
+ * SECONDS, C cycles of the script's L lines, N = C x their count, S seconds between. M and O
+ * count the exchanges written after the warm-up; G is the mean time from the end of a reply (its
+ * last byte read) to the next request's write, over those that had a reply.
  */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -260,10 +263,11 @@ int main(int argc, char** argv) {
   unsigned char* buffer = malloc(buffer_size);
   if (buffer == NULL) return 3;
 
-  long counted = 0, missing = 0, overlong = 0, gaps = 0;
+  const size_t cycle = script.count - script.prologue;
+  long cycles = 0, missing = 0, overlong = 0, gaps = 0;
   double gap_sum = 0;
-  double window_start = -1, window_end = 0;
-  double reply_end = -1; /* when the last byte of the previous reply was read */
+  double first_cycle = -1, last_cycle = -1; /* cycle starts (writes) after the warm-up */
+  double reply_end = -1;                    /* when the last byte of the previous reply was read */
   const double start = now_s();
   const double measure_from = start + warmup;
   const double stop = start + seconds;
@@ -271,14 +275,21 @@ int main(int argc, char** argv) {
   for (;;) {
     const double written = now_s();
     if (written >= stop) break;
+    const int cycle_start = next == script.prologue;
     const struct exchange* x = &script.items[next];
     next = next + 1 < script.count ? next + 1 : script.prologue;
     const double limit = written + timeout_s + 2 * char_s * (double)(x->request_size + x->expect);
     write_all(fd, x->request, x->request_size, limit);
     const int counting = written >= measure_from;
+    if (counting && cycle_start) {
+      if (first_cycle < 0) {
+        first_cycle = written;
+      } else {
+        last_cycle = written;
+        ++cycles;
+      }
+    }
     if (counting) {
-      if (window_start < 0) window_start = written;
-      ++counted;
       if (reply_end >= 0) {
         gap_sum += written - reply_end;
         ++gaps;
@@ -300,7 +311,6 @@ int main(int argc, char** argv) {
       }
     }
     const double done = now_s();
-    if (counting) window_end = done;
     if (lost) {
       if (counting) ++missing;
       drain_until_quiet(fd, 0.02);
@@ -309,15 +319,19 @@ int main(int argc, char** argv) {
       if (got > x->expect && counting) ++overlong;
     }
   }
-  const double window = window_end - window_start;
-  if (counted == 0 || window <= 0) {
-    fprintf(stderr, "bare_exchange: nothing measured after the %.1f s warm-up\n", warmup);
+  if (cycles == 0) {
+    fprintf(stderr,
+            "bare_exchange: fewer than two starts of the %zu-exchange cycle after the %.1f s "
+            "warm-up: run longer\n",
+            cycle, warmup);
     return 1;
   }
+  const double window = last_cycle - first_cycle;
+  const long exchanges = cycles * (long)cycle;
   printf(
-      "bare_exchange exchanges %ld seconds %.3f per_s %.1f missing %ld overlong %ld "
+      "bare_exchange cycles %ld exchanges %ld seconds %.3f per_s %.1f missing %ld overlong %ld "
       "mean_gap_us %.1f\n",
-      counted, window, (double)counted / window, missing, overlong,
+      cycles, exchanges, window, (double)exchanges / window, missing, overlong,
       gaps ? gap_sum / (double)gaps * 1e6 : 0.0);
   return 0;
 }

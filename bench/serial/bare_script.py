@@ -4,6 +4,12 @@
   bare_script.py make WIRE_LOG SCRIPT   writes SCRIPT for bare_exchange from the simulator's
                                         --wire-log of a gateway run; prints "cycle P start-up A
                                         silent K" (K: exchanges of the cycle without a reply)
+  bare_script.py rate SCRIPT WIRE_LOG [WARMUP]
+                                        exchanges/s in WIRE_LOG (the gateway's or the bare
+                                        exchange's) over whole poll cycles of SCRIPT, from the
+                                        first cycle start WARMUP (default 1) s after the first
+                                        request to the last one, on the simulator's clock;
+                                        prints "per_s R cycles C seconds S"
   bare_script.py check SCRIPT WIRE_LOG  compares the simulator's --wire-log of a bare exchange
                                         run with SCRIPT; prints "replayed N differ D" and, when D
                                         is not 0, the first difference (bytes back compared per
@@ -18,6 +24,12 @@ Whedco's cleared faults), then the cycle over and over. A log that does not end 
 cycle has no faithful replay: `make` fails and says so.
 
 Script lines: "P|L BYTES HEX" (P: start-up, L: cycle; HEX the request's bytes).
+
+Rates over whole cycles, not over a time window: a cycle mixes long and short exchanges (at 9600
+Centent's status query takes about 190 ms and its selections 4 ms), and a window that cuts the
+cycles differently for the gateway and the bare exchange would weigh them differently. Both
+logs follow the script (the gateway's by construction, the bare exchange's as `check` proves),
+so a cycle starts at every exchange number start-up + k x cycle in both.
 """
 import sys
 
@@ -92,7 +104,8 @@ def make(log, out):
     print(f"cycle {p} start-up {a} silent {silent}")
 
 
-def check(script, log):
+def read_script(script):
+    """([(request bytes, bytes back)], start-up length)"""
     items = []
     prologue = 0
     with open(script) as f:
@@ -103,6 +116,32 @@ def check(script, log):
             items.append((bytes.fromhex(request), int(expect)))
             if kind == "P":
                 prologue = len(items)
+    return items, prologue
+
+
+def rate(script, log, warmup):
+    items, prologue = read_script(script)
+    cycle = len(items) - prologue
+    starts = []
+    with open(log, encoding="latin-1") as f:
+        for line in f:
+            parts = line.split(" ", 1)
+            if line.endswith("\n") and len(parts) == 2:
+                starts.append(int(parts[0]))
+    if not starts:
+        raise SystemExit(f"no exchanges in {log}")
+    t0 = starts[0] + warmup * 1e9
+    cycle_starts = [starts[i] for i in range(prologue, len(starts), cycle) if starts[i] >= t0]
+    if len(cycle_starts) < 2:
+        raise SystemExit(f"fewer than two starts of the {cycle}-exchange cycle after the "
+                         f"{warmup:g} s warm-up in {log}: run longer")
+    cycles = len(cycle_starts) - 1
+    seconds = (cycle_starts[-1] - cycle_starts[0]) / 1e9
+    print(f"per_s {cycles * cycle / seconds:.1f} cycles {cycles} seconds {seconds:.3f}")
+
+
+def check(script, log):
+    items, prologue = read_script(script)
     rows = read_log(log)
     # Requests that expect nothing back go out back to back with the next one, and the simulator
     # may read them in one go and log their echo against the first: the bytes back are compared
@@ -133,6 +172,8 @@ def check(script, log):
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "make":
         make(sys.argv[2], sys.argv[3])
+    elif len(sys.argv) in (4, 5) and sys.argv[1] == "rate":
+        rate(sys.argv[2], sys.argv[3], float(sys.argv[4]) if len(sys.argv) == 5 else 1.0)
     elif len(sys.argv) == 4 and sys.argv[1] == "check":
         check(sys.argv[2], sys.argv[3])
     else:
