@@ -31,7 +31,7 @@
  *
  * Prints one line: "bare_exchange cycles C exchanges N seconds S per_s R missing M overlong O
  * mean_gap_us G". The rate is taken over whole cycles, so that every request of the cycle
- * weighs in it as often as in the gateway's (a cycle can mix 1 ms and 200 ms exchanges): from
+ * weighs in it as often as in the gateway's (a cycle can mix 4 ms and 190 ms exchanges): from
  * the first cycle start written after --warmup seconds (default 0) to the last one before
  * SECONDS, C cycles of the script's L lines, N = C x their count, S seconds between. M and O
  * count the exchanges written after the warm-up; G is the mean time from the end of a reply (its
@@ -298,16 +298,19 @@ int main(int argc, char** argv) {
     reply_end = -1;
     size_t got = 0;
     int lost = 0;
+    /* No reply can be there yet (the device's turnaround): wait first, then read. */
     while (got < x->expect) {
+      if (!wait_for(fd, POLLIN, limit)) {
+        lost = 1;
+        break;
+      }
       const ssize_t n = read(fd, buffer, buffer_size);
       if (n > 0) {
         got += (size_t)n;
-      } else if (n < 0 && errno != EAGAIN && errno != EINTR) {
-        perror("bare_exchange: read");
+      } else if (n == 0 || (errno != EAGAIN && errno != EINTR)) {
+        fprintf(stderr, "bare_exchange: read %s: %s\n", tty,
+                n == 0 ? "end of file" : strerror(errno));
         return 1;
-      } else if (!wait_for(fd, POLLIN, limit)) {
-        lost = 1;
-        break;
       }
     }
     const double done = now_s();
