@@ -21,7 +21,8 @@
  * capture treats every family alike: a local echo (IMS, Whedco) or a reply without a fixed
  * terminator needs no rule of its own. The P lines (the gateway's start-up, which puts the
  * simulated devices into the state the cycle expects) run once; the L lines (whole poll cycles)
- * then repeat until SECONDS have passed. Lines starting with '#' are comments.
+ * then repeat until SECONDS have passed. Without L lines the run ends with the script. Lines
+ * starting with '#' are comments.
  *
  * The tty is opened raw (cfmakeraw, CLOCAL | CREAD, no flow control) at BAUD, input and output
  * flushed, as the gateway opens it. A reply that is still incomplete after MS milliseconds
@@ -30,12 +31,14 @@
  * read beyond a reply's expected length are counted (overlong) and dropped.
  *
  * Prints one line: "bare_exchange cycles C exchanges N seconds S per_s R missing M overlong O
- * mean_gap_us G". The rate is taken over whole cycles, so that every request of the cycle
- * weighs in it as often as in the gateway's (a cycle can mix 4 ms and 190 ms exchanges): from
- * the first cycle start written after --warmup seconds (default 0) to the last one before
- * SECONDS, C cycles of the script's L lines, N = C x their count, S seconds between. M and O
- * count the exchanges written after the warm-up; G is the mean time from the end of a reply (its
- * last byte read) to the next request's write, over those that had a reply.
+ * mean_gap_us G", its own count on its own clock (bench/serial/run compares the simulator's logs
+ * instead, exchange for exchange). The rate is taken over whole cycles where there are two cycle
+ * starts after --warmup seconds (default 0), so that every request of the cycle weighs in it as
+ * often as in the gateway's (a cycle can mix 4 ms and 190 ms exchanges): C cycles of the L lines,
+ * N = C x their count, S seconds from the first cycle start to the last. Otherwise (C = 0) over
+ * the N + 1 exchanges written after the warm-up, S seconds from the first write to the last. M and
+ * O count the exchanges written after the warm-up; G is the mean time from the end of a reply
+ * (its last byte read) to the next request's write, over those that had a reply.
  */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -124,8 +127,8 @@ static void load_script(const char* path, struct script* s) {
   }
   free(line);
   fclose(f);
-  if (s->count == s->prologue) {
-    fprintf(stderr, "bare_exchange: %s has no L (cycle) lines\n", path);
+  if (s->count == 0) {
+    fprintf(stderr, "bare_exchange: %s has no exchanges\n", path);
     exit(2);
   }
 }
@@ -264,8 +267,9 @@ int main(int argc, char** argv) {
   if (buffer == NULL) return 3;
 
   const size_t cycle = script.count - script.prologue;
-  long cycles = 0, missing = 0, overlong = 0, gaps = 0;
+  long cycles = 0, counted = 0, missing = 0, overlong = 0, gaps = 0;
   double gap_sum = 0;
+  double first_write = -1, last_write = -1; /* writes after the warm-up */
   double first_cycle = -1, last_cycle = -1; /* cycle starts (writes) after the warm-up */
   double reply_end = -1;                    /* when the last byte of the previous reply was read */
   const double start = now_s();
@@ -274,10 +278,10 @@ int main(int argc, char** argv) {
   size_t next = 0;
   for (;;) {
     const double written = now_s();
-    if (written >= stop) break;
+    if (written >= stop || next == script.count) break;
     const int cycle_start = next == script.prologue;
     const struct exchange* x = &script.items[next];
-    next = next + 1 < script.count ? next + 1 : script.prologue;
+    next = next + 1 < script.count || cycle == 0 ? next + 1 : script.prologue;
     const double limit = written + timeout_s + 2 * char_s * (double)(x->request_size + x->expect);
     write_all(fd, x->request, x->request_size, limit);
     const int counting = written >= measure_from;
@@ -290,6 +294,9 @@ int main(int argc, char** argv) {
       }
     }
     if (counting) {
+      if (first_write < 0) first_write = written;
+      last_write = written;
+      ++counted;
       if (reply_end >= 0) {
         gap_sum += written - reply_end;
         ++gaps;
@@ -322,15 +329,12 @@ int main(int argc, char** argv) {
       if (got > x->expect && counting) ++overlong;
     }
   }
-  if (cycles == 0) {
-    fprintf(stderr,
-            "bare_exchange: fewer than two starts of the %zu-exchange cycle after the %.1f s "
-            "warm-up: run longer\n",
-            cycle, warmup);
+  if (cycles == 0 && counted < 2) {
+    fprintf(stderr, "bare_exchange: fewer than two exchanges after the %.1f s warm-up\n", warmup);
     return 1;
   }
-  const double window = last_cycle - first_cycle;
-  const long exchanges = cycles * (long)cycle;
+  const double window = cycles ? last_cycle - first_cycle : last_write - first_write;
+  const long exchanges = cycles ? cycles * (long)cycle : counted - 1;
   printf(
       "bare_exchange cycles %ld exchanges %ld seconds %.3f per_s %.1f missing %ld overlong %ld "
       "mean_gap_us %.1f\n",

@@ -1,35 +1,36 @@
 #!/usr/bin/python3
-"""The bare exchange's script from a gateway run, and the check that it was replayed faithfully.
+"""The bare exchange's script from a gateway run, the check that it was replayed faithfully, and
+the two rates over the same exchanges.
 
   bare_script.py make WIRE_LOG SCRIPT   writes SCRIPT for bare_exchange from the simulator's
                                         --wire-log of a gateway run; prints "cycle P start-up A
                                         silent K" (K: exchanges of the cycle without a reply)
-  bare_script.py rate SCRIPT WIRE_LOG [WARMUP]
-                                        exchanges/s in WIRE_LOG (the gateway's or the bare
-                                        exchange's) over whole poll cycles of SCRIPT, from the
-                                        first cycle start WARMUP (default 1) s after the first
-                                        request to the last one, on the simulator's clock;
-                                        prints "per_s R cycles C seconds S"
   bare_script.py check SCRIPT WIRE_LOG  compares the simulator's --wire-log of a bare exchange
                                         run with SCRIPT; prints "replayed N differ D" and, when D
                                         is not 0, the first difference (bytes back compared per
                                         run of silent requests and the one that ends it)
+  bare_script.py compare GATEWAY_LOG BARE_LOG [WARMUP]
+                                        exchanges/s of the gateway and of the bare exchange over
+                                        the same exchanges: from the gateway's first request
+                                        WARMUP (default 1) s into its run to the last request
+                                        both logs hold, each on the simulator's clock; prints
+                                        "gw_per_s G bare_per_s B exchanges N gw_s S bare_s T"
 
 The script repeats the gateway's own traffic: every request it wrote, in its order, with the
 number of bytes the simulator sent back for it (echo plus reply). The gateway's poll cycle is the
 shortest period P with which the end of its log repeats (at least two whole cycles observed);
-the start-up is everything before the first of those cycles. bare_exchange runs the start-up
-once, so the simulated devices are in the state the cycle expects (Centent's selected unit,
-Whedco's cleared faults), then the cycle over and over. A log that does not end in a repeating
-cycle has no faithful replay: `make` fails and says so.
+the start-up is everything before the first of those cycles, retries and time-outs included.
+bare_exchange runs the start-up once (which also puts the simulated devices into the state the
+cycle expects: Centent's selected unit, Whedco's cleared faults), then the cycle over and over.
+When the log ends in no such cycle (a long cycle at 9600 in a short run), the whole log is the
+start-up ("cycle 0") and the bare exchange stops at its end.
+
+Either way the bare exchange's n-th request is the gateway's n-th for as far as the gateway's log
+goes, so `compare` times the very same exchanges in both logs: a cycle mixes exchanges of a few
+ms and of 190 ms (Centent at 9600), and two time windows would weigh them differently; a stall
+of the gateway's (a time-out, a retry) inside the window counts against it.
 
 Script lines: "P|L BYTES HEX" (P: start-up, L: cycle; HEX the request's bytes).
-
-Rates over whole cycles, not over a time window: a cycle mixes long and short exchanges (at 9600
-Centent's status query takes about 190 ms and its selections 4 ms), and a window that cuts the
-cycles differently for the gateway and the bare exchange would weigh them differently. Both
-logs follow the script (the gateway's by construction, the bare exchange's as `check` proves),
-so a cycle starts at every exchange number start-up + k x cycle in both.
 """
 import sys
 
@@ -92,10 +93,9 @@ def make(log, out):
         a = periodic_start(seq, p)
         if len(seq) - a >= 2 * p and (best is None or a < best[1]):
             best = (p, a)
-    if best is None:
-        raise SystemExit(f"no repeating poll cycle in {log} ({len(seq)} exchanges): the gateway's "
-                         "traffic cannot be replayed faithfully; a longer run may show one")
-    p, a = best
+    if not seq:
+        raise SystemExit(f"no exchanges in {log}")
+    p, a = best if best is not None else (0, len(seq))
     with open(out, "w") as f:
         f.write(f"# bare_exchange script from {log}: start-up {a}, cycle {p}\n")
         for i, (request, echo, reply) in enumerate(seq[:a + p]):
@@ -119,25 +119,33 @@ def read_script(script):
     return items, prologue
 
 
-def rate(script, log, warmup):
-    items, prologue = read_script(script)
-    cycle = len(items) - prologue
-    starts = []
+def starts(log):
+    """Each logged request's first-byte instant, ns."""
+    out = []
     with open(log, encoding="latin-1") as f:
         for line in f:
             parts = line.split(" ", 1)
             if line.endswith("\n") and len(parts) == 2:
-                starts.append(int(parts[0]))
-    if not starts:
-        raise SystemExit(f"no exchanges in {log}")
-    t0 = starts[0] + warmup * 1e9
-    cycle_starts = [starts[i] for i in range(prologue, len(starts), cycle) if starts[i] >= t0]
-    if len(cycle_starts) < 2:
-        raise SystemExit(f"fewer than two starts of the {cycle}-exchange cycle after the "
-                         f"{warmup:g} s warm-up in {log}: run longer")
-    cycles = len(cycle_starts) - 1
-    seconds = (cycle_starts[-1] - cycle_starts[0]) / 1e9
-    print(f"per_s {cycles * cycle / seconds:.1f} cycles {cycles} seconds {seconds:.3f}")
+                out.append(int(parts[0]))
+    return out
+
+
+def compare(gateway_log, bare_log, warmup):
+    g = starts(gateway_log)
+    b = starts(bare_log)
+    if not g or not b:
+        raise SystemExit("no exchanges to compare")
+    t0 = g[0] + warmup * 1e9
+    first = next((i for i, t in enumerate(g) if t >= t0), len(g))
+    last = min(len(g), len(b)) - 1
+    if last - first < 10:
+        raise SystemExit(f"too few exchanges after the {warmup:g} s warm-up in both logs "
+                         f"({max(0, last - first)})")
+    n = last - first
+    gs = (g[last] - g[first]) / 1e9
+    bs = (b[last] - b[first]) / 1e9
+    print(f"gw_per_s {n / gs:.1f} bare_per_s {n / bs:.1f} exchanges {n} gw_s {gs:.3f} "
+          f"bare_s {bs:.3f}")
 
 
 def check(script, log):
@@ -153,6 +161,10 @@ def check(script, log):
     k = 0
     want_group = got_group = 0
     for n, (request, echo, reply) in enumerate(rows):
+        if k == len(items):  # a script without a cycle ends: nothing more was to be sent
+            differ += 1
+            first = first or f"exchange {n}: {unescape(request)!r} after the end of the script"
+            continue
         want_request, want_back = items[k]
         want_group += want_back
         got_group += echo + reply
@@ -165,15 +177,15 @@ def check(script, log):
                          f"{unescape(request)!r} answered with {echo}+{reply} ({got_group})")
         if ends_group:
             want_group = got_group = 0
-        k = k + 1 if k + 1 < len(items) else prologue
+        k = k + 1 if k + 1 < len(items) or prologue == len(items) else prologue
     print(f"replayed {len(rows)} differ {differ}" + (f" first {first}" if first else ""))
 
 
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "make":
         make(sys.argv[2], sys.argv[3])
-    elif len(sys.argv) in (4, 5) and sys.argv[1] == "rate":
-        rate(sys.argv[2], sys.argv[3], float(sys.argv[4]) if len(sys.argv) == 5 else 1.0)
+    elif len(sys.argv) in (4, 5) and sys.argv[1] == "compare":
+        compare(sys.argv[2], sys.argv[3], float(sys.argv[4]) if len(sys.argv) == 5 else 1.0)
     elif len(sys.argv) == 4 and sys.argv[1] == "check":
         check(sys.argv[2], sys.argv[3])
     else:
