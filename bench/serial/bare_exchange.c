@@ -6,11 +6,12 @@
  * bench/serial/run holds the gateway's rate against it, measured in the same run.
  *
  * Why not only the modelled ideal of analyse.py (request, echo and reply bytes over the baud plus
- * the turnaround): the model's errors go both ways. It charges a turnaround to requests that get
- * no reply (Centent's leading CR and unit selections, sent back to back), so it is too slow there
- * and ratios exceed 1; and it knows nothing of what a real exchange costs on a PTY (the
- * simulator's wake-ups, its 1 ms transmit chunks, the reader's own wake-ups), so it is too fast
- * elsewhere. The bare exchange pays all of those, and nothing of the gateway.
+ * the turnaround): the model's errors go both ways. It knows nothing of what an exchange costs on
+ * a PTY (the simulator's wake-ups, its 1 ms transmit chunks, the reader's own wake-ups), so it is
+ * too fast where those weigh (Copley, IMS and Whedco at 115200); it charges a turnaround to
+ * requests that get no reply (Centent's leading CR and unit selections, sent back to back), so it
+ * is too slow there and ratios exceed 1 (IMS's and Whedco's at 9600 come out too slow as well).
+ * The bare exchange pays what any program would on this line, and nothing of the gateway.
  *
  *   bare_exchange [--warmup S] [--timeout-ms MS] PTY BAUD SECONDS SCRIPT
  *
