@@ -130,7 +130,7 @@ struct Model {
   std::vector<ActionDef> actions;
   std::map<std::string, std::string> options;  // family-specific settings, validated by the family
   std::map<std::string, SourceMark> option_marks;  // where each option was written
-  std::vector<ProfileAxisDef> profile_axes;    // its axes on the axis profile, if mapped
+  std::vector<ProfileAxisDef> profile_axes;        // its axes on the axis profile, if mapped
   SourceMark mark;
 
   const PointDef* find_point(const std::string& point_name) const;

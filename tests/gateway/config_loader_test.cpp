@@ -272,7 +272,8 @@ TEST_F(ConfigLoaderTest, AnUnsetVariableTakesItsFallbackOrIsAnErrorThatNamesTheF
 
 TEST_F(ConfigLoaderTest, ASerialDeviceThatIsNotThereIsAWarningNotAnError) {
   std::optional<LoadedConfig> c;
-  const std::string yaml = bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n");
+  const std::string yaml =
+      bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n");
   const auto at = yaml.find("/dev/null");
   EXPECT_EQ(load(std::string(yaml).replace(at, 9, "/dev/fieldgate-no-such-port"), &c), "");
   ASSERT_TRUE(c);
