@@ -54,15 +54,6 @@ std::optional<Reply> interpret_echo(const NodeAddress& node, const Request& requ
 
 }  // namespace
 
-std::optional<Reply> check_ims_echo(const NodeAddress& node, const Request& request,
-                                    std::string_view echo) {
-  if (ims::parse_echo_line(name_of(node), request.command, echo).match != ims::EchoMatch::mismatch)
-    return std::nullopt;
-  return Reply::of(Reply::Status::garbled,
-                   fmt::format("echo '{}' does not match '{}'", ims::printable(echo),
-                               ims::printable(ims::encode_line(name_of(node), request.command))));
-}
-
 Reply interpret_ims_result(const NodeAddress& node, const Request& request, std::string_view line) {
   const auto result = ims::parse_result(line);
   if (!result)

@@ -86,10 +86,6 @@ class Exchange {
 
 namespace fieldgate {
 
-// nullopt when `echo` (one line, LF included) is the echo of the request to `node`; else the
-// garbled reply that says why not.
-std::optional<Reply> check_ims_echo(const NodeAddress& node, const Request& request,
-                                    std::string_view echo);
 // What a result line means for a query.
 Reply interpret_ims_result(const NodeAddress& node, const Request& request, std::string_view line);
 // Everything a unit sent back after the request, as if it all arrived before the deadline:

@@ -49,8 +49,9 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
 
 SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
                      const BusConfig& config, int first_node_index, NodeUpdated on_update,
-                     std::unique_ptr<ByteTransport> transport)
+                     std::unique_ptr<ByteTransport> transport, TimeSource now)
     : executor_(executor),
+      now_(now ? std::move(now) : TimeSource([] { return Clock::now(); })),
       config_owners_{std::move(config_owner)},
       config_(&config),
       family_(stream_family(config)),
@@ -157,7 +158,7 @@ bool SerialBus::reconfigure(std::shared_ptr<const void> config_owner, const BusC
   nodes_ = std::move(next);
   const PollPlan previous = std::move(plan_);
   plan_polls();
-  plan_.start_after(previous, moved_to, Clock::now());
+  plan_.start_after(previous, moved_to, now_());
   ++numbering_;
   first_node_index_ = first_node_index;
   on_update_ = std::move(on_update);
@@ -224,6 +225,7 @@ asio::awaitable<Reply> SerialBus::submit(int node_index, Request request, Comman
   cmd->node = n.index;  // local, so a reload that renumbers the gateway's nodes cannot misroute it
   cmd->request = std::move(request);
   cmd->options = options;
+  cmd->queued_at = now_();
   commands_.push_back(cmd);
   wake_.cancel();
   co_return co_await cmd->reply();
@@ -262,11 +264,11 @@ void SerialBus::set_state(NodeRuntime& n, NodeState state, std::string_view why)
   if (state == NodeState::online) {
     log::notice("bus {}: node {} ({}) online{}", config_->name, n.config->name,
                 n.config->address.text, old == NodeState::offline ? " again" : "");
-    plan_.restart_node(n.index, Clock::now());
+    plan_.restart_node(n.index, now_());
   } else if (state == NodeState::offline) {
     log::warning("bus {}: node {} ({}) offline: {}", config_->name, n.config->name,
                  n.config->address.text, why);
-    n.next_probe = Clock::now() + config_->timing.probe_interval;
+    n.next_probe = now_() + config_->timing.probe_interval;
   } else if (state == NodeState::faulted) {
     log::warning("bus {}: node {} ({}) faulted: it answers but refuses every poll ({})",
                  config_->name, n.config->name, n.config->address.text, why);
@@ -285,7 +287,7 @@ void SerialBus::all_nodes_offline(std::string_view why) {
 
 void SerialBus::record(NodeRuntime& n, const Reply& reply, bool poll) {
   auto& c = (*n.image).counters;
-  switch (count_reply(c, counters_, reply, Clock::now())) {
+  switch (count_reply(c, counters_, reply, now_())) {
     case ReplyOutcome::answered:
       if (reply.status == Reply::Status::ok) {
         if (poll) n.refused_polls = 0;
@@ -531,7 +533,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
   // Nothing is sent before a later proof passes. A command that has already waited through
   // proofs learns it now, rather than after the proofs of the polls ahead of it: a Modbus
   // client's timeout is near. A newer one keeps its place and gets a proof of its own.
-  const auto now = Clock::now();
+  const auto now = now_();
   std::erase_if(commands_, [&](const std::shared_ptr<PendingCommand>& cmd) {
     if (now - cmd->queued_at < kCommandPatience) return false;
     cmd->answer(Reply::of(Reply::Status::unreachable,
@@ -561,7 +563,7 @@ asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
   const Request request = item.request;
   const auto targets = item.targets;
   Reply reply = co_await transact(n, request, probing ? 0 : config_->timing.retries, false, true);
-  const auto now = Clock::now();
+  const auto now = now_();
   if (probing) {
     n.next_probe = now + config_->timing.probe_interval;
   } else if (plan == plan_number_) {
@@ -588,7 +590,7 @@ asio::awaitable<void> SerialBus::open_link() {
     counters_.open_attempted = true;
     if (!ec) {
       counters_.link_up = true;
-      const auto now = Clock::now();
+      const auto now = now_();
       // A link reopened soon after its last opening, with no failure to open in between: the
       // periodic reopen of a line where nothing answers. Once per kReopenReminder, not each time.
       const bool churn = counters_.reconnects > 0 && !link_error_logged_ &&
@@ -614,7 +616,7 @@ asio::awaitable<void> SerialBus::open_link() {
       co_await family_.on_link_open(link_, config_->timing.link);
       log_notes(level == log::Level::debug);
       for (auto& n : nodes_)
-        if (n->image->state == NodeState::offline) n->next_probe = Clock::now();
+        if (n->image->state == NodeState::offline) n->next_probe = now_();
       co_return;
     }
     counters_.link_up = false;
@@ -637,14 +639,14 @@ asio::awaitable<void> SerialBus::open_link() {
 }
 
 asio::awaitable<void> SerialBus::run() {
-  plan_.start(Clock::now());
+  plan_.start(now_());
   while (!stopping_) {
     if (!transport_->is_open()) {
       counters_.link_up = false;
       co_await open_link();
       continue;
     }
-    const auto now = Clock::now();
+    const auto now = now_();
     // The next poll: a due item of a node that is not offline (rate-monotonic, see PollPlan),
     // or the probe of an offline node, whichever is due first.
     auto due = plan_.pick(now, [&](int local) {
@@ -704,7 +706,11 @@ asio::awaitable<void> SerialBus::run() {
       co_await run_poll(turn.item);
       continue;
     }
-    wake_.expires_at(turn.until);
+    // The sleep runs on the steady clock for as long as the time source says is left.
+    if (turn.until == SteadyTime::max())
+      wake_.expires_at(SteadyTime::max());
+    else
+      wake_.expires_after(turn.until - now_());
     co_await wake_.async_wait(use_tuple);
   }
   while (!commands_.empty()) {

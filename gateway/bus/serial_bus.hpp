@@ -29,15 +29,23 @@ class SerialBus final : public Bus {
   // which a reload may make longer than that configuration is in force.
   SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
             const BusConfig& config, int first_node_index, NodeUpdated on_update);
-  // On a transport the caller made (tests: an in-memory line) instead of the configured one.
+  // What the bus reads as the time: the steady clock, or in tests a clock they set.
+  using TimeSource = std::function<SteadyTime()>;
+  // On a transport the caller made (tests: an in-memory line) instead of the configured one, and
+  // on a time source of the caller's (tests: literal times; see recheck()) for every decision:
+  // polls due, probes, reopening, a command's patience. The line's own reply and byte timeouts,
+  // the transaction latency and the wire trace stay on the steady clock: they measure the wire.
   SerialBus(asio::any_io_executor executor, std::shared_ptr<const void> config_owner,
             const BusConfig& config, int first_node_index, NodeUpdated on_update,
-            std::unique_ptr<ByteTransport> transport);
+            std::unique_ptr<ByteTransport> transport, TimeSource now = {});
   ~SerialBus() override;
 
   // Runs until stop(); spawn it on the io_context.
   asio::awaitable<void> run() override;
   void stop() override;
+  // A bus waiting for its next poll decides again at once: what a test calls after moving the
+  // time source on, since the bus's sleep runs on the steady clock.
+  void recheck() { wake_.cancel(); }
 
   // Queues a command ahead of polls and returns its reply once the device answered (or failed).
   // A command for an offline node fails at once as unreachable.
@@ -100,6 +108,7 @@ class SerialBus final : public Bus {
   NodeRuntime& node(int node_index);
 
   asio::any_io_executor executor_;
+  TimeSource now_;
   // Every configuration this bus has run: the first owns family_ and the node contexts it bound,
   // a later one (reconfigure) the nodes' configurations.
   std::vector<std::shared_ptr<const void>> config_owners_;

@@ -75,8 +75,11 @@ class FakeLine : public ByteTransport {
 
   asio::awaitable<std::error_code> open() override {
     open_ = true;
+    ++opens_;
     co_return std::error_code{};
   }
+  // How often open() was called (the line starts open, so a reopen counts 1).
+  int opens() const { return opens_; }
   void close() override { open_ = false; }
   bool is_open() const override { return open_; }
 
@@ -142,6 +145,7 @@ class FakeLine : public ByteTransport {
   std::string rx_;
   std::vector<std::string> writes_;
   bool open_ = true;
+  int opens_ = 0;
   bool keep_order_ = false;
 };
 
