@@ -255,6 +255,12 @@ TEST_F(VcanBus, TransfersToDifferentNodesOverlap) {
   ASSERT_TRUE(run_until([&] { return a && b; }));
   EXPECT_EQ(a->text, "fieldgate sim CiA 402 drive");
   EXPECT_EQ(b->text, "fieldgate sim CiA 402 drive");
+  // candump is another process: its lines may trail the bus's own reception, so both transfers'
+  // last segments must be in its log before the order is read from it.
+  ASSERT_TRUE(run_until([&] {
+    return s->candump->count("582#1320647269766500", mark) >= 1 &&
+           s->candump->count("583#1320647269766500", mark) >= 1;
+  })) << s->candump->text(mark);
   const auto f = s->candump->frames();
   std::size_t first_2 = f.size(), last_2 = 0, first_3 = f.size();
   std::map<std::string, int> outstanding;
