@@ -5,6 +5,7 @@
 #include <random>
 
 #include "drivers/centent_cn0170/cn0170_chain.hpp"
+#include "tests/harness/text_checks.hpp"
 
 namespace fieldgate::cn0170 {
 namespace {
@@ -90,15 +91,14 @@ TEST_F(ChainTest, AbsoluteMoveAcrossZeroIsRefused) {
   // A negative target is refused by the codec whatever the position (the register takes
   // positive numbers only); the sign guard covers a positive target from below 0.
   const auto text = plan_request(chain, options, 1, command("X=0FFFFF060H")).refused->text;
-  EXPECT_NE(text.find("a negative absolute position"), std::string::npos) << text;
+  test::expect_contains(text, {"a negative absolute position"});
 
   // Below 0 now (a relative move went there): targets above 0 cross it, targets below do not.
   ASSERT_TRUE(exchange(chain, options, 1, read("XP?;YP?"), {"1X=FFFFF060h\r", "1Y=00000400h\r"}));
   EXPECT_TRUE(refused("X=0BB8H"));
   EXPECT_TRUE(refused("X=0"));
   const auto crossing = plan_request(chain, options, 1, command("X=0BB8H")).refused->text;
-  EXPECT_NE(crossing.find("to 3000 from -4000"), std::string::npos) << crossing;
-  EXPECT_NE(crossing.find("move relative"), std::string::npos) << crossing;
+  test::expect_contains(crossing, {"to 3000 from -4000", "move relative"});
   EXPECT_TRUE(refused("X=0FFFFF000H"));  // negative: the codec's refusal
   EXPECT_FALSE(refused("Y=0BB8H"));      // Y is still above 0
   EXPECT_FALSE(refused("X+0FA0H"));
@@ -457,13 +457,9 @@ TEST(Cn0170Options, ParsedAndChecked) {
       model_with({{"overflow_mode", "loud"}, {"leading_cr", "maybe"}, {"speed", "1"}}), d);
   ASSERT_EQ(d.errors().size(), 3u) << d.to_text();
   const std::string text = d.to_text();
-  EXPECT_NE(text.find("unknown centent-cn0170 option 'speed'"), std::string::npos) << text;
-  EXPECT_NE(text.find("option overflow_mode: expected warning, rts or leave, found 'loud'"),
-            std::string::npos)
-      << text;
-  EXPECT_NE(text.find("option leading_cr: expected true or false, found 'maybe'"),
-            std::string::npos)
-      << text;
+  test::expect_contains(text, {"unknown centent-cn0170 option 'speed'",
+                               "option overflow_mode: expected warning, rts or leave, found 'loud'",
+                               "option leading_cr: expected true or false, found 'maybe'"});
   Diagnostics contradiction;
   (void)parse_options(model_with({{"overflow_command", "M1+"}}), contradiction);
   ASSERT_EQ(contradiction.errors().size(), 1u);
