@@ -19,6 +19,11 @@ class ConfigLoaderTest : public test::ConfigFileTest {
            "baud: 115200}\n" +
            extra + "    nodes:\n" + nodes;
   }
+  // The errors of a configuration of bus() alone each name one of `fragments`.
+  void expect_bus_errors(std::initializer_list<std::string_view> fragments,
+                         const std::string& nodes, const std::string& extra = "") {
+    test::expect_contains(load(bus(nodes, extra)), fragments);
+  }
 };
 
 TEST_F(ConfigLoaderTest, ValidConfigLoads) {
@@ -34,42 +39,36 @@ TEST_F(ConfigLoaderTest, ValidConfigLoads) {
 }
 
 TEST_F(ConfigLoaderTest, UnknownKeyWithLineAndColumn) {
-  const auto e = load(bus("      - {name: x, adress: 0, model: copley-amplifier, unit_id: 1}\n"));
-  test::expect_contains(
-      e, {"gw.yaml:7:19: error: node x: unknown key 'adress'", "missing required key 'address'"});
+  expect_bus_errors(
+      {"gw.yaml:7:19: error: node x: unknown key 'adress'", "missing required key 'address'"},
+      "      - {name: x, adress: 0, model: copley-amplifier, unit_id: 1}\n");
 }
 
 TEST_F(ConfigLoaderTest, WrongType) {
-  const auto e =
-      load(bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: one}\n"));
-  test::expect_contains(e,
-                        {"gw.yaml:7:65: error: node x unit_id: expected an integer, found 'one'"});
+  expect_bus_errors({"gw.yaml:7:65: error: node x unit_id: expected an integer, found 'one'"},
+                    "      - {name: x, address: 0, model: copley-amplifier, unit_id: one}\n");
 }
 
 TEST_F(ConfigLoaderTest, DuplicateUnitId) {
-  const auto e =
-      load(bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n"
-               "      - {name: y, address: 3, model: copley-amplifier, unit_id: 1}\n"));
-  test::expect_contains(e, {"gw.yaml:8:65: error: node y: unit_id 1 is already used by node x"});
+  expect_bus_errors({"gw.yaml:8:65: error: node y: unit_id 1 is already used by node x"},
+                    "      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n"
+                    "      - {name: y, address: 3, model: copley-amplifier, unit_id: 1}\n");
 }
 
 TEST_F(ConfigLoaderTest, DuplicateNodeAddress) {
-  const auto e =
-      load(bus("      - {name: x, address: 3, model: copley-amplifier, unit_id: 1}\n"
-               "      - {name: y, address: 3, model: copley-amplifier, unit_id: 2}\n"));
-  test::expect_contains(
-      e, {"gw.yaml:8:28: error: node y: address 3 is already used by node x on bus b"});
+  expect_bus_errors({"gw.yaml:8:28: error: node y: address 3 is already used by node x on bus b"},
+                    "      - {name: x, address: 3, model: copley-amplifier, unit_id: 1}\n"
+                    "      - {name: y, address: 3, model: copley-amplifier, unit_id: 2}\n");
 }
 
 TEST_F(ConfigLoaderTest, AddressOutOfFamilyRange) {
-  const auto e =
-      load(bus("      - {name: x, address: 128, model: copley-amplifier, unit_id: 1}\n"));
-  test::expect_contains(e, {"gw.yaml:7:28: error: node x address: Copley node ID must be 0..127"});
+  expect_bus_errors({"gw.yaml:7:28: error: node x address: Copley node ID must be 0..127"},
+                    "      - {name: x, address: 128, model: copley-amplifier, unit_id: 1}\n");
 }
 
 TEST_F(ConfigLoaderTest, UnknownModelListsKnownOnes) {
-  const auto e = load(bus("      - {name: x, address: 0, model: copley-amp, unit_id: 1}\n"));
-  test::expect_contains(e, {"unknown model 'copley-amp' (models found: ", "copley-amplifier"});
+  expect_bus_errors({"unknown model 'copley-amp' (models found: ", "copley-amplifier"},
+                    "      - {name: x, address: 0, model: copley-amp, unit_id: 1}\n");
 }
 
 TEST_F(ConfigLoaderTest, UnknownProtocolListsFamilies) {
@@ -81,15 +80,15 @@ TEST_F(ConfigLoaderTest, UnknownProtocolListsFamilies) {
 }
 
 TEST_F(ConfigLoaderTest, UnitIdRange) {
-  const auto e = load(bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 0}\n"));
-  test::expect_contains(e, {"unit_id: 0 is out of range 1..247"});
+  expect_bus_errors({"unit_id: 0 is out of range 1..247"},
+                    "      - {name: x, address: 0, model: copley-amplifier, unit_id: 0}\n");
 }
 
 TEST_F(ConfigLoaderTest, BadTiming) {
-  const auto e = load(bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n",
-                          "    timing: {reply_timeout: soon, retries: 20}\n"));
-  test::expect_contains(e, {"reply_timeout: expected a duration such as 250ms or 2s, found 'soon'",
-                            "retries: 20 is out of range 0..10"});
+  expect_bus_errors({"reply_timeout: expected a duration such as 250ms or 2s, found 'soon'",
+                     "retries: 20 is out of range 0..10"},
+                    "      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n",
+                    "    timing: {reply_timeout: soon, retries: 20}\n");
 }
 
 TEST_F(ConfigLoaderTest, SerialAndTcpAreExclusive) {
@@ -100,11 +99,9 @@ TEST_F(ConfigLoaderTest, SerialAndTcpAreExclusive) {
 }
 
 TEST_F(ConfigLoaderTest, SetpointOverrideChecked) {
-  const auto e =
-      load(bus("      - name: x\n        address: 0\n        model: copley-amplifier\n"
-               "        unit_id: 1\n        setpoints: {enable_mode: 5, speed: 3}\n"));
-  test::expect_contains(
-      e, {"setpoint enable_mode: 5 is out of range 21..31", "has no setpoint 'speed'"});
+  expect_bus_errors({"setpoint enable_mode: 5 is out of range 21..31", "has no setpoint 'speed'"},
+                    "      - name: x\n        address: 0\n        model: copley-amplifier\n"
+                    "        unit_id: 1\n        setpoints: {enable_mode: 5, speed: 3}\n");
 }
 
 TEST_F(ConfigLoaderTest, MissingFileIsAnError) {
