@@ -15,9 +15,8 @@ namespace fs = std::filesystem;
 class ConfigLoaderTest : public test::ConfigFileTest {
  protected:
   static std::string bus(const std::string& nodes, const std::string& extra = "") {
-    return "buses:\n  - name: b\n    protocol: copley-ascii\n    serial: {device: /dev/null, "
-           "baud: 115200}\n" +
-           extra + "    nodes:\n" + nodes;
+    return "buses:\n" +
+           test::copley_bus_item("b", "{device: /dev/null, baud: 115200}", extra, nodes);
   }
   // The errors of a configuration of bus() alone each name one of `fragments`.
   void expect_bus_errors(std::initializer_list<std::string_view> fragments,

@@ -26,8 +26,7 @@ const std::string kListeners =
 
 std::string copley_bus(const std::string& name, const std::string& device, const std::string& extra,
                        const std::string& nodes) {
-  return "  - name: " + name + "\n    protocol: copley-ascii\n    serial: {device: " + device +
-         ", baud: 115200}\n" + extra + "    nodes:\n" + nodes;
+  return test::copley_bus_item(name, "{device: " + device + ", baud: 115200}", extra, nodes);
 }
 
 TEST_F(ListenerConfigTest, SameUnitIdOnTwoListeners) {
