@@ -35,6 +35,18 @@ class ChainTest : public ::testing::Test {
     chain.order = {0, 1, 2};
     chain.order_known = true;
   }
+  // Unit 1 in a mode that guards it: `blocked` is refused with `code` before it is sent, M?
+  // passes, and M1 is sent and confirmed.
+  void expect_guarded_until_m1(const Request& blocked, int code) {
+    const auto refused = exchange(chain, options, 1, blocked, {});
+    ASSERT_TRUE(refused);
+    EXPECT_EQ(refused->device_code, code);
+    EXPECT_FALSE(plan_request(chain, options, 1, read("M?")).refused);
+    const auto back = exchange(chain, options, 1, command("M1"), {"1M1\r"});
+    ASSERT_TRUE(back);
+    EXPECT_EQ(back->status, Reply::Status::ok) << back->text;
+  }
+
   Chain chain;
   Options options;
 };
@@ -164,13 +176,7 @@ TEST_F(ChainTest, ConfirmationShowingOperateModeIsNoConfirmation) {
   EXPECT_NE(r->text.find("Operate Mode (M3)"), std::string::npos) << r->text;
   EXPECT_EQ(chain.units[1].mode, 3);
   // Motor traffic is refused before it is sent; mode queries and M1 pass and are confirmed.
-  const auto refused = exchange(chain, options, 1, command("XH"), {});
-  ASSERT_TRUE(refused);
-  EXPECT_EQ(refused->device_code, kOperateMode);
-  EXPECT_FALSE(plan_request(chain, options, 1, read("M?")).refused);
-  const auto back = exchange(chain, options, 1, command("M1"), {"1M1\r"});
-  ASSERT_TRUE(back);
-  EXPECT_EQ(back->status, Reply::Status::ok) << back->text;
+  ASSERT_NO_FATAL_FAILURE(expect_guarded_until_m1(command("XH"), kOperateMode));
   EXPECT_FALSE(plan_request(chain, options, 1, command("XH")).refused);
 }
 
@@ -181,13 +187,7 @@ TEST_F(ChainTest, ConfirmationShowingProgramModeMeansStored) {
   EXPECT_EQ(r->device_code, kStoredInProgram);
   EXPECT_EQ(chain.units[1].mode, 2);
   // Now motor and I/O traffic is refused before it is sent; mode queries and M1 pass.
-  const auto refused = exchange(chain, options, 1, read("XP?"), {});
-  ASSERT_TRUE(refused);
-  EXPECT_EQ(refused->device_code, kProgramMode);
-  EXPECT_FALSE(plan_request(chain, options, 1, read("M?")).refused);
-  const auto back = exchange(chain, options, 1, command("M1"), {"1M1\r"});
-  ASSERT_TRUE(back);
-  EXPECT_EQ(back->status, Reply::Status::ok);
+  ASSERT_NO_FATAL_FAILURE(expect_guarded_until_m1(read("XP?"), kProgramMode));
   EXPECT_EQ(chain.units[1].mode, 1);
 }
 
