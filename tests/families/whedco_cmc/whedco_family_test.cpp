@@ -3,11 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <optional>
-#include <random>
 
 #include "drivers/whedco_cmc/whedco_family.hpp"
 #include "mapping/model_loader.hpp"
 #include "tests/families/whedco_cmc/line_transport.hpp"
+#include "tests/harness/random_text.hpp"
 
 namespace fieldgate {
 namespace {
@@ -545,14 +545,10 @@ namespace {
 
 // Whatever arrives, the family answers with a status: no crash, no exception, no hang.
 TEST(WhedcoRobustness, RandomRepliesGetAStatus) {
-  std::mt19937 random(7);
-  const std::string alphabet = "4RPX*\r\n -+.0123456789AFaf?!=V\x01\xff Faulted Unit Functional";
-  std::uniform_int_distribution<std::size_t> pick(0, alphabet.size() - 1);
-  std::uniform_int_distribution<int> length(0, 40);
+  test::RandomText text(7, "4RPX*\r\n -+.0123456789AFaf?!=V\x01\xff Faulted Unit Functional", 0,
+                        40);
   for (int i = 0; i < 20000; ++i) {
-    std::string frame;
-    for (int n = length(random); n > 0; --n) frame += alphabet[pick(random)];
-    frame += '*';
+    const std::string frame = text.next() + '*';
     for (const auto kind :
          {QueryKind::plain, QueryKind::axis_fault, QueryKind::unit_fault, QueryKind::bit_list}) {
       auto x = query("4RPX", static_cast<EchoMode>(i % 3), kind, 1 + i % 10000);
