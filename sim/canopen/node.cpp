@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <utility>
 
 namespace fieldgate::sim::canopen {
 
@@ -10,26 +11,13 @@ namespace {
 
 // CiA 301 error register bits for an emergency error code's class.
 std::uint8_t error_register_bits(std::uint16_t code) {
-  std::uint8_t reg = 0x01;  // generic error
-  switch (code >> 12) {
-    case 0x2:
-      reg |= 0x02;  // current
-      break;
-    case 0x3:
-      reg |= 0x04;  // voltage
-      break;
-    case 0x4:
-      reg |= 0x08;  // temperature
-      break;
-    case 0x8:
-      reg |= 0x10;  // communication
-      break;
-    case 0xF:
-      reg |= 0x80;  // manufacturer specific
-      break;
-    default:
-      break;
-  }
+  // By the code's first hex digit: current, voltage, temperature, communication, manufacturer
+  // specific; every error sets the generic bit.
+  static constexpr std::pair<unsigned, std::uint8_t> kClassBits[] = {
+      {0x2, 0x02}, {0x3, 0x04}, {0x4, 0x08}, {0x8, 0x10}, {0xF, 0x80}};
+  std::uint8_t reg = 0x01;
+  for (const auto& [error_class, bit] : kClassBits)
+    if (static_cast<unsigned>(code >> 12) == error_class) reg |= bit;
   return reg;
 }
 

@@ -5,6 +5,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 namespace fieldgate::sim::centent {
 
@@ -619,29 +620,16 @@ bool Cn0170Unit::axis_instruction(Axis& a, const std::string& rest, SimTime now)
     return true;
   }
   if (r.size() == 2 && (r[1] == '+' || r[1] == '-')) {
-    const bool on = r[1] == '+';
-    switch (r[0]) {
-      case 'H':
-        a.home_cw = on;
-        return true;
-      case 'P':
-        a.position_trigger = on;
-        return true;
-      case 'V':
-        a.velocity_trigger = on;
-        return true;
-      case 'L':
-        a.io_link = on;
-        return true;
-      case 'B':
-        a.handshake = on;
-        return true;
-      case 'M':
-        a.modulo_quit = on;
-        return true;
-      default:
-        return false;
+    // The axis's switches, each turned on by its letter and '+', off by its letter and '-'.
+    static constexpr std::pair<char, bool Axis::*> kSwitches[] = {
+        {'H', &Axis::home_cw}, {'P', &Axis::position_trigger}, {'V', &Axis::velocity_trigger},
+        {'L', &Axis::io_link}, {'B', &Axis::handshake},        {'M', &Axis::modulo_quit}};
+    for (const auto& [letter, flag] : kSwitches) {
+      if (r[0] != letter) continue;
+      a.*flag = r[1] == '+';
+      return true;
     }
+    return false;
   }
   if (r.rfind("P=", 0) == 0) {
     const auto n = parse_number(r.substr(2));

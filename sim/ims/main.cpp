@@ -14,63 +14,48 @@ namespace ims = fieldgate::sim::ims;
 int main(int argc, char** argv) {
   sim::LineSimulator simulator("ims", "IMS indexer party-line simulator: serves named axes");
   CLI::App& app = simulator.app();
+  // The command line sets the options directly; without an option, the default of the struct.
+  ims::PartyLineOptions options;
   std::string axes = "A";
-  bool echo_name = false;
   bool no_completion = false;
-  double overrun_above = 10'000;
-  double home_at = -1000;
-  bool high_below_home = true;
-  bool result_on_echo_line = false;
   using Format = ims::ResultFormat;
-  auto result_padding = Format::Padding::right_aligned;
-  std::string result_end = "\r\n";
-  auto decimals = Format::Decimals::variable_resolution;
-  bool linefeed_at_execution = false;
   app.add_option("--axes", axes, "unit names on the chain, e.g. A,B,C (A-Z, a-z, [\\]^_`)");
-  app.add_flag("--echo-name", echo_name, "units echo their own name before the command");
+  app.add_flag("--echo-name", options.echo_name, "units echo their own name before the command");
   app.add_flag("--no-completion", no_completion,
                "no CR LF after commands without a numeric result");
-  sim::add_choice(app, "--result-placement", result_on_echo_line,
+  sim::add_choice(app, "--result-placement", options.result_on_echo_line,
                   {{"next-line", false}, {"echo-line", true}},
                   "where a query's result comes: next-line (after the echoed LF) or echo-line "
                   "(on the echo's line, after the echoed command)");
-  sim::add_choice(app, "--result-padding", result_padding,
+  sim::add_choice(app, "--result-padding", options.result_format.padding,
                   {{"right", Format::Padding::right_aligned},
                    {"space", Format::Padding::space},
                    {"none", Format::Padding::none}},
                   "right (\"   1000\"), space (\" 1000\") or none (\"1000\")");
-  sim::add_choice(app, "--result-end", result_end, {{"crlf", "\r\n"}, {"lf", "\n"}},
+  sim::add_choice(app, "--result-end", options.result_format.end, {{"crlf", "\r\n"}, {"lf", "\n"}},
                   "line end after a result: crlf or lf");
-  sim::add_choice(app, "--decimals", decimals,
+  sim::add_choice(app, "--decimals", options.result_format.decimals,
                   {{"resolution", Format::Decimals::variable_resolution},
                    {"always", Format::Decimals::always},
                    {"never", Format::Decimals::never}},
                   "positions with two decimals: resolution (in variable resolution when the "
                   "fraction is not zero), always, never");
-  sim::add_choice(app, "--echo-linefeed", linefeed_at_execution,
+  sim::add_choice(app, "--echo-linefeed", options.linefeed_at_execution,
                   {{"at-once", false}, {"at-execution", true}},
                   "a non-query's echoed LF: at-once, or at-execution (after the completion's CR)");
-  app.add_option("--overrun-above", overrun_above,
+  app.add_option("--overrun-above", options.overrun_above,
                  "steps/s above which a unit drops characters sent back to back (0 = never)")
       ->check(CLI::NonNegativeNumber);
-  app.add_option("--home-at", home_at, "position of the home switch edge (power-up frame)");
-  sim::add_choice(app, "--home-side", high_below_home, {{"minus", true}, {"plus", false}},
+  app.add_option("--home-at", options.home.edge,
+                 "position of the home switch edge (power-up frame)");
+  sim::add_choice(app, "--home-side", options.home.high_below, {{"minus", true}, {"plus", false}},
                   "where the home switch reads high: minus or plus");
 
   simulator.describe_baud("line rate for --emulate-wire (the manual documents 9600 only)",
                           CLI::Range(300u, 115200u));
   return simulator.run(argc, argv, [&](sim::LineSimulator& s) {
-    ims::PartyLineOptions options;
     options.names = ims::parse_names(axes);
-    options.home = {home_at, high_below_home};
-    options.echo_name = echo_name;
     options.completion = !no_completion;
-    options.overrun_above = overrun_above;
-    options.result_on_echo_line = result_on_echo_line;
-    options.linefeed_at_execution = linefeed_at_execution;
-    options.result_format.padding = result_padding;
-    options.result_format.end = result_end;
-    options.result_format.decimals = decimals;
     options.seed = s.seed();
     auto chain = std::make_shared<ims::PartyLine>(
         options, s.faults(), [] { return sim::SimClock::now(); }, s.start());

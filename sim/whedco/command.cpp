@@ -170,12 +170,24 @@ std::optional<Command> parse(Cursor& c) {
     cmd.op = op;
     return cmd;
   };
+  // Stores an argument just read in `field`; false when there was none.
+  const auto take = [](const auto& argument, auto& field) {
+    if (argument) field = *argument;
+    return argument.has_value();
+  };
+  // Reads a hex digit from lo to hi into the index; false when there is none in that range.
+  const auto index_digit = [&](int lo, int hi) {
+    const auto d = c.hex_digit();
+    return d && *d >= lo && *d <= hi && take(d, cmd.index);
+  };
+  // The command, if its arguments were read.
+  const auto done = [&](bool read) -> std::optional<Command> {
+    if (!read) return std::nullopt;
+    return cmd;
+  };
   const auto with_flag = [&](Op op) -> std::optional<Command> {
     cmd.op = op;
-    const auto b = c.binary();
-    if (!b) return std::nullopt;
-    cmd.flag = *b;
-    return cmd;
+    return done(take(c.binary(), cmd.flag));
   };
   const auto with_index = [&](Op op) -> std::optional<Command> {
     cmd.op = op;
@@ -186,26 +198,17 @@ std::optional<Command> parse(Cursor& c) {
   };
   const auto with_axis = [&](Op op) -> std::optional<Command> {
     cmd.op = op;
-    const auto a = c.axis();
-    if (!a) return std::nullopt;
-    cmd.axis = *a;
-    return cmd;
+    return done(take(c.axis(), cmd.axis));
   };
   const auto with_digit = [&](Op op, char letter) -> std::optional<Command> {
     cmd.op = op;
     cmd.letter = letter;
-    const auto d = c.hex_digit();
-    if (!d) return std::nullopt;
-    cmd.index = *d;
-    return cmd;
+    return done(take(c.hex_digit(), cmd.index));
   };
   const auto with_value = [&](Op op, char axis, bool allow_variable) -> std::optional<Command> {
     cmd.op = op;
     cmd.axis = axis;
-    const auto v = value(c, allow_variable);
-    if (!v) return std::nullopt;
-    cmd.value = *v;
-    return cmd;
+    return done(take(value(c, allow_variable), cmd.value));
   };
   const auto load = [&](std::string mnemonic, char axis, bool allow_variable) {
     cmd.mnemonic = std::move(mnemonic);
@@ -235,9 +238,7 @@ std::optional<Command> parse(Cursor& c) {
   const auto set_position = [&](char mode, bool with_position) -> std::optional<Command> {
     cmd.op = Op::set_position;
     cmd.letter = mode;
-    const auto a = c.axis();
-    if (!a) return std::nullopt;
-    cmd.axis = *a;
+    if (!take(c.axis(), cmd.axis)) return std::nullopt;
     if (with_position) {
       const auto v = value(c, false);
       if (!v || v->kind != Value::Kind::number) return std::nullopt;
@@ -263,9 +264,7 @@ std::optional<Command> parse(Cursor& c) {
   if (c.eat("WR")) {
     cmd.op = Op::axis_constant;
     cmd.mnemonic = "WR";
-    const auto a = c.axis();
-    if (!a) return std::nullopt;
-    cmd.axis = *a;
+    if (!take(c.axis(), cmd.axis)) return std::nullopt;
     if (c.eat("?")) {
       cmd.value.kind = Value::Kind::query;
       return cmd;
@@ -396,19 +395,14 @@ std::optional<Command> parse(Cursor& c) {
   }
   if (c.eat("LM")) {
     cmd.op = Op::multiplier;
-    const auto a = c.axis();
-    if (!a) return std::nullopt;
-    cmd.axis = *a;
+    if (!take(c.axis(), cmd.axis)) return std::nullopt;
     if (c.eat("?")) {
       cmd.value.kind = Value::Kind::query;
       return cmd;
     }
     if (c.eat("A")) {
       cmd.letter = 'A';
-      const auto d = c.hex_digit();
-      if (!d || *d < 1 || *d > 4) return std::nullopt;
-      cmd.index = *d;
-      return cmd;
+      return done(index_digit(1, 4));
     }
     if (c.eat("N")) {
       cmd.letter = 'N';
@@ -419,28 +413,20 @@ std::optional<Command> parse(Cursor& c) {
     }
     if (c.eat("V")) {
       cmd.letter = 'V';
-      const auto d = c.hex_digit();
-      if (!d) return std::nullopt;
-      cmd.index = *d;
-      return cmd;
+      return done(take(c.hex_digit(), cmd.index));
     }
     return std::nullopt;
   }
   if (c.eat("LI")) {
     cmd.op = Op::input_source;
-    const auto a = c.axis();
-    if (!a) return std::nullopt;
-    cmd.axis = *a;
+    if (!take(c.axis(), cmd.axis)) return std::nullopt;
     if (c.eat("F")) {
       cmd.letter = 'F';
       return cmd;
     }
     if (c.eat("E")) {
       cmd.letter = 'E';
-      const auto d = c.hex_digit();
-      if (!d || *d < 1 || *d > 3) return std::nullopt;
-      cmd.index = *d;
-      return cmd;
+      return done(index_digit(1, 3));
     }
     return std::nullopt;
   }
@@ -448,9 +434,7 @@ std::optional<Command> parse(Cursor& c) {
     if (c.eat(pll)) return load(std::string(pll), 0, pll == "PHO" || pll == "PHL");
   for (const bool offset : {false, true}) {
     if (!c.eat(offset ? "AO" : "AD")) continue;
-    const auto d = c.hex_digit();
-    if (!d || *d < 1 || *d > 4) return std::nullopt;
-    cmd.index = *d;
+    if (!index_digit(1, 4)) return std::nullopt;
     return load(offset ? "AO" : "AD", 0, offset);
   }
   if (c.eat("DR")) {

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "sim/common/choice_option.hpp"
+#include "sim/common/duration_option.hpp"
 #include "sim/common/line_simulator.hpp"
 #include "sim/whedco/cmc_line.hpp"
 
@@ -20,20 +21,20 @@ int main(int argc, char** argv) {
   std::string axes = "WXYZ";
   std::string non_echo;
   std::string steppers;
-  auto style = whedco::ReplyStyle::compact;
+  // The command line sets these options directly; without an option, the default of the struct.
+  whedco::LineOptions options;
   bool power_failure = false;
   bool initialised = false;
   auto status_format = whedco::StatusFormat::decimal;
   bool fc_table_codes = false;
   bool de_answers_ed = false;
-  long position_read_us = 0;
   app.add_option("--units", units, "CMC-0 addresses on the line, e.g. 4,5 (0-7; factory 4)");
   app.add_option("--axes", axes, "axes present: WXYZ for every unit, or ADDR:AXES,... e.g. 4:XY");
   app.add_option("--non-echo", non_echo,
                  "units in non-echo format (SW2-5): all, or addresses e.g. 5 (default: echo)");
   app.add_option("--steppers", steppers,
                  "CMC-1 stepper axes (no following error): e.g. X or 4:X; others are servos");
-  sim::add_choice(app, "--reply-style", style,
+  sim::add_choice(app, "--reply-style", options.style,
                   {{"compact", whedco::ReplyStyle::compact},
                    {"terminal", whedco::ReplyStyle::terminal},
                    {"inline", whedco::ReplyStyle::inline_echo}},
@@ -52,16 +53,14 @@ int main(int argc, char** argv) {
                "DEn on an empty profile answers ED before the prompt (default: only the prompt)");
   app.add_flag("--initialised", initialised,
                "start already initialised: no Power Failure (default: the power-up state)");
-  app.add_option("--position-read-us", position_read_us,
-                 "extra time of RPa/RCa/FEa (the manual: 5-10 ms)")
-      ->check(CLI::NonNegativeNumber);
+  sim::add_duration(app, "--position-read-us", options.position_read_delay,
+                    "extra time of RPa/RCa/FEa (the manual: 5-10 ms)");
   app.add_flag("--power-failure", power_failure,
                "start as after power-up: every fault reads Power Failure until WB (the default)");
 
   simulator.describe_baud("line rate for wire emulation (1200, 4800, 9600, 38400)",
                           CLI::IsMember({1200u, 4800u, 9600u, 38400u, 115200u}));
   return simulator.run(argc, argv, [&](sim::LineSimulator& s) {
-    whedco::LineOptions options;
     options.units = whedco::parse_units(units, axes, non_echo, steppers);
     for (auto& u : options.units) {
       u.power_failure = power_failure || !initialised;
@@ -69,8 +68,6 @@ int main(int argc, char** argv) {
       u.fc_table_codes = fc_table_codes;
       u.de_answers_ed = de_answers_ed;
     }
-    options.style = style;
-    options.position_read_delay = std::chrono::microseconds(position_read_us);
     auto line = std::make_shared<whedco::CmcLine>(options, s.start());
     sim::LineDeviceHooks hooks = sim::request_hooks(*line);
     hooks.echo = [&unit = *line](std::string_view received) { return unit.echo(received); };

@@ -3,6 +3,8 @@
 // link on which nothing answers is reopened.
 #include <gtest/gtest.h>
 
+#include <optional>
+
 #include "gateway/bus/bus_turn.hpp"
 
 namespace fieldgate {
@@ -17,10 +19,18 @@ BusTurnInput::Poll poll_at(std::size_t item, SteadyTime when,
   return {item, when, period};
 }
 
-TEST(BusTurn, NothingQueuedAndNothingDueSleepsUntilTheNextPoll) {
+// The bus at t0, with its next poll (if any) and commands queued or not.
+BusTurnInput at_t0(std::optional<BusTurnInput::Poll> poll = std::nullopt,
+                   bool commands_queued = false) {
   BusTurnInput in;
   in.now = t0;
-  in.poll = poll_at(4, t0 + 30ms);
+  in.poll = poll;
+  in.commands_queued = commands_queued;
+  return in;
+}
+
+TEST(BusTurn, NothingQueuedAndNothingDueSleepsUntilTheNextPoll) {
+  BusTurnInput in = at_t0(poll_at(4, t0 + 30ms));
   const auto turn = next_bus_turn(in);
   EXPECT_EQ(turn.kind, BusTurn::Kind::sleep);
   EXPECT_EQ(turn.until, t0 + 30ms);
@@ -29,9 +39,7 @@ TEST(BusTurn, NothingQueuedAndNothingDueSleepsUntilTheNextPoll) {
 }
 
 TEST(BusTurn, ADuePollRunsAndACommandGoesBeforeAPollNotYetDue) {
-  BusTurnInput in;
-  in.now = t0;
-  in.poll = poll_at(2, t0);
+  BusTurnInput in = at_t0(poll_at(2, t0));
   auto turn = next_bus_turn(in);
   EXPECT_EQ(turn.kind, BusTurn::Kind::poll);
   EXPECT_EQ(turn.item, 2u);
@@ -41,10 +49,8 @@ TEST(BusTurn, ADuePollRunsAndACommandGoesBeforeAPollNotYetDue) {
 }
 
 TEST(BusTurn, BackToBackCommandsLeaveTheNextTurnToADuePoll) {
-  BusTurnInput in;
-  in.now = t0;
-  in.commands_queued = true;
-  in.poll = poll_at(1, t0 - 5ms);  // due, 5 ms late: not late for a 100 ms period
+  // The poll: due, 5 ms late: not late for a 100 ms period.
+  BusTurnInput in = at_t0(poll_at(1, t0 - 5ms), /*commands_queued=*/true);
   in.commands_in_row = 0;
   EXPECT_EQ(next_bus_turn(in).kind, BusTurn::Kind::command);
   in.commands_in_row = kCommandsPerPoll;
@@ -52,10 +58,8 @@ TEST(BusTurn, BackToBackCommandsLeaveTheNextTurnToADuePoll) {
 }
 
 TEST(BusTurn, APollRunningLateGetsSeveralTurnsPerCommand) {
-  BusTurnInput in;
-  in.now = t0;
-  in.commands_queued = true;
-  in.poll = poll_at(1, t0 - 11ms);  // more than a tenth of its 100 ms period late
+  // The poll: more than a tenth of its 100 ms period late.
+  BusTurnInput in = at_t0(poll_at(1, t0 - 11ms), /*commands_queued=*/true);
   for (int polls = 0; polls < kPollsPerCommand; ++polls) {
     in.polls_in_row = polls;
     EXPECT_EQ(next_bus_turn(in).kind, BusTurn::Kind::poll) << polls << " polls in a row";
@@ -70,9 +74,7 @@ TEST(BusTurn, APollRunningLateGetsSeveralTurnsPerCommand) {
 }
 
 TEST(BusTurn, TheProbeOfAnOfflineNodeRunsWhenItIsDueBeforeThePoll) {
-  BusTurnInput in;
-  in.now = t0;
-  in.poll = poll_at(1, t0 + 50ms);
+  BusTurnInput in = at_t0(poll_at(1, t0 + 50ms));
   in.probe = poll_at(7, t0 - 1ms);
   auto turn = next_bus_turn(in);
   EXPECT_EQ(turn.kind, BusTurn::Kind::poll);
@@ -84,8 +86,7 @@ TEST(BusTurn, TheProbeOfAnOfflineNodeRunsWhenItIsDueBeforeThePoll) {
 }
 
 TEST(BusTurn, ALinkOnWhichNothingAnswersIsReopenedOnceAProbeIntervalHasPassed) {
-  BusTurnInput in;
-  in.now = t0;
+  BusTurnInput in = at_t0();
   in.probe = poll_at(3, t0);
   in.all_nodes_offline = true;
   in.probe_interval = 500ms;

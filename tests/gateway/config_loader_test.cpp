@@ -5,6 +5,7 @@
 
 #include "config_file_test.hpp"
 #include "gateway/config/config_loader.hpp"
+#include "text_checks.hpp"
 
 namespace fieldgate {
 namespace {
@@ -14,9 +15,13 @@ namespace fs = std::filesystem;
 class ConfigLoaderTest : public test::ConfigFileTest {
  protected:
   static std::string bus(const std::string& nodes, const std::string& extra = "") {
-    return "buses:\n  - name: b\n    protocol: copley-ascii\n    serial: {device: /dev/null, "
-           "baud: 115200}\n" +
-           extra + "    nodes:\n" + nodes;
+    return "buses:\n" +
+           test::copley_bus_item("b", "{device: /dev/null, baud: 115200}", extra, nodes);
+  }
+  // The errors of a configuration of bus() alone each name one of `fragments`.
+  void expect_bus_errors(std::initializer_list<std::string_view> fragments,
+                         const std::string& nodes, const std::string& extra = "") {
+    test::expect_contains(load(bus(nodes, extra)), fragments);
   }
 };
 
@@ -33,88 +38,69 @@ TEST_F(ConfigLoaderTest, ValidConfigLoads) {
 }
 
 TEST_F(ConfigLoaderTest, UnknownKeyWithLineAndColumn) {
-  const auto e = load(bus("      - {name: x, adress: 0, model: copley-amplifier, unit_id: 1}\n"));
-  EXPECT_NE(e.find("gw.yaml:7:19: error: node x: unknown key 'adress'"), std::string::npos) << e;
-  EXPECT_NE(e.find("missing required key 'address'"), std::string::npos) << e;
+  expect_bus_errors(
+      {"gw.yaml:7:19: error: node x: unknown key 'adress'", "missing required key 'address'"},
+      "      - {name: x, adress: 0, model: copley-amplifier, unit_id: 1}\n");
 }
 
 TEST_F(ConfigLoaderTest, WrongType) {
-  const auto e =
-      load(bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: one}\n"));
-  EXPECT_NE(e.find("gw.yaml:7:65: error: node x unit_id: expected an integer, found 'one'"),
-            std::string::npos)
-      << e;
+  expect_bus_errors({"gw.yaml:7:65: error: node x unit_id: expected an integer, found 'one'"},
+                    "      - {name: x, address: 0, model: copley-amplifier, unit_id: one}\n");
 }
 
 TEST_F(ConfigLoaderTest, DuplicateUnitId) {
-  const auto e =
-      load(bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n"
-               "      - {name: y, address: 3, model: copley-amplifier, unit_id: 1}\n"));
-  EXPECT_NE(e.find("gw.yaml:8:65: error: node y: unit_id 1 is already used by node x"),
-            std::string::npos)
-      << e;
+  expect_bus_errors({"gw.yaml:8:65: error: node y: unit_id 1 is already used by node x"},
+                    "      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n"
+                    "      - {name: y, address: 3, model: copley-amplifier, unit_id: 1}\n");
 }
 
 TEST_F(ConfigLoaderTest, DuplicateNodeAddress) {
-  const auto e =
-      load(bus("      - {name: x, address: 3, model: copley-amplifier, unit_id: 1}\n"
-               "      - {name: y, address: 3, model: copley-amplifier, unit_id: 2}\n"));
-  EXPECT_NE(e.find("gw.yaml:8:28: error: node y: address 3 is already used by node x on bus b"),
-            std::string::npos)
-      << e;
+  expect_bus_errors({"gw.yaml:8:28: error: node y: address 3 is already used by node x on bus b"},
+                    "      - {name: x, address: 3, model: copley-amplifier, unit_id: 1}\n"
+                    "      - {name: y, address: 3, model: copley-amplifier, unit_id: 2}\n");
 }
 
 TEST_F(ConfigLoaderTest, AddressOutOfFamilyRange) {
-  const auto e =
-      load(bus("      - {name: x, address: 128, model: copley-amplifier, unit_id: 1}\n"));
-  EXPECT_NE(e.find("gw.yaml:7:28: error: node x address: Copley node ID must be 0..127"),
-            std::string::npos)
-      << e;
+  expect_bus_errors({"gw.yaml:7:28: error: node x address: Copley node ID must be 0..127"},
+                    "      - {name: x, address: 128, model: copley-amplifier, unit_id: 1}\n");
 }
 
 TEST_F(ConfigLoaderTest, UnknownModelListsKnownOnes) {
-  const auto e = load(bus("      - {name: x, address: 0, model: copley-amp, unit_id: 1}\n"));
-  EXPECT_NE(e.find("unknown model 'copley-amp' (models found: "), std::string::npos) << e;
-  EXPECT_NE(e.find("copley-amplifier"), std::string::npos) << e;
+  expect_bus_errors({"unknown model 'copley-amp' (models found: ", "copley-amplifier"},
+                    "      - {name: x, address: 0, model: copley-amp, unit_id: 1}\n");
 }
 
 TEST_F(ConfigLoaderTest, UnknownProtocolListsFamilies) {
   const auto e = load(
       "buses:\n  - name: b\n    protocol: modbus-rtu\n    serial: {device: x}\n"
       "    nodes: []\n");
-  EXPECT_NE(e.find("gw.yaml:4:15: error: bus b: unknown protocol 'modbus-rtu' (known: "),
-            std::string::npos)
-      << e;
-  EXPECT_NE(e.find("copley-ascii"), std::string::npos) << e;
+  test::expect_contains(
+      e, {"gw.yaml:4:15: error: bus b: unknown protocol 'modbus-rtu' (known: ", "copley-ascii"});
 }
 
 TEST_F(ConfigLoaderTest, UnitIdRange) {
-  const auto e = load(bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 0}\n"));
-  EXPECT_NE(e.find("unit_id: 0 is out of range 1..247"), std::string::npos) << e;
+  expect_bus_errors({"unit_id: 0 is out of range 1..247"},
+                    "      - {name: x, address: 0, model: copley-amplifier, unit_id: 0}\n");
 }
 
 TEST_F(ConfigLoaderTest, BadTiming) {
-  const auto e = load(bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n",
-                          "    timing: {reply_timeout: soon, retries: 20}\n"));
-  EXPECT_NE(e.find("reply_timeout: expected a duration such as 250ms or 2s, found 'soon'"),
-            std::string::npos)
-      << e;
-  EXPECT_NE(e.find("retries: 20 is out of range 0..10"), std::string::npos) << e;
+  expect_bus_errors({"reply_timeout: expected a duration such as 250ms or 2s, found 'soon'",
+                     "retries: 20 is out of range 0..10"},
+                    "      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n",
+                    "    timing: {reply_timeout: soon, retries: 20}\n");
 }
 
 TEST_F(ConfigLoaderTest, SerialAndTcpAreExclusive) {
   const auto e = load(
       "buses:\n  - name: b\n    protocol: copley-ascii\n"
       "    nodes:\n      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n");
-  EXPECT_NE(e.find("needs exactly one of 'serial', 'tcp' or 'can'"), std::string::npos) << e;
+  test::expect_contains(e, {"needs exactly one of 'serial', 'tcp' or 'can'"});
 }
 
 TEST_F(ConfigLoaderTest, SetpointOverrideChecked) {
-  const auto e =
-      load(bus("      - name: x\n        address: 0\n        model: copley-amplifier\n"
-               "        unit_id: 1\n        setpoints: {enable_mode: 5, speed: 3}\n"));
-  EXPECT_NE(e.find("setpoint enable_mode: 5 is out of range 21..31"), std::string::npos) << e;
-  EXPECT_NE(e.find("has no setpoint 'speed'"), std::string::npos) << e;
+  expect_bus_errors({"setpoint enable_mode: 5 is out of range 21..31", "has no setpoint 'speed'"},
+                    "      - name: x\n        address: 0\n        model: copley-amplifier\n"
+                    "        unit_id: 1\n        setpoints: {enable_mode: 5, speed: 3}\n");
 }
 
 TEST_F(ConfigLoaderTest, MissingFileIsAnError) {
@@ -184,55 +170,44 @@ TEST_F(ConfigLoaderTest, CanInterfaceFromEnvironment) {
 
 TEST_F(ConfigLoaderTest, CanTransportErrors) {
   auto e = load(can_bus("    can: {interface: vcan0}\n    serial: {device: /dev/null}\n"));
-  EXPECT_NE(e.find("gw.yaml:3:5: error: bus c: needs exactly one of 'serial', 'tcp' or 'can'"),
-            std::string::npos)
-      << e;
+  test::expect_contains(
+      e, {"gw.yaml:3:5: error: bus c: needs exactly one of 'serial', 'tcp' or 'can'"});
   e = load(can_bus("    can: {interface: vcan0, bitrate: 500000}\n"));
-  EXPECT_NE(e.find("gw.yaml:5:29: error: bus c can: unknown key 'bitrate'"), std::string::npos)
-      << e;
+  test::expect_contains(e, {"gw.yaml:5:29: error: bus c can: unknown key 'bitrate'"});
   e = load(can_bus("    can: {}\n"));
-  EXPECT_NE(e.find("gw.yaml:5:10: error: bus c can: missing required key 'interface'"),
-            std::string::npos)
-      << e;
+  test::expect_contains(e, {"gw.yaml:5:10: error: bus c can: missing required key 'interface'"});
   e = load(can_bus("    can: {interface: \"can 0\"}\n"));
-  EXPECT_NE(e.find("gw.yaml:5:22: error: bus c can interface: 'can 0' is not a network interface "
-                   "name (such as can0 or vcan0)"),
-            std::string::npos)
-      << e;
+  test::expect_contains(
+      e, {"gw.yaml:5:22: error: bus c can interface: 'can 0' is not a network interface "
+          "name (such as can0 or vcan0)"});
   e = load(can_bus("    can: {interface: a_very_long_interface_name}\n"));
-  EXPECT_NE(e.find("is not a network interface name"), std::string::npos) << e;
+  test::expect_contains(e, {"is not a network interface name"});
 }
 
 TEST_F(ConfigLoaderTest, CanopenAndCanBelongTogether) {
   auto e = load(can_bus("    serial: {device: /dev/null}\n"));
-  EXPECT_NE(e.find("gw.yaml:4:15: error: bus c: protocol canopen runs on a CAN interface: give "
-                   "can: {interface: can0} instead of serial"),
-            std::string::npos)
-      << e;
+  test::expect_contains(
+      e, {"gw.yaml:4:15: error: bus c: protocol canopen runs on a CAN interface: give "
+          "can: {interface: can0} instead of serial"});
   e = load(can_bus("    can: {interface: vcan0}\n", "", "copley-ascii",
                    "      - {name: a, address: 2, model: copley-amplifier, unit_id: 1}\n"));
-  EXPECT_NE(e.find("gw.yaml:5:10: error: bus c: a CAN interface carries protocol canopen, not "
-                   "copley-ascii"),
-            std::string::npos)
-      << e;
+  test::expect_contains(
+      e, {"gw.yaml:5:10: error: bus c: a CAN interface carries protocol canopen, not "
+          "copley-ascii"});
 }
 
 TEST_F(ConfigLoaderTest, CanTimingKeys) {
   auto e = load(bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n",
                     "    timing: {heartbeat_timeout: 1s, start_nodes: true}\n"));
-  EXPECT_NE(e.find("gw.yaml:6:33: error: bus b timing heartbeat_timeout: only a CAN bus (can: ...) "
-                   "has heartbeats and NMT"),
-            std::string::npos)
-      << e;
-  EXPECT_NE(e.find("gw.yaml:6:50: error: bus b timing start_nodes: only a CAN bus"),
-            std::string::npos)
-      << e;
+  test::expect_contains(
+      e, {"gw.yaml:6:33: error: bus b timing heartbeat_timeout: only a CAN bus (can: ...) "
+          "has heartbeats and NMT",
+          "gw.yaml:6:50: error: bus b timing start_nodes: only a CAN bus"});
   e = load(can_bus("    can: {interface: vcan0}\n", "    timing: {start_nodes: maybe}\n"));
-  EXPECT_NE(e.find("gw.yaml:6:27: error: bus c timing start_nodes: expected true or false"),
-            std::string::npos)
-      << e;
+  test::expect_contains(e,
+                        {"gw.yaml:6:27: error: bus c timing start_nodes: expected true or false"});
   e = load(can_bus("    can: {interface: vcan0}\n", "    timing: {heartbeat_timeout: soon}\n"));
-  EXPECT_NE(e.find("gw.yaml:6:33: error: bus c timing heartbeat_timeout:"), std::string::npos) << e;
+  test::expect_contains(e, {"gw.yaml:6:33: error: bus c timing heartbeat_timeout:"});
 }
 
 TEST_F(ConfigLoaderTest, CanopenNodeAddresses) {
@@ -241,16 +216,11 @@ TEST_F(ConfigLoaderTest, CanopenNodeAddresses) {
                         "      - {name: b, address: 128, model: canopen-cia402, unit_id: 2}\n"
                         "      - {name: c, address: 5, model: canopen-cia402, unit_id: 3}\n"
                         "      - {name: d, address: 0x05, model: canopen-cia402, unit_id: 4}\n"));
-  EXPECT_NE(e.find("gw.yaml:7:28: error: node a address: expected a CANopen node ID 1..127, "
-                   "found '0'"),
-            std::string::npos)
-      << e;
-  EXPECT_NE(e.find("gw.yaml:8:28: error: node b address: expected a CANopen node ID 1..127"),
-            std::string::npos)
-      << e;
-  EXPECT_NE(e.find("gw.yaml:10:28: error: node d: address 5 is already used by node c on bus c"),
-            std::string::npos)
-      << e;
+  test::expect_contains(
+      e, {"gw.yaml:7:28: error: node a address: expected a CANopen node ID 1..127, "
+          "found '0'",
+          "gw.yaml:8:28: error: node b address: expected a CANopen node ID 1..127",
+          "gw.yaml:10:28: error: node d: address 5 is already used by node c on bus c"});
 }
 
 TEST_F(ConfigLoaderTest, AnUnsetVariableTakesItsFallbackOrIsAnErrorThatNamesTheFallbackSyntax) {
@@ -266,8 +236,8 @@ TEST_F(ConfigLoaderTest, AnUnsetVariableTakesItsFallbackOrIsAnErrorThatNamesTheF
   std::string yaml = bus("      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n");
   yaml.replace(yaml.find("/dev/null"), 9, "'${FIELDGATE_TEST_UNSET}'");
   const auto e = load(yaml);
-  EXPECT_NE(e.find("environment variable FIELDGATE_TEST_UNSET is not set"), std::string::npos) << e;
-  EXPECT_NE(e.find("${FIELDGATE_TEST_UNSET:-value}"), std::string::npos) << e;
+  test::expect_contains(e, {"environment variable FIELDGATE_TEST_UNSET is not set",
+                            "${FIELDGATE_TEST_UNSET:-value}"});
 }
 
 TEST_F(ConfigLoaderTest, ASerialDeviceThatIsNotThereIsAWarningNotAnError) {
@@ -417,29 +387,27 @@ TEST_F(ConfigLoaderTest, ASwitchTheFamilyHonoursTurnsTheWriteOff) {
   EXPECT_FALSE(c->gateway.buses.at(0).device_writes.at("nmt_start"));
   const auto e =
       load(can_bus("    can: {interface: vcan0}\n", "    device_writes: {nmt_start: true}\n"));
-  EXPECT_NE(e.find("nmt_start: true needs timing.start_nodes: true"), std::string::npos) << e;
+  test::expect_contains(e, {"nmt_start: true needs timing.start_nodes: true"});
 }
 
 // A switch the driver does not honour yet is an error, never a silent promise.
 TEST_F(ConfigLoaderTest, ASwitchTheFamilyDoesNotHonourIsRefused) {
   const std::string node = "      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n";
   auto e = load(bus(node, "    device_writes: {baud_switch: false}\n"));
-  EXPECT_NE(e.find("gw.yaml:6:34: error: bus b device_writes: baud_switch: false is not honoured "
-                   "by the copley-ascii driver of this build"),
-            std::string::npos)
-      << e;
+  test::expect_contains(
+      e, {"gw.yaml:6:34: error: bus b device_writes: baud_switch: false is not honoured "
+          "by the copley-ascii driver of this build"});
   // Where the family would not write anyway, off is simply true.
   EXPECT_EQ(load("buses:\n  - name: b\n    protocol: copley-ascii\n    serial: {device: /dev/null, "
                  "baud: 9600}\n    device_writes: {baud_switch: false}\n    nodes:\n" +
                  node),
             "");
   e = load(bus(node, "    device_writes: {heartbeat_producer: false}\n"));
-  EXPECT_NE(e.find("'heartbeat_producer' is no write of protocol copley-ascii (its writes: "
-                   "baud_switch)"),
-            std::string::npos)
-      << e;
+  test::expect_contains(e,
+                        {"'heartbeat_producer' is no write of protocol copley-ascii (its writes: "
+                         "baud_switch)"});
   e = load(bus(node, "    device_writes: [baud_switch]\n"));
-  EXPECT_NE(e.find("bus b device_writes"), std::string::npos) << e;
+  test::expect_contains(e, {"bus b device_writes"});
 }
 
 }  // namespace

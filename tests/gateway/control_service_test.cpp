@@ -7,10 +7,8 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/use_future.hpp>
 
-#include "config_file_test.hpp"
-#include "gateway/bus/node_image_setup.hpp"
+#include "control_table_test.hpp"
 #include "gateway/control/control_service.hpp"
-#include "scripted_bus.hpp"
 
 namespace fieldgate {
 namespace {
@@ -18,31 +16,13 @@ namespace {
 using namespace std::chrono_literals;
 namespace asio = boost::asio;
 
-class ControlServiceTest : public test::ConfigFileTest {
+class ControlServiceTest : public test::ControlTableTest {
  protected:
   void SetUp() override {
     ConfigFileTest::SetUp();
-    std::optional<LoadedConfig> loaded;
-    ASSERT_EQ(load("buses:\n  - name: b\n    protocol: techno-c\n"
-                   "    serial: {device: /dev/null, baud: 9600}\n    nodes:\n"
-                   "      - {name: table, address: 0, model: techno-c142, unit_id: 1,\n"
-                   "         limits: {target_x: {min: 0, max: 50000}}}\n",
-                   &loaded),
-              "");
-    config_ = std::make_shared<const LoadedConfig>(std::move(*loaded));
-    const NodeConfig& node = config_->gateway.buses[0].nodes[0];
-    image_ = ProcessImage({make_node_image(node)});
-    actions_ = std::make_unique<ActionRunner>(io_.get_executor(), image_,
-                                              [this](int) -> Bus& { return bus_; });
-    control_ = std::make_unique<ControlService>(config_, image_, *actions_,
-                                                [this](int) -> Bus& { return bus_; });
-  }
-  void TearDown() override {
-    actions_->stop();
-    ConfigFileTest::TearDown();
+    start_control();
   }
 
-  const Model& model() const { return *config_->gateway.buses[0].nodes[0].model; }
   int setpoint(const std::string& name) const {
     return static_cast<int>(model().find_setpoint(name) - model().setpoints.data());
   }
@@ -59,19 +39,8 @@ class ControlServiceTest : public test::ConfigFileTest {
     return {ControlWrite::Kind::action, 0, 0, model().find_action(name)->code};
   }
   ControlResult write(ControlWrite w, WritePolicy policy = {}) {
-    auto future = asio::co_spawn(io_, control_->write(w, policy), asio::use_future);
-    io_.run_for(200ms);
-    io_.restart();
-    EXPECT_EQ(future.wait_for(0s), std::future_status::ready);
-    return future.get();
+    return finish(control_->write(w, policy));
   }
-
-  asio::io_context io_;
-  test::ScriptedBus bus_;
-  std::shared_ptr<const LoadedConfig> config_;
-  ProcessImage image_;
-  std::unique_ptr<ActionRunner> actions_;
-  std::unique_ptr<ControlService> control_;
 };
 
 TEST_F(ControlServiceTest, ASetpointWithinItsLimitsIsStoredAndNothingIsSent) {

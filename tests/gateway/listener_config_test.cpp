@@ -5,6 +5,7 @@
 
 #include "config_file_test.hpp"
 #include "gateway/config/config_loader.hpp"
+#include "text_checks.hpp"
 
 // Several Modbus listeners, each with its own unit-ID space.
 namespace fieldgate {
@@ -25,8 +26,7 @@ const std::string kListeners =
 
 std::string copley_bus(const std::string& name, const std::string& device, const std::string& extra,
                        const std::string& nodes) {
-  return "  - name: " + name + "\n    protocol: copley-ascii\n    serial: {device: " + device +
-         ", baud: 115200}\n" + extra + "    nodes:\n" + nodes;
+  return test::copley_bus_item(name, "{device: " + device + ", baud: 115200}", extra, nodes);
 }
 
 TEST_F(ListenerConfigTest, SameUnitIdOnTwoListeners) {
@@ -82,10 +82,8 @@ TEST_F(ListenerConfigTest, DuplicateUnitIdOnOneListenerNamesBoth) {
                                  "      - {name: y, address: 0, model: copley-amplifier, "
                                  "unit_id: 7, listener: line-a}\n"));
   // x's unit_id is on line 14, column 65; y's on line 19.
-  EXPECT_NE(e.find("gw.yaml:19:65: error: node y: unit_id 7 is already used by node x ("),
-            std::string::npos)
-      << e;
-  EXPECT_NE(e.find("gw.yaml:14:65) on listener line-a"), std::string::npos) << e;
+  test::expect_contains(e, {"gw.yaml:19:65: error: node y: unit_id 7 is already used by node x (",
+                            "gw.yaml:14:65) on listener line-a"});
 }
 
 TEST_F(ListenerConfigTest, UnknownListenerListsKnownOnes) {
@@ -93,10 +91,8 @@ TEST_F(ListenerConfigTest, UnknownListenerListsKnownOnes) {
                       copley_bus("b1", "/dev/null", "    listener: line-c\n",
                                  "      - {name: x, address: 0, model: copley-amplifier, "
                                  "unit_id: 7}\n"));
-  EXPECT_NE(e.find("gw.yaml:12:15: error: bus b1: unknown listener 'line-c' (listeners: "
-                   "default, line-a, line-b)"),
-            std::string::npos)
-      << e;
+  test::expect_contains(e, {"gw.yaml:12:15: error: bus b1: unknown listener 'line-c' (listeners: "
+                            "default, line-a, line-b)"});
 }
 
 TEST_F(ListenerConfigTest, ListenerErrors) {
@@ -108,34 +104,28 @@ TEST_F(ListenerConfigTest, ListenerErrors) {
   auto e =
       load("modbus: {listen: 0.0.0.0:1502}\nlisteners:\n  - {name: a, listen: 127.0.0.1:1502}\n" +
            nodes);
-  EXPECT_NE(e.find("gw.yaml:4:23: error: listener a: 127.0.0.1:1502 overlaps listener default "
-                   "(0.0.0.0:1502, "),
-            std::string::npos)
-      << e;
+  test::expect_contains(
+      e, {"gw.yaml:4:23: error: listener a: 127.0.0.1:1502 overlaps listener default "
+          "(0.0.0.0:1502, "});
   // A name is required, unique and not "default"; listen is required.
   e = load(
       "listeners:\n  - {listen: 127.0.0.1:1503}\n  - {name: default, listen: "
       "127.0.0.1:1504}\n  - {name: a, listen: 127.0.0.1:1505}\n  - {name: a, listen: "
       "127.0.0.1:1506}\n  - {name: b}\n" +
       nodes);
-  EXPECT_NE(e.find("listener: missing required key 'name'"), std::string::npos) << e;
-  EXPECT_NE(e.find("listener default: listener name is already used (by the modbus: section)"),
-            std::string::npos)
-      << e;
-  EXPECT_NE(e.find("gw.yaml:6:12: error: listener a: listener name is already used"),
-            std::string::npos)
-      << e;
-  EXPECT_NE(e.find("listener b: missing required key 'listen'"), std::string::npos) << e;
+  test::expect_contains(e,
+                        {"listener: missing required key 'name'",
+                         "listener default: listener name is already used (by the modbus: section)",
+                         "gw.yaml:6:12: error: listener a: listener name is already used",
+                         "listener b: missing required key 'listen'"});
   // Listener options are checked as modbus: ones are, under the listener's name.
   e = load("listeners:\n  - {name: a, listen: 127.0.0.1:1503, when_full: drop, max_clent: 3}\n" +
            nodes);
-  EXPECT_NE(e.find("listener a when_full: expected evict_idle or refuse, found 'drop'"),
-            std::string::npos)
-      << e;
-  EXPECT_NE(e.find("listener a: unknown key 'max_clent'"), std::string::npos) << e;
+  test::expect_contains(e, {"listener a when_full: expected evict_idle or refuse, found 'drop'",
+                            "listener a: unknown key 'max_clent'"});
   // The default listener has no name.
   e = load("modbus: {name: x}\n" + nodes);
-  EXPECT_NE(e.find("modbus: the default listener has no name"), std::string::npos) << e;
+  test::expect_contains(e, {"modbus: the default listener has no name"});
 }
 
 TEST_F(ListenerConfigTest, WithoutListenersEverythingIsOnTheDefault) {

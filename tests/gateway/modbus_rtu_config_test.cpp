@@ -6,6 +6,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <utility>
 
 #include "config_file_test.hpp"
 #include "gateway/config/config_loader.hpp"
@@ -103,36 +105,29 @@ TEST_F(ModbusRtuConfigTest, ProfileUnitsCanBeListed) {
 }
 
 TEST_F(ModbusRtuConfigTest, PreciseErrors) {
-  auto e = load("modbus_rtu: {device: /dev/ttyS1, baud: 11520}\n");
-  EXPECT_NE(e.find("gw.yaml:2:40: error: modbus_rtu baud: 11520 is not a standard rate"),
-            std::string::npos)
-      << e;
-  e = load("modbus_rtu: {device: /dev/ttyS1, parity: mark}\n");
-  EXPECT_NE(e.find("modbus_rtu parity: expected none, even or odd, found 'mark'"),
-            std::string::npos)
-      << e;
-  e = load("modbus_rtu: {device: /dev/ttyS1, data_bits: 7}\n");
-  EXPECT_NE(e.find("Modbus RTU uses 8 data bits"), std::string::npos) << e;
-  e = load("modbus_rtu: {device: /dev/ttyS1, response_timeout: 1}\n");
-  EXPECT_NE(e.find("modbus_rtu response_timeout"), std::string::npos) << e;
-  e = load("modbus_rtu: {device: /dev/ttyS1, rs485: {delay_before_send: 500us}}\n");
-  EXPECT_NE(e.find("the kernel takes whole milliseconds"), std::string::npos) << e;
-  e = load("modbus_rtu: {device: /dev/ttyS1, units: [9]}\n");
-  EXPECT_NE(e.find("modbus_rtu units: no node on listener default has unit_id 9"),
-            std::string::npos)
-      << e;
-  e = load(
-      "modbus_rtu: {device: /dev/ttyS1, broadcast_stop: {actions: {copley-amplifier: "
-      "halt}}}\n");
-  EXPECT_NE(e.find("model copley-amplifier has no action 'halt' (actions: enable"),
-            std::string::npos)
-      << e;
-  e = load("modbus_rtu: {device: /dev/ttyS1, slow_writes: wait}\n");
-  EXPECT_NE(e.find("expected acknowledge or silent"), std::string::npos) << e;
-  e = load("modbus_rtu: {baud: 9600}\n");
-  EXPECT_NE(e.find("missing required key 'device'"), std::string::npos) << e;
-  e = load("modbus_rtu: {device: /dev/ttyS1, speed: 9600}\n");
-  EXPECT_NE(e.find("unknown key 'speed'"), std::string::npos) << e;
+  // Each listener section, and what its error says.
+  const std::pair<std::string, std::string> cases[] = {
+      {"modbus_rtu: {device: /dev/ttyS1, baud: 11520}\n",
+       "gw.yaml:2:40: error: modbus_rtu baud: 11520 is not a standard rate"},
+      {"modbus_rtu: {device: /dev/ttyS1, parity: mark}\n",
+       "modbus_rtu parity: expected none, even or odd, found 'mark'"},
+      {"modbus_rtu: {device: /dev/ttyS1, data_bits: 7}\n", "Modbus RTU uses 8 data bits"},
+      {"modbus_rtu: {device: /dev/ttyS1, response_timeout: 1}\n", "modbus_rtu response_timeout"},
+      {"modbus_rtu: {device: /dev/ttyS1, rs485: {delay_before_send: 500us}}\n",
+       "the kernel takes whole milliseconds"},
+      {"modbus_rtu: {device: /dev/ttyS1, units: [9]}\n",
+       "modbus_rtu units: no node on listener default has unit_id 9"},
+      {"modbus_rtu: {device: /dev/ttyS1, broadcast_stop: {actions: {copley-amplifier: "
+       "halt}}}\n",
+       "model copley-amplifier has no action 'halt' (actions: enable"},
+      {"modbus_rtu: {device: /dev/ttyS1, slow_writes: wait}\n", "expected acknowledge or silent"},
+      {"modbus_rtu: {baud: 9600}\n", "missing required key 'device'"},
+      {"modbus_rtu: {device: /dev/ttyS1, speed: 9600}\n", "unknown key 'speed'"},
+  };
+  for (const auto& [section, expected] : cases) {
+    const auto e = load(section);
+    EXPECT_NE(e.find(expected), std::string::npos) << section << e;
+  }
 }
 
 TEST_F(ModbusRtuConfigTest, MapDocumentShowsTheRtuView) {

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <initializer_list>
 #include <map>
 #include <set>
 #include <string>
@@ -22,6 +23,13 @@ PollItem item(int node, const char* command, std::chrono::microseconds period) {
 
 const auto all = [](int) { return true; };
 
+// A plan of the items, in this order.
+PollPlan plan_of(std::initializer_list<PollItem> items) {
+  PollPlan plan;
+  for (const auto& i : items) plan.add(i);
+  return plan;
+}
+
 TEST(PollPlan, ItemsOfAPeriodAreSpreadEvenly) {
   PollPlan plan;
   for (int node = 0; node < 2; ++node) {
@@ -38,20 +46,18 @@ TEST(PollPlan, ItemsOfAPeriodAreSpreadEvenly) {
 // A reload that changed one node's period and added a node ahead of the others: every other
 // item keeps its schedule; the changed and the new items are spread from the reload's time.
 TEST(PollPlan, AReloadsPlanKeepsTheScheduleOfEveryItemItDidNotChange) {
-  PollPlan before;
-  before.add(item(0, "a", 100ms));
-  before.add(item(0, "b", 1s));
-  before.add(item(1, "a", 100ms));
+  PollPlan before = plan_of({item(0, "a", 100ms), item(0, "b", 1s), item(1, "a", 100ms)});
   const SteadyTime t0{};
   before.start(t0);
   before.completed(0, t0 + 3ms);
   before.completed(2, t0 + 53ms);
 
-  PollPlan after;
-  after.add(item(0, "a", 100ms));  // the new node, ahead of the others
-  after.add(item(1, "a", 100ms));  // node 0 before the reload, unchanged
-  after.add(item(1, "b", 500ms));  // its period changed
-  after.add(item(2, "a", 100ms));  // node 1 before the reload, unchanged
+  PollPlan after = plan_of({
+      item(0, "a", 100ms),  // the new node, ahead of the others
+      item(1, "a", 100ms),  // node 0 before the reload, unchanged
+      item(1, "b", 500ms),  // its period changed
+      item(2, "a", 100ms),  // node 1 before the reload, unchanged
+  });
   const SteadyTime reload = t0 + 60ms;
   after.start_after(before, {1, 2}, reload);
 
@@ -65,9 +71,7 @@ TEST(PollPlan, AReloadsPlanKeepsTheScheduleOfEveryItemItDidNotChange) {
 }
 
 TEST(PollPlan, NextPicksEarliestEligible) {
-  PollPlan plan;
-  plan.add(item(0, "a", 100ms));
-  plan.add(item(1, "b", 100ms));
+  PollPlan plan = plan_of({item(0, "a", 100ms), item(1, "b", 100ms)});
   const SteadyTime t0{};
   plan.start(t0);
   auto due = plan.next(all);
@@ -81,8 +85,7 @@ TEST(PollPlan, NextPicksEarliestEligible) {
 }
 
 TEST(PollPlan, CompletedKeepsTheRhythm) {
-  PollPlan plan;
-  plan.add(item(0, "a", 100ms));
+  PollPlan plan = plan_of({item(0, "a", 100ms)});
   const SteadyTime t0{};
   plan.start(t0);
   plan.completed(0, t0 + 3ms);  // ran a little late
@@ -91,8 +94,7 @@ TEST(PollPlan, CompletedKeepsTheRhythm) {
 }
 
 TEST(PollPlan, FallingBehindSkipsMissedTicks) {
-  PollPlan plan;
-  plan.add(item(0, "a", 100ms));
+  PollPlan plan = plan_of({item(0, "a", 100ms)});
   const SteadyTime t0{};
   plan.start(t0);
   plan.completed(0, t0 + 350ms);  // the bus was busy for three periods
@@ -101,9 +103,7 @@ TEST(PollPlan, FallingBehindSkipsMissedTicks) {
 }
 
 TEST(PollPlan, SlowAndFastClassesInterleaveOverTime) {
-  PollPlan plan;
-  plan.add(item(0, "fast", 100ms));
-  plan.add(item(0, "slow", 1000ms));
+  PollPlan plan = plan_of({item(0, "fast", 100ms), item(0, "slow", 1000ms)});
   SteadyTime now{};
   plan.start(now);
   int fast = 0, slow = 0;
@@ -122,10 +122,7 @@ TEST(PollPlan, SlowAndFastClassesInterleaveOverTime) {
 }
 
 TEST(PollPlan, RestartNodeReschedulesFromNow) {
-  PollPlan plan;
-  plan.add(item(0, "a", 100ms));
-  plan.add(item(0, "b", 100ms));
-  plan.add(item(1, "c", 100ms));
+  PollPlan plan = plan_of({item(0, "a", 100ms), item(0, "b", 100ms), item(1, "c", 100ms)});
   const SteadyTime t0{};
   plan.start(t0);
   plan.restart_node(0, t0 + 10s);
@@ -137,9 +134,9 @@ TEST(PollPlan, RestartNodeReschedulesFromNow) {
 }
 
 TEST(PollPlan, RestartKeepsTheOriginalSlot) {
-  PollPlan plan;
-  plan.add(item(0, "a", 100ms));
-  plan.add(item(0, "b", 100ms));  // slot t0 + 50 ms
+  PollPlan plan = plan_of({
+      item(0, "a", 100ms), item(0, "b", 100ms),  // slot t0 + 50 ms
+  });
   const SteadyTime t0{};
   plan.start(t0);
   plan.completed(0, t0 + 1ms);
@@ -157,11 +154,8 @@ TEST(PollPlan, RestartKeepsTheOriginalSlot) {
 // A node that goes offline and online every 500 ms (a heartbeat that flaps): its 5 s class
 // must still run at least once every 5 s of online time.
 TEST(PollPlan, EveryClassRunsWithinItsPeriodWhileANodeFlaps) {
-  PollPlan plan;
-  plan.add(item(0, "fast", 100ms));
-  plan.add(item(0, "slow1", 5s));
-  plan.add(item(0, "slow2", 5s));
-  plan.add(item(0, "slow3", 5s));
+  PollPlan plan = plan_of(
+      {item(0, "fast", 100ms), item(0, "slow1", 5s), item(0, "slow2", 5s), item(0, "slow3", 5s)});
   SteadyTime now{};
   plan.start(now);
   bool online = true;

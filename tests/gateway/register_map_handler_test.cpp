@@ -6,10 +6,8 @@
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/use_future.hpp>
 
-#include "config_file_test.hpp"
-#include "gateway/bus/node_image_setup.hpp"
+#include "control_table_test.hpp"
 #include "gateway/register_map/register_map_handler.hpp"
-#include "scripted_bus.hpp"
 
 namespace fieldgate {
 namespace {
@@ -18,27 +16,12 @@ using namespace std::chrono_literals;
 namespace asio = boost::asio;
 using modbus::ExceptionCode;
 
-class RegisterMapHandlerTest : public test::ConfigFileTest {
+class RegisterMapHandlerTest : public test::ControlTableTest {
  protected:
   void start(const std::string& modbus_section = "") {
-    std::optional<LoadedConfig> loaded;
-    ASSERT_EQ(
-        load(modbus_section + "buses:\n  - name: b\n    protocol: techno-c\n"
-                              "    serial: {device: /dev/null, baud: 9600}\n    nodes:\n"
-                              "      - {name: table, address: 0, model: techno-c142, unit_id: 1,\n"
-                              "         limits: {target_x: {min: 0, max: 50000}}}\n",
-             &loaded),
-        "");
-    config_ = std::make_shared<const LoadedConfig>(std::move(*loaded));
-    image_ = ProcessImage({make_node_image(config_->gateway.buses[0].nodes[0])});
-    const auto bus_of = [this](int) -> Bus& { return bus_; };
-    actions_ = std::make_unique<ActionRunner>(io_.get_executor(), image_, bus_of);
-    control_ = std::make_unique<ControlService>(config_, image_, *actions_, bus_of);
+    start_control(modbus_section);
+    if (HasFatalFailure()) return;
     handler_ = std::make_unique<RegisterMapHandler>(config_, 0, image_, *actions_, *control_);
-  }
-  void TearDown() override {
-    if (actions_) actions_->stop();
-    ConfigFileTest::TearDown();
   }
 
   const RegisterEntry& holding(const std::string& name) const {
@@ -49,33 +32,20 @@ class RegisterMapHandlerTest : public test::ConfigFileTest {
     static const RegisterEntry none;
     return none;
   }
-  uint16_t action_code(const std::string& name) const {
-    return config_->gateway.buses[0].nodes[0].model->find_action(name)->code;
-  }
+  uint16_t action_code(const std::string& name) const { return model().find_action(name)->code; }
   // The exception, or nullopt for success.
   std::optional<ExceptionCode> write(uint16_t address, std::vector<uint16_t> values) {
-    auto future = asio::co_spawn(
-        io_, handler_->write_registers(1, address, std::span<const uint16_t>(values)),
-        asio::use_future);
-    io_.run_for(200ms);
-    io_.restart();
-    EXPECT_EQ(future.wait_for(0s), std::future_status::ready);
-    const auto result = future.get();
+    const auto result =
+        finish(handler_->write_registers(1, address, std::span<const uint16_t>(values)));
     if (result.ok()) return std::nullopt;
     return result.exception();
   }
   int64_t setpoint(const std::string& name) const {
-    const Model& m = *config_->gateway.buses[0].nodes[0].model;
+    const Model& m = model();
     return image_.node(0)
         .setpoints[static_cast<std::size_t>(m.find_setpoint(name) - m.setpoints.data())];
   }
 
-  asio::io_context io_;
-  test::ScriptedBus bus_;
-  std::shared_ptr<const LoadedConfig> config_;
-  ProcessImage image_;
-  std::unique_ptr<ActionRunner> actions_;
-  std::unique_ptr<ControlService> control_;
   std::unique_ptr<RegisterMapHandler> handler_;
 };
 

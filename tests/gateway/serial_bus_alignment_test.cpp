@@ -13,8 +13,6 @@
 #include <boost/asio/detached.hpp>
 #include <boost/asio/io_context.hpp>
 
-#include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <map>
 #include <optional>
@@ -25,12 +23,12 @@
 #include "fake_line.hpp"
 #include "gateway/bus/serial_bus.hpp"
 #include "gateway/config/config_loader.hpp"
+#include "serial_bus_files.hpp"
 
 namespace fieldgate {
 namespace {
 
 using namespace std::chrono_literals;
-namespace fs = std::filesystem;
 using test::FakeLine;
 
 // Bus-local node indexes and what each node's position reads.
@@ -124,46 +122,25 @@ struct Run {
 class SerialBusAlignment : public ::testing::TestWithParam<Run> {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fieldgate-alignment-" + std::to_string(::getpid()) + "-" + GetParam().name);
-    fs::create_directories(dir_ / "models");
-    std::ofstream(dir_ / "models" / "position.yaml") << R"(model: position
-family: copley-ascii
-poll_classes: {fast: 20ms}
-points:
-  position: {type: int32, read: g r0x32, poll: fast}
-  target: {type: int32, write: "s r0xca {value}"}
-  desired_state: {type: int16, write: "s r0x24 {value}"}
-)";
-    std::ofstream(dir_ / "gw.yaml") << R"(models: models
-buses:
-  - name: copley
-    protocol: copley-ascii
-    serial: {device: /dev/null, baud: 115200}
-    timing: {reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, offline_after: 3,
-             probe_interval: 200ms}
-    nodes:
-      - {name: gw, address: 0, model: position, unit_id: 1}
-      - {name: n3, address: 3, model: position, unit_id: 2, reply_timeout: 50ms}
-      - {name: n5, address: 5, model: position, unit_id: 3, reply_timeout: 50ms}
-      - {name: n7, address: 7, model: position, unit_id: 4, reply_timeout: 50ms}
-)";
-    Diagnostics d;
-    auto loaded = load_gateway_config((dir_ / "gw.yaml").string(), d);
-    ASSERT_TRUE(loaded) << d.to_text();
-    config_ = std::make_shared<LoadedConfig>(std::move(*loaded));
-    auto line = std::make_unique<FakeLine>(io_, "fake", 1e6 * 10 / 115200);
+    files_.write_model("20ms", "  desired_state: {type: int16, write: \"s r0x24 {value}\"}\n");
+    config_ = files_.load(
+        "    timing: {reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, offline_after: 3,\n"
+        "             probe_interval: 200ms}\n",
+        "      - {name: gw, address: 0, model: position, unit_id: 1}\n"
+        "      - {name: n3, address: 3, model: position, unit_id: 2, reply_timeout: 50ms}\n"
+        "      - {name: n5, address: 5, model: position, unit_id: 3, reply_timeout: 50ms}\n"
+        "      - {name: n7, address: 7, model: position, unit_id: 4, reply_timeout: 50ms}\n");
+    ASSERT_TRUE(config_);
+    auto line = test::fake_serial_line(io_);
     line_ = line.get();
     far_end_.emplace(*line_, GetParam().seed, GetParam().pauses);
     line_->set_far_end([this](std::string_view bytes) { far_end_->on_write(bytes); });
-    bus_ = std::make_shared<SerialBus>(
-        io_.get_executor(), config_, config_->gateway.buses[0], 0,
-        [this](int node) { check_values(node); }, std::move(line));
-    asio::co_spawn(
-        io_, [bus = bus_]() -> asio::awaitable<void> { co_await bus->run(); }, asio::detached);
+    bus_ = test::run_serial_bus(io_, config_, std::move(line),
+                                [this](int node) { check_values(node); });
     ::testing::internal::CaptureStderr();
   }
   void TearDown() override {
+    if (!bus_) return;
     bus_->stop();
     io_.run_for(50ms);
     log_ = ::testing::internal::GetCapturedStderr();
@@ -172,7 +149,6 @@ buses:
       for (const auto& e : far_end_->journal())
         std::cerr << e.at_ms << " " << e.request << " -> " << e.reply << " at " << e.due_ms << "\n";
     }
-    fs::remove_all(dir_);
   }
 
   const NodeImage& image(int node) { return *bus_->node_images().at(static_cast<size_t>(node)); }
@@ -206,9 +182,9 @@ buses:
     return reply;
   }
 
+  test::SerialBusFiles files_{"alignment", GetParam().name};
   asio::io_context io_;
-  fs::path dir_;
-  std::shared_ptr<LoadedConfig> config_;
+  std::shared_ptr<const LoadedConfig> config_;
   FakeLine* line_ = nullptr;
   std::optional<CopleyLine> far_end_;
   std::shared_ptr<SerialBus> bus_;

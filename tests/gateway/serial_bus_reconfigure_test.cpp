@@ -9,8 +9,6 @@
 #include <boost/asio/io_context.hpp>
 
 #include <cctype>
-#include <filesystem>
-#include <fstream>
 #include <map>
 #include <optional>
 #include <string>
@@ -19,12 +17,12 @@
 #include "fake_line.hpp"
 #include "gateway/bus/serial_bus.hpp"
 #include "gateway/config/config_loader.hpp"
+#include "serial_bus_files.hpp"
 
 namespace fieldgate {
 namespace {
 
 using namespace std::chrono_literals;
-namespace fs = std::filesystem;
 using test::FakeLine;
 
 const std::map<std::string, int64_t> kPositions = {{"", 1000}, {"3 ", 3333}, {"5 ", 5555}};
@@ -33,51 +31,27 @@ constexpr auto kReplyDelay = 20ms;
 class SerialBusReconfigure : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fieldgate-reconfigure-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_ / "models");
-    std::ofstream(dir_ / "models" / "position.yaml") << R"(model: position
-family: copley-ascii
-poll_classes: {fast: 20ms}
-points:
-  position: {type: int32, read: g r0x32, poll: fast}
-  target: {type: int32, write: "s r0xca {value}"}
-setpoints:
-  speed: {type: int32, default: 10}
-)";
-    auto line = std::make_unique<FakeLine>(io_, "fake", 1e6 * 10 / 115200);
+    files_.write_model("20ms", "setpoints:\n  speed: {type: int32, default: 10}\n");
+    auto line = test::fake_serial_line(io_);
     line_ = line.get();
     line_->keep_order();
     line_->set_far_end([this](std::string_view bytes) { on_write(bytes); });
     config_ = load(kTiming,
                    "      - {name: gw, address: 0, model: position, unit_id: 1}\n"
                    "      - {name: n3, address: 3, model: position, unit_id: 2}\n");
-    bus_ = std::make_shared<SerialBus>(io_.get_executor(), config_, config_->gateway.buses[0], 0,
-                                       nullptr, std::move(line));
-    asio::co_spawn(
-        io_, [bus = bus_]() -> asio::awaitable<void> { co_await bus->run(); }, asio::detached);
+    ASSERT_TRUE(config_);
+    bus_ = test::run_serial_bus(io_, config_, std::move(line));
   }
   void TearDown() override {
-    bus_->stop();
+    if (bus_) bus_->stop();
     io_.run_for(50ms);
-    fs::remove_all(dir_);
   }
 
   static constexpr const char* kTiming =
       "    timing: {reply_timeout: 100ms, retries: 0, offline_after: 2, probe_interval: 200ms}\n";
 
   std::shared_ptr<const LoadedConfig> load(const std::string& timing, const std::string& nodes) {
-    std::ofstream(dir_ / "gw.yaml") << "models: models\nbuses:\n  - name: copley\n"
-                                       "    protocol: copley-ascii\n"
-                                       "    serial: {device: /dev/null, baud: 115200}\n"
-                                    << timing << "    nodes:\n"
-                                    << nodes;
-    Diagnostics d;
-    auto loaded = load_gateway_config((dir_ / "gw.yaml").string(), d);
-    EXPECT_TRUE(loaded) << d.to_text();
-    if (!loaded) return nullptr;
-    return std::make_shared<const LoadedConfig>(std::move(*loaded));
+    return files_.load(timing, nodes);
   }
 
   bool reconfigure(const std::shared_ptr<const LoadedConfig>& next) {
@@ -122,8 +96,8 @@ setpoints:
     return image(node).state == NodeState::online && v.valid && v.value == value;
   }
 
+  test::SerialBusFiles files_{"reconfigure"};
   asio::io_context io_;
-  fs::path dir_;
   std::shared_ptr<const LoadedConfig> config_;
   FakeLine* line_ = nullptr;
   std::string pending_;

@@ -10,8 +10,6 @@
 
 #include <algorithm>
 #include <cctype>
-#include <filesystem>
-#include <fstream>
 #include <optional>
 #include <string>
 #include <vector>
@@ -19,12 +17,12 @@
 #include "fake_line.hpp"
 #include "gateway/bus/serial_bus.hpp"
 #include "gateway/config/config_loader.hpp"
+#include "serial_bus_files.hpp"
 
 namespace fieldgate {
 namespace {
 
 using namespace std::chrono_literals;
-namespace fs = std::filesystem;
 using test::FakeLine;
 
 // gw (address 0) is polled first at the start, n3 half a period later (PollPlan staggers them).
@@ -33,42 +31,21 @@ constexpr std::chrono::milliseconds kPeriod = 1s;
 class SerialBusSchedule : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("fieldgate-schedule-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_ / "models");
-    std::ofstream(dir_ / "models" / "position.yaml") << R"(model: position
-family: copley-ascii
-poll_classes: {fast: 1s}
-points:
-  position: {type: int32, read: g r0x32, poll: fast}
-  target: {type: int32, write: "s r0xca {value}"}
-)";
-    std::ofstream(dir_ / "gw.yaml")
-        << "models: models\nbuses:\n  - name: copley\n    protocol: copley-ascii\n"
-           "    serial: {device: /dev/null, baud: 115200}\n"
-           "    timing: {reply_timeout: 20ms, retries: 0, offline_after: 1, "
-           "probe_interval: 5s}\n"
-           "    nodes:\n"
-           "      - {name: gw, address: 0, model: position, unit_id: 1}\n"
-           "      - {name: n3, address: 3, model: position, unit_id: 2}\n";
-    Diagnostics d;
-    auto loaded = load_gateway_config((dir_ / "gw.yaml").string(), d);
-    ASSERT_TRUE(loaded) << d.to_text();
-    config_ = std::make_shared<const LoadedConfig>(std::move(*loaded));
-    auto line = std::make_unique<FakeLine>(io_, "fake", 1e6 * 10 / 115200);
+    files_.write_model("1s");
+    config_ = files_.load(
+        "    timing: {reply_timeout: 20ms, retries: 0, offline_after: 1, probe_interval: 5s}\n",
+        "      - {name: gw, address: 0, model: position, unit_id: 1}\n"
+        "      - {name: n3, address: 3, model: position, unit_id: 2}\n");
+    ASSERT_TRUE(config_);
+    auto line = test::fake_serial_line(io_);
     line_ = line.get();
     line_->keep_order();
     line_->set_far_end([this](std::string_view bytes) { on_write(bytes); });
-    bus_ = std::make_shared<SerialBus>(io_.get_executor(), config_, config_->gateway.buses[0], 0,
-                                       nullptr, std::move(line), [this] { return now_; });
-    asio::co_spawn(
-        io_, [bus = bus_]() -> asio::awaitable<void> { co_await bus->run(); }, asio::detached);
+    bus_ = test::run_serial_bus(io_, config_, std::move(line), nullptr, [this] { return now_; });
   }
   void TearDown() override {
     if (bus_) bus_->stop();
     io_.run_for(50ms);
-    fs::remove_all(dir_);
   }
 
   void on_write(std::string_view bytes) {
@@ -125,8 +102,8 @@ points:
   }
   const NodeImage& image(int node) { return *bus_->node_images().at(static_cast<size_t>(node)); }
 
+  test::SerialBusFiles files_{"schedule"};
   asio::io_context io_;
-  fs::path dir_;
   SteadyTime now_ = SteadyTime{} + 100h;
   std::shared_ptr<const LoadedConfig> config_;
   FakeLine* line_ = nullptr;

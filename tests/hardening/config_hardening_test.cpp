@@ -19,9 +19,9 @@ namespace fs = std::filesystem;
 class ConfigHardening : public test::ConfigFileTest {
  protected:
   static std::string bus(const std::string& serial, const std::string& timing = "") {
-    return "buses:\n  - name: b\n    protocol: copley-ascii\n    serial: " + serial + "\n" +
-           timing + "    nodes:\n      - {name: x, address: 0, model: copley-amplifier, " +
-           "unit_id: 1}\n";
+    return "buses:\n" + test::copley_bus_item(
+                            "b", serial, timing,
+                            "      - {name: x, address: 0, model: copley-amplifier, unit_id: 1}\n");
   }
   static std::string serial(const std::string& baud) {
     return "{device: /dev/null, baud: " + baud + "}";

@@ -15,6 +15,15 @@
 
 namespace fieldgate::test {
 
+// One item of a gateway file's buses: list, bus `name` of the copley-ascii family on `serial` (a
+// YAML flow map), with `extra` (the bus's own keys, indented by four) and `nodes` (list items,
+// indented by six).
+inline std::string copley_bus_item(const std::string& name, const std::string& serial,
+                                   const std::string& extra, const std::string& nodes) {
+  return "  - name: " + name + "\n    protocol: copley-ascii\n    serial: " + serial + "\n" +
+         extra + "    nodes:\n" + nodes;
+}
+
 class ConfigFileTest : public ::testing::Test {
  protected:
   void SetUp() override {

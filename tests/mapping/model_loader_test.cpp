@@ -52,6 +52,11 @@ TEST(ModelLoader, DelayStepsLoad) {
 }
 
 // A model with one mistake: the first error names it (all of `expected`, position included).
+// A model of the header's family and poll class, then `body`.
+std::string with_header(const std::string& body) {
+  return kHeader + body;
+}
+
 struct BadModel {
   const char* name;
   std::string yaml;
@@ -74,41 +79,39 @@ INSTANTIATE_TEST_SUITE_P(
     ModelLoader, ModelLoaderError,
     ::testing::Values(
         BadModel{"UnknownKeyNamesLineColumnAndAlternatives",
-                 std::string(kHeader) +
-                     "points:\n  p:\n    type: int32\n    red: g r0x32\n    poll: fast\n",
+                 with_header("points:\n  p:\n    type: int32\n    red: g r0x32\n    poll: fast\n"),
                  {"unknown key 'red'", "read", "@7:5"}},
-        BadModel{"WrongTypeIsReported",
-                 std::string(kHeader) +
-                     "points:\n  p:\n    type: float64\n    read: g r0x32\n    poll: fast\n",
-                 {"unknown type 'float64'", "@6:11"}},
+        BadModel{
+            "WrongTypeIsReported",
+            with_header("points:\n  p:\n    type: float64\n    read: g r0x32\n    poll: fast\n"),
+            {"unknown type 'float64'", "@6:11"}},
         BadModel{"UnknownPollClass",
-                 std::string(kHeader) +
-                     "points:\n  p:\n    type: int32\n    read: g r0x32\n    poll: slow\n",
+                 with_header("points:\n  p:\n    type: int32\n    read: g r0x32\n    poll: slow\n"),
                  {"unknown poll class 'slow' (defined: fast)"}},
-        BadModel{"ActionPlaceholderMustBeASetpoint",
-                 std::string(kHeader) +
-                     "actions:\n  go:\n    code: 1\n    steps:\n      - s r0xca {target}\n",
-                 {"{target}", "not a setpoint"}},
-        BadModel{"DuplicateActionCodes",
-                 std::string(kHeader) +
-                     "actions:\n  a: {code: 1, steps: [t 1]}\n  b: {code: 1, steps: [t 0]}\n",
-                 {"code 1 is already used by action a"}},
+        BadModel{
+            "ActionPlaceholderMustBeASetpoint",
+            with_header("actions:\n  go:\n    code: 1\n    steps:\n      - s r0xca {target}\n"),
+            {"{target}", "not a setpoint"}},
+        BadModel{
+            "DuplicateActionCodes",
+            with_header("actions:\n  a: {code: 1, steps: [t 1]}\n  b: {code: 1, steps: [t 0]}\n"),
+            {"code 1 is already used by action a"}},
         BadModel{"DuplicatePointNames",
-                 std::string(kHeader) + "points:\n  p: {type: int16, read: g r0x1, poll: fast}\n"
-                                        "  p: {type: int16, read: g r0x2, poll: fast}\n",
+                 with_header("points:\n  p: {type: int16, read: g r0x1, poll: fast}\n"
+                             "  p: {type: int16, read: g r0x2, poll: fast}\n"),
                  {"'p' is defined twice"}},
-        BadModel{"ConditionBitMustExist",
-                 std::string(kHeader) +
-                     "points:\n  s: {type: uint32, read: g r0xa0, poll: fast, bits: {m: 27}}\n"
-                     "actions:\n  go: {code: 1, steps: [t 1], done: {point: s, bit: moving, "
-                     "equals: 0}}\n",
-                 {"no bit named 'moving'"}},
+        BadModel{
+            "ConditionBitMustExist",
+            with_header("points:\n  s: {type: uint32, read: g r0xa0, poll: fast, bits: {m: 27}}\n"
+                        "actions:\n  go: {code: 1, steps: [t 1], done: {point: s, bit: moving, "
+                        "equals: 0}}\n"),
+            {"no bit named 'moving'"}},
         BadModel{"LimitsMustFitTheType",
-                 std::string(kHeader) +
-                     "points:\n  p:\n    type: int16\n    write: s r0x1 {value}\n    max: 70000\n",
+                 with_header(
+                     "points:\n  p:\n    type: int16\n    write: s r0x1 {value}\n    max: 70000\n"),
                  {"max 70000 does not fit int16"}},
         BadModel{"WriteTakesOnlyValue",
-                 std::string(kHeader) + "points:\n  p:\n    type: int16\n    write: s r0x1 {v}\n",
+                 with_header("points:\n  p:\n    type: int16\n    write: s r0x1 {v}\n"),
                  {"only {value}"}},
         BadModel{"SyntaxErrorHasPosition", "model: m\nfamily: [unclosed\n", {"YAML syntax"}}),
     [](const auto& info) { return std::string(info.param.name); });

@@ -3,6 +3,7 @@
 
 #include "drivers/canopen/canopen_family.hpp"
 #include "mapping/model_loader.hpp"
+#include "tests/harness/address_checks.hpp"
 #include "tests/harness/text_checks.hpp"
 
 namespace fieldgate {
@@ -31,11 +32,8 @@ TEST(CanopenFamily, ShippedModelsAreValid) {
 
 TEST(CanopenFamily, Address) {
   CanopenFamily f;
+  ASSERT_TRUE(test::expect_address(f, "0x7F", "127", 127));
   std::string error;
-  auto a = f.parse_address("0x7F", error);
-  ASSERT_TRUE(a);
-  EXPECT_EQ(a->text, "127");
-  EXPECT_EQ(a->number, 127);
   EXPECT_FALSE(f.parse_address("0", error));
   EXPECT_EQ(error, "expected a CANopen node ID 1..127, found '0'");
   EXPECT_EQ(f.name(), "canopen");

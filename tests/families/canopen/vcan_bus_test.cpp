@@ -23,12 +23,7 @@ using test::can_interface;
 class VcanBus : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    if (!test::vcan_present()) return;
-    s = new Shared;
-    s->candump = std::make_unique<test::Candump>(s->dir);
-    if (!s->candump->wait_listening()) s->error = "candump does not log frames";
-    s->sim = std::make_unique<test::CanopenSim>(s->dir, "2,3");
-    if (!s->sim->wait_ready()) s->error = "simulator did not start: " + s->sim->log();
+    if (!test::begin_suite(s, "2,3")) return;
     std::ofstream(s->dir / "gw.yaml")
         << "models: " FIELDGATE_SOURCE_DIR "/config/models\n"
         << "buses:\n  - name: can\n    protocol: canopen\n"
@@ -63,8 +58,7 @@ class VcanBus : public ::testing::Test {
   }
   void SetUp() override {
     ASSERT_TRUE(test::vcan_present());
-    ASSERT_TRUE(s);
-    ASSERT_EQ(s->error, "");
+    ASSERT_TRUE(test::suite_ready(s));
   }
 
   static bool run_until(const std::function<bool()>& pred, std::chrono::milliseconds limit = 20s) {
@@ -115,14 +109,10 @@ class VcanBus : public ::testing::Test {
     });
   }
 
-  struct Shared {
-    test::ScratchDir dir;
-    std::unique_ptr<test::Candump> candump;
-    std::unique_ptr<test::CanopenSim> sim;
+  struct Shared : test::VcanSuite {
     std::shared_ptr<const LoadedConfig> config;
     asio::io_context io;
     std::shared_ptr<CanBus> bus;
-    std::string error;
   };
   static Shared* s;
 };

@@ -26,18 +26,7 @@ constexpr int kModbusTargetFailed = 0x0B;
 class VcanEndToEnd : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    if (!test::vcan_present()) return;
-    p = new Plant;
-    p->candump = std::make_unique<test::Candump>(p->dir);
-    if (!p->candump->wait_listening()) {
-      p->error = "candump does not log frames";
-      return;
-    }
-    p->sim = std::make_unique<test::CanopenSim>(p->dir, "2,3");
-    if (!p->sim->wait_ready()) {
-      p->error = "simulator did not start: " + p->sim->log();
-      return;
-    }
+    if (!test::begin_suite(p, "2,3")) return;
     p->faulted_sim = std::make_unique<test::CanopenSim>(
         p->dir, "4", "faulted-sim",
         std::vector<std::string>{"--power-up-error", "0x5000", "--start-needs-no-error"});
@@ -99,8 +88,7 @@ class VcanEndToEnd : public ::testing::Test {
   }
   void SetUp() override {
     ASSERT_TRUE(test::vcan_present());
-    ASSERT_TRUE(p);
-    ASSERT_EQ(p->error, "");
+    ASSERT_TRUE(test::suite_ready(p));
   }
   void TearDown() override {
     if (HasFailure() && p && p->daemon) std::cerr << "--- daemon log\n" << p->daemon->log();
@@ -142,16 +130,12 @@ class VcanEndToEnd : public ::testing::Test {
   }
   static bool online(int unit) { return input(unit, "diag.online") == 1; }
 
-  struct Plant {
-    test::ScratchDir dir;
-    std::unique_ptr<test::Candump> candump;
-    std::unique_ptr<test::CanopenSim> sim;
+  struct Plant : test::VcanSuite {
     std::unique_ptr<test::CanopenSim> faulted_sim;
     std::unique_ptr<test::CanopenSim> nameless_sim;
     std::unique_ptr<RegisterMap> map;
     std::unique_ptr<test::ChildProcess> daemon;
     std::unique_ptr<ModbusClient> client;
-    std::string error;
     ~Plant() {
       client.reset();
       if (daemon) daemon->terminate();

@@ -38,6 +38,14 @@ inline ::testing::AssertionResult vcan_present() {
          << ": run this test through scripts/vcan-run (host vcan or User-Mode Linux)";
 }
 
+// Whether a suite's shared set-up (SetUpTestSuite) made `shared` and left no error in it.
+template <class Shared>
+::testing::AssertionResult suite_ready(const Shared* shared) {
+  if (!shared) return ::testing::AssertionFailure() << "the suite's set-up did not run";
+  if (!shared->error.empty()) return ::testing::AssertionFailure() << shared->error;
+  return ::testing::AssertionSuccess();
+}
+
 // Runs a shell command (ip link ...), returning its exit status.
 inline int shell(const std::string& command) {
   return std::system(command.c_str());
@@ -132,5 +140,38 @@ class CanopenSim {
  private:
   std::unique_ptr<ChildProcess> process_;
 };
+
+// What each vcan suite starts first, in its scratch folder: candump, listening, then the CANopen
+// simulator with `nodes`. `error` says what failed; the suite's tests fail on it (suite_ready).
+struct VcanSuite {
+  ScratchDir dir;
+  std::unique_ptr<Candump> candump;
+  std::unique_ptr<CanopenSim> sim;
+  std::string error;
+
+  bool start_candump_and_sim(const std::string& nodes) {
+    candump = std::make_unique<Candump>(dir);
+    if (!candump->wait_listening()) {
+      error = "candump does not log frames";
+      return false;
+    }
+    sim = std::make_unique<CanopenSim>(dir, nodes);
+    if (!sim->wait_ready()) {
+      error = "simulator did not start: " + sim->log();
+      return false;
+    }
+    return true;
+  }
+};
+
+// The start of a suite's SetUpTestSuite: without the interface nothing (its tests fail on that),
+// else `shared` made, with candump and the simulator with `nodes` started. False when the
+// suite's set-up cannot go on.
+template <class Suite>
+bool begin_suite(Suite*& shared, const std::string& nodes) {
+  if (!vcan_present()) return false;
+  shared = new Suite;
+  return shared->start_candump_and_sim(nodes);
+}
 
 }  // namespace fieldgate::test

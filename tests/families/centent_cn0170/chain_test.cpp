@@ -5,6 +5,7 @@
 #include <random>
 
 #include "drivers/centent_cn0170/cn0170_chain.hpp"
+#include "tests/harness/text_checks.hpp"
 
 namespace fieldgate::cn0170 {
 namespace {
@@ -34,6 +35,18 @@ class ChainTest : public ::testing::Test {
     chain.order = {0, 1, 2};
     chain.order_known = true;
   }
+  // Unit 1 in a mode that guards it: `blocked` is refused with `code` before it is sent, M?
+  // passes, and M1 is sent and confirmed.
+  void expect_guarded_until_m1(const Request& blocked, int code) {
+    const auto refused = exchange(chain, options, 1, blocked, {});
+    ASSERT_TRUE(refused);
+    EXPECT_EQ(refused->device_code, code);
+    EXPECT_FALSE(plan_request(chain, options, 1, read("M?")).refused);
+    const auto back = exchange(chain, options, 1, command("M1"), {"1M1\r"});
+    ASSERT_TRUE(back);
+    EXPECT_EQ(back->status, Reply::Status::ok) << back->text;
+  }
+
   Chain chain;
   Options options;
 };
@@ -90,15 +103,14 @@ TEST_F(ChainTest, AbsoluteMoveAcrossZeroIsRefused) {
   // A negative target is refused by the codec whatever the position (the register takes
   // positive numbers only); the sign guard covers a positive target from below 0.
   const auto text = plan_request(chain, options, 1, command("X=0FFFFF060H")).refused->text;
-  EXPECT_NE(text.find("a negative absolute position"), std::string::npos) << text;
+  test::expect_contains(text, {"a negative absolute position"});
 
   // Below 0 now (a relative move went there): targets above 0 cross it, targets below do not.
   ASSERT_TRUE(exchange(chain, options, 1, read("XP?;YP?"), {"1X=FFFFF060h\r", "1Y=00000400h\r"}));
   EXPECT_TRUE(refused("X=0BB8H"));
   EXPECT_TRUE(refused("X=0"));
   const auto crossing = plan_request(chain, options, 1, command("X=0BB8H")).refused->text;
-  EXPECT_NE(crossing.find("to 3000 from -4000"), std::string::npos) << crossing;
-  EXPECT_NE(crossing.find("move relative"), std::string::npos) << crossing;
+  test::expect_contains(crossing, {"to 3000 from -4000", "move relative"});
   EXPECT_TRUE(refused("X=0FFFFF000H"));  // negative: the codec's refusal
   EXPECT_FALSE(refused("Y=0BB8H"));      // Y is still above 0
   EXPECT_FALSE(refused("X+0FA0H"));
@@ -164,13 +176,7 @@ TEST_F(ChainTest, ConfirmationShowingOperateModeIsNoConfirmation) {
   EXPECT_NE(r->text.find("Operate Mode (M3)"), std::string::npos) << r->text;
   EXPECT_EQ(chain.units[1].mode, 3);
   // Motor traffic is refused before it is sent; mode queries and M1 pass and are confirmed.
-  const auto refused = exchange(chain, options, 1, command("XH"), {});
-  ASSERT_TRUE(refused);
-  EXPECT_EQ(refused->device_code, kOperateMode);
-  EXPECT_FALSE(plan_request(chain, options, 1, read("M?")).refused);
-  const auto back = exchange(chain, options, 1, command("M1"), {"1M1\r"});
-  ASSERT_TRUE(back);
-  EXPECT_EQ(back->status, Reply::Status::ok) << back->text;
+  ASSERT_NO_FATAL_FAILURE(expect_guarded_until_m1(command("XH"), kOperateMode));
   EXPECT_FALSE(plan_request(chain, options, 1, command("XH")).refused);
 }
 
@@ -181,13 +187,7 @@ TEST_F(ChainTest, ConfirmationShowingProgramModeMeansStored) {
   EXPECT_EQ(r->device_code, kStoredInProgram);
   EXPECT_EQ(chain.units[1].mode, 2);
   // Now motor and I/O traffic is refused before it is sent; mode queries and M1 pass.
-  const auto refused = exchange(chain, options, 1, read("XP?"), {});
-  ASSERT_TRUE(refused);
-  EXPECT_EQ(refused->device_code, kProgramMode);
-  EXPECT_FALSE(plan_request(chain, options, 1, read("M?")).refused);
-  const auto back = exchange(chain, options, 1, command("M1"), {"1M1\r"});
-  ASSERT_TRUE(back);
-  EXPECT_EQ(back->status, Reply::Status::ok);
+  ASSERT_NO_FATAL_FAILURE(expect_guarded_until_m1(read("XP?"), kProgramMode));
   EXPECT_EQ(chain.units[1].mode, 1);
 }
 
@@ -457,13 +457,9 @@ TEST(Cn0170Options, ParsedAndChecked) {
       model_with({{"overflow_mode", "loud"}, {"leading_cr", "maybe"}, {"speed", "1"}}), d);
   ASSERT_EQ(d.errors().size(), 3u) << d.to_text();
   const std::string text = d.to_text();
-  EXPECT_NE(text.find("unknown centent-cn0170 option 'speed'"), std::string::npos) << text;
-  EXPECT_NE(text.find("option overflow_mode: expected warning, rts or leave, found 'loud'"),
-            std::string::npos)
-      << text;
-  EXPECT_NE(text.find("option leading_cr: expected true or false, found 'maybe'"),
-            std::string::npos)
-      << text;
+  test::expect_contains(text, {"unknown centent-cn0170 option 'speed'",
+                               "option overflow_mode: expected warning, rts or leave, found 'loud'",
+                               "option leading_cr: expected true or false, found 'maybe'"});
   Diagnostics contradiction;
   (void)parse_options(model_with({{"overflow_command", "M1+"}}), contradiction);
   ASSERT_EQ(contradiction.errors().size(), 1u);

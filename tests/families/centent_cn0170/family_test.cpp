@@ -41,6 +41,12 @@ class FamilyOnChain : public ::testing::Test {
     }
     run(family_.on_link_open(*link_, timing_));
   }
+  // Units 0 and 1 on the chain, unit 1 put in `mode` (M2, M3) behind the family's back.
+  void start_with_unit_1_in(const std::string& mode) {
+    start({0, 1});
+    chain_->handle(".U1\r", sim::SimClock::now());
+    chain_->handle(mode + "\r", sim::SimClock::now());
+  }
 
   // The chain's side: frames host lines and answers them.
   void hear(std::string_view bytes) {
@@ -234,9 +240,7 @@ TEST_F(FamilyOnChain, QueueWarningBlocksMovesUntilQueueEmpty) {
 }
 
 TEST_F(FamilyOnChain, ProgramModeUnitIsGuarded) {
-  start({0, 1});
-  chain_->handle(".U1\r", sim::SimClock::now());
-  chain_->handle("M2\r", sim::SimClock::now());
+  start_with_unit_1_in("M2");
   const Reply r = call(1, "XP?");
   EXPECT_EQ(r.status, Reply::Status::device_error);
   EXPECT_EQ(r.device_code, cn0170::kProgramMode);
@@ -250,9 +254,7 @@ TEST_F(FamilyOnChain, ProgramModeUnitIsGuarded) {
 // sends, and its M? -> M3 would confirm commands it never ran: first contact switches it to M1
 // and says so.
 TEST_F(FamilyOnChain, UnitFoundInOperateModeIsSwitchedToImmediateMode) {
-  start({0, 1});
-  chain_->handle(".U1\r", sim::SimClock::now());
-  chain_->handle("M3\r", sim::SimClock::now());
+  start_with_unit_1_in("M3");
   wire_.clear();
   const Reply r = command(1, "X+100");
   ASSERT_EQ(r.status, Reply::Status::ok) << r.text;

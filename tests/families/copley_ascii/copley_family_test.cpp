@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "drivers/copley_ascii/copley_family.hpp"
+#include "tests/harness/address_checks.hpp"
 
 namespace fieldgate {
 namespace {
@@ -78,12 +79,10 @@ TEST(CopleyInterpret, E32FromForwardedNodeMeansUnreachable) {
 
 TEST(CopleyFamily, AddressesAreCanonical) {
   CopleyFamily f;
-  std::string error;
-  auto a = f.parse_address("5.b", error);
+  const auto a = test::expect_address(f, "5.b", "5.b", 5);
   ASSERT_TRUE(a);
-  EXPECT_EQ(a->text, "5.b");
-  EXPECT_EQ(a->number, 5);
   EXPECT_EQ(a->axis, 'b');
+  std::string error;
   EXPECT_FALSE(f.parse_address("200", error));
   EXPECT_NE(error.find("0..127"), std::string::npos);
 }

@@ -14,6 +14,7 @@
 #include "drivers/ims_party_line/ims_codec.hpp"
 #include "drivers/ims_party_line/ims_family.hpp"
 #include "tests/families/ims_party_line/ims_chain_bench.hpp"
+#include "tests/harness/address_checks.hpp"
 
 namespace fieldgate {
 namespace {
@@ -93,11 +94,8 @@ TEST(ImsInterpret, BadEchoesAreGarbled) {
 
 TEST(ImsFamily, AddressesAreNames) {
   ImsPartyLineFamily f;
+  ASSERT_TRUE(test::expect_address(f, "B", "B", 'B'));
   std::string error;
-  auto a = f.parse_address("B", error);
-  ASSERT_TRUE(a);
-  EXPECT_EQ(a->text, "B");
-  EXPECT_EQ(a->number, 'B');
   EXPECT_TRUE(f.parse_address("_", error));
   for (const char* bad : {"", "AB", "1", "@", "*", " "}) {
     EXPECT_FALSE(f.parse_address(bad, error)) << bad;

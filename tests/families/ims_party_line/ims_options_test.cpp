@@ -108,19 +108,24 @@ TEST_F(ImsOptionsOnTheChain, SaveIntervalSetsHowSoonASecondSaveGoesOut) {
 TEST_F(ImsOptionsOnTheChain, PacingStepRateSetsWhenTheChainIsPacedByEchoes) {
   bind('A', "  pacing_step_rate: 5000\n");
   bind('B', "  pacing_step_rate: 20000\n");
+  const auto move_at_8000 = [&](char unit) {
+    ASSERT_EQ(transact(unit, "V8000").status, Reply::Status::ok);
+    ASSERT_EQ(transact(unit, "+100000").status, Reply::Status::ok);
+  };
+  // One line to the unit, on a line whose writes were cleared before it.
+  const auto line_to = [&](char unit) {
+    transport_->clear_writes();
+    ASSERT_EQ(transact(unit, "V1000").status, Reply::Status::ok);
+  };
   // B at 8000 steps/s is below its own threshold: lines go out whole.
-  ASSERT_EQ(transact('B', "V8000").status, Reply::Status::ok);
-  ASSERT_EQ(transact('B', "+100000").status, Reply::Status::ok);
+  ASSERT_NO_FATAL_FAILURE(move_at_8000('B'));
   EXPECT_FALSE(family_.shadow().fast());
-  transport_->clear_writes();
-  ASSERT_EQ(transact('A', "V1000").status, Reply::Status::ok);
+  ASSERT_NO_FATAL_FAILURE(line_to('A'));
   EXPECT_EQ(transport_->writes().size(), 1u);
   // A at 8000 steps/s is above its threshold of 5000: every line is paced by its echo.
-  ASSERT_EQ(transact('A', "V8000").status, Reply::Status::ok);
-  ASSERT_EQ(transact('A', "+100000").status, Reply::Status::ok);
+  ASSERT_NO_FATAL_FAILURE(move_at_8000('A'));
   EXPECT_TRUE(family_.shadow().fast());
-  transport_->clear_writes();
-  ASSERT_EQ(transact('B', "V1000").status, Reply::Status::ok);
+  ASSERT_NO_FATAL_FAILURE(line_to('B'));
   EXPECT_GT(transport_->writes().size(), 1u);
 }
 

@@ -10,11 +10,7 @@
 // At 19200 baud, and at 9600 with wire-time emulation.
 #include <gtest/gtest.h>
 
-#include <algorithm>
-#include <atomic>
-#include <memory>
-#include <random>
-#include <thread>
+#include <string>
 
 #include "fault_property.hpp"
 #include "harness.hpp"
@@ -37,33 +33,14 @@ constexpr int kUnit = 1;
 constexpr int32_t kX = 1201, kY = 602, kZ = 303;
 constexpr uint16_t kInputMask = 0x5A;
 
-struct FaultRun {
-  const char* name;
-  bool slow_wire;  // 9600 baud with wire-time emulation
-  unsigned seed;
-};
-
 class TechnoFaultProperty : public PlantFixture<::testing::TestWithParam<FaultRun>> {
  protected:
   void SetUp() override {
-    const FaultRun run = GetParam();
-    SimulatedBus bus;
-    bus.name = "techno";
-    bus.protocol = "techno-c";
-    bus.sim_argv = {
-        FIELDGATE_SIM_TECHNO, "--link",       "{link}", "--variant", "c142", "--axes", "7",
-        "--journal",          "{dir}/journal"};
-    if (run.slow_wire) {
-      for (const char* a : {"--baud", "9600", "--emulate-wire"}) bus.sim_argv.push_back(a);
-      bus.serial = "baud: 9600";
-    } else {
-      bus.serial = "baud: 19200";
-    }
-    bus.timing =
-        // A line this bad would take the node offline every few polls with offline_after: 3 (it
-        // counts attempts); the property is about the exchanges, so keep it online.
-        "reply_timeout: 100ms, byte_timeout: 10ms, retries: 1, offline_after: 10, "
-        "probe_interval: 300ms";
+    SimulatedBus bus = fault_bus("techno", "techno-c",
+                                 {FIELDGATE_SIM_TECHNO, "--link", "{link}", "--variant", "c142",
+                                  "--axes", "7", "--journal", "{dir}/journal"},
+                                 GetParam());
+    if (!GetParam().slow_wire) bus.serial = "baud: 19200";
     bus.nodes = "      - {name: c142, address: 0, model: techno-c142, unit_id: 1}\n";
     start({bus});
     wait_inputs({kUnit}, kPositionX, 2, 20s);
@@ -95,85 +72,34 @@ class TechnoFaultProperty : public PlantFixture<::testing::TestWithParam<FaultRu
 };
 
 TEST_P(TechnoFaultProperty, NoWriteConfirmedByAnotherReplyAndNoWrongValueServed) {
-  const FaultRun run = GetParam();
-  // Late replies start 150 ms after the request, well past the 100 ms reply timeout.
-  plant_->sim().send_line("chaos " + std::to_string(run.seed) + " 25 5 5 5 150");
-
-  std::atomic<bool> running{true};
-  std::atomic<int> good_reads{0}, wrong_reads{0};
-  std::string first_wrong;
-  std::thread reader([&] {
-    auto second = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
-    const auto wrong = [&](const std::string& what, long value) {
-      if (wrong_reads++ == 0) first_wrong = what + " " + std::to_string(value);
-    };
-    while (running) {
-      auto r = second->read_input(kUnit, kPositionX, kMotionError + 1);
-      // A connection that missed an answer would take it for the next one's: start afresh.
-      if (!answered(r.exception))
-        second = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
-      if (!r.ok()) continue;
-      ++good_reads;
-      const auto i32 = [&](int address) {
-        return static_cast<int32_t>((uint32_t{r.values[address]} << 16) | r.values[address + 1]);
-      };
-      if (i32(kPositionX) != kX) wrong("x", i32(kPositionX));
-      if (i32(kPositionY) != kY) wrong("y", i32(kPositionY));
-      if (i32(kPositionZ) != kZ) wrong("z", i32(kPositionZ));
-      if (r.values[kInMotion] != 0) wrong("in_motion", r.values[kInMotion]);
-      if (r.values[kInputs] != kInputMask) wrong("inputs", r.values[kInputs]);
-      if (r.values[kMotionFault] != 0) wrong("motion_fault", r.values[kMotionFault]);
-      if (r.values[kMotionError] != 0) wrong("motion_error", r.values[kMotionError]);
-    }
-  });
-
-  // Each write is unique (a distinct output byte), so the journal tells whose reply confirmed
-  // what.
-  struct Write {
-    int value;
-    int exception;
+  // Taken offline by the faults, the node is only probed now and then: the writes wait for
+  // it, so that they reach the controller rather than being refused at the gateway.
+  FaultProperty property{
+      .units = 1, .inputs = {kPositionX, kMotionError + 1}, .online = {kPositionX, 2}};
+  property.check_read = [](ModbusClient&, int, const ModbusResult& r, FaultReads& reads) {
+    if (!r.ok()) return;
+    if (i32_at(r, kPositionX) != kX) reads.wrong_value("x", i32_at(r, kPositionX));
+    if (i32_at(r, kPositionY) != kY) reads.wrong_value("y", i32_at(r, kPositionY));
+    if (i32_at(r, kPositionZ) != kZ) reads.wrong_value("z", i32_at(r, kPositionZ));
+    if (r.values[kInMotion] != 0) reads.wrong_value("in_motion", r.values[kInMotion]);
+    if (r.values[kInputs] != kInputMask) reads.wrong_value("inputs", r.values[kInputs]);
+    if (r.values[kMotionFault] != 0) reads.wrong_value("motion_fault", r.values[kMotionFault]);
+    if (r.values[kMotionError] != 0) reads.wrong_value("motion_error", r.values[kMotionError]);
   };
-  std::vector<Write> writes;
-  std::mt19937 random(run.seed);
-  // At least 24 writes, and more until a few went through (how many do depends on the load of
-  // the test machine as much as on the faults).
-  int confirmed = 0;
-  for (int i = 1; i <= 24 || (confirmed < 4 && i <= 96); ++i) {
-    // Taken offline by the faults, the node is only probed now and then: wait for it, so that
-    // writes reach the controller rather than being refused at the gateway.
-    wait_until([&] { return client_->read_input(kUnit, kPositionX, 2).ok(); }, 3s);
-    writes.push_back(
-        {i, client_->write_single(kUnit, kOutputs1, static_cast<uint16_t>(i)).exception});
-    // No answer is no confirmation; a fresh connection, so that the late answer is not
-    // taken for the next write's.
-    if (!answered(writes.back().exception)) {
-      writes.back().exception = kNoAnswer;
-      client_ = std::make_unique<ModbusClient>("127.0.0.1", plant_->port());
-    }
-    if (writes.back().exception == 0) ++confirmed;
-    std::this_thread::sleep_for(std::chrono::milliseconds(random() % 40));
-  }
-  plant_->sim().send_line("chaos off");
-  running = false;
-  reader.join();
-
-  EXPECT_EQ(wrong_reads.load(), 0) << first_wrong;
-  EXPECT_GT(good_reads.load(), 10);
-
-  const auto journal = read_journal(plant_->dir() / "journal");
-  int successes = 0, unknown = 0;
-  for (const auto& w : writes) {
-    EXPECT_TRUE(expected_write_outcome(w.exception)) << "exception " << w.exception;
-    if (w.exception == kTargetFailed) ++unknown;
-    if (w.exception != 0) continue;
-    ++successes;
+  // Each write is unique (a distinct output byte), so the journal tells whose reply
+  // confirmed what.
+  property.write = [](ModbusClient& client, int i, int, std::mt19937&) {
+    return FaultWrite{
+        .value = i,
+        .exception = client.write_single(kUnit, kOutputs1, static_cast<uint16_t>(i)).exception};
+  };
+  property.check_confirmed = [](const FaultWrite& w, const std::vector<JournalEntry>& journal) {
     // Its own execution, answered `0`, and that `0` reached the gateway unharmed. The
-    // controller answers through emit(), which journals the reply on a line of its own (empty
-    // request); a command that does not wait for a motion answers while it runs, so its reply's
-    // line comes right before its own.
+    // controller answers through emit(), which journals the reply on a line of its own
+    // (empty request); a command that does not wait for a motion answers while it runs,
+    // so its reply's line comes right before its own.
     const std::string request = "@0B65529," + std::to_string(w.value) + "\\r";
-    const auto it = std::find_if(journal.begin(), journal.end(),
-                                 [&](const JournalEntry& e) { return e.request == request; });
+    const auto it = find_request(journal, request);
     ASSERT_NE(it, journal.end()) << "output byte " << w.value
                                  << " was confirmed but the controller never ran it";
     ASSERT_NE(it, journal.begin()) << "output byte " << w.value;
@@ -183,16 +109,12 @@ TEST_P(TechnoFaultProperty, NoWriteConfirmedByAnotherReplyAndNoWrongValueServed)
     EXPECT_EQ(reply->fault, "") << "output byte " << w.value
                                 << " was confirmed, but the controller's own reply to it was "
                                 << reply->fault << ": another reply confirmed it";
-  }
-  expect_faults_and_confirmed_writes(successes, unknown, writes.size(), journal);
+  };
+  run_fault_property(*plant_, client_, GetParam().seed, property);
 }
 
-INSTANTIATE_TEST_SUITE_P(Interleavings, TechnoFaultProperty,
-                         ::testing::Values(FaultRun{"fast_seed1", false, 1},
-                                           FaultRun{"fast_seed2", false, 2},
-                                           FaultRun{"wire9600_seed3", true, 3},
-                                           FaultRun{"wire9600_seed4", true, 4}),
-                         [](const auto& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(Interleavings, TechnoFaultProperty, ::testing::ValuesIn(kFastThenSlowRuns),
+                         fault_run_name);
 
 }  // namespace
 }  // namespace fieldgate::test

@@ -2,11 +2,12 @@
 // resynchronisation after failures, and the model checks at load.
 #include <gtest/gtest.h>
 
-#include <random>
+#include <optional>
 
 #include "drivers/whedco_cmc/whedco_family.hpp"
 #include "mapping/model_loader.hpp"
 #include "tests/families/whedco_cmc/line_transport.hpp"
+#include "tests/harness/random_text.hpp"
 
 namespace fieldgate {
 namespace {
@@ -368,81 +369,76 @@ TEST(WhedcoScripted, OverlongReplyIsGarbled) {
   EXPECT_EQ(r.status, Status::garbled);
 }
 
-// A model with one status read and the given options.
-Model status_model(const std::string& options) {
+// A model with one status read and the given options; nullopt (and a failure) if invalid.
+std::optional<Model> status_model(const std::string& options) {
   const std::string text = "model: m\nfamily: whedco-cmc\n" + options +
                            "poll_classes: {fast: 100ms}\npoints:\n"
                            "  s: {type: uint16, read: RS, poll: fast}\n";
   Diagnostics d;
   const auto model = load_model_text(text, "m.yaml", d);
   EXPECT_TRUE(model && d.ok()) << d.to_text();
+  if (!model || !d.ok()) return std::nullopt;
   WhedcoFamily().validate_model(*model, d);
   EXPECT_TRUE(d.ok()) << d.to_text();
+  if (!d.ok()) return std::nullopt;
   return *model;
 }
+
+// Unit 4 with status_model(options) on a line that answers `replies` in turn; word() reads a
+// status word, which must answer.
+struct StatusWords {
+  StatusWords(std::deque<std::string> replies, const std::string& options)
+      : transport(io, test::LineTransport::scripted(std::move(replies))), link(transport) {
+    family.configure_node(node("4"), status_model(options).value());
+  }
+  int64_t word(const char* command) {
+    const auto r = test::run(io, family.transact(link, node("4"), read(command), kTiming));
+    EXPECT_EQ(r.status, Status::ok) << r.text;
+    return r.values.empty() ? int64_t{-1} : r.values[0];
+  }
+
+  asio::io_context io;
+  test::LineTransport transport;
+  Link link;
+  WhedcoFamily family;
+};
 
 // Section 4.3.1 (the status word layout) is missing, and no word tells the layouts apart: an
 // axis word with bit 2 = homed (0x0614: homed, home input, in position, servo) at rest looks
 // like a busy word of the outputs layout. The default layout is fixed (busy_first, the models'
 // bits): a homed axis at rest stays at rest, whatever words came before.
 TEST(WhedcoScripted, HomedAtBit2IsNoBusyAxisUnderTheDefaultLayout) {
-  asio::io_context io;
-  test::LineTransport transport(
-      io, test::LineTransport::scripted(
-              {"0\r\n*", "0\r\n*", "17\r\n*", "1556\r\n*", "1556\r\n*", "1557\r\n*", "1556\r\n*"}));
-  Link link(transport);
-  WhedcoFamily family;
-  family.configure_node(node("4"), status_model(""));
-  const auto word = [&](const char* command) {
-    const auto r = test::run(io, family.transact(link, node("4"), read(command), kTiming));
-    EXPECT_EQ(r.status, Status::ok) << r.text;
-    return r.values.empty() ? int64_t{-1} : r.values[0];
-  };
-  EXPECT_EQ(word("RSX"), 0);
-  EXPECT_EQ(word("RSX"), 17);     // homing: busy, home input
-  EXPECT_EQ(word("RSX"), 0x614);  // homed at rest: bit 0 (busy) clear
-  EXPECT_EQ(word("RSX"), 0x614);
-  EXPECT_EQ(word("RSX"), 0x615);  // the next move: busy
-  EXPECT_EQ(word("RSX"), 0x614);  // and at rest again
-  EXPECT_TRUE(link.take_notes().empty());
+  StatusWords words(
+      {"0\r\n*", "0\r\n*", "17\r\n*", "1556\r\n*", "1556\r\n*", "1557\r\n*", "1556\r\n*"}, "");
+  EXPECT_EQ(words.word("RSX"), 0);
+  EXPECT_EQ(words.word("RSX"), 17);     // homing: busy, home input
+  EXPECT_EQ(words.word("RSX"), 0x614);  // homed at rest: bit 0 (busy) clear
+  EXPECT_EQ(words.word("RSX"), 0x614);
+  EXPECT_EQ(words.word("RSX"), 0x615);  // the next move: busy
+  EXPECT_EQ(words.word("RSX"), 0x614);  // and at rest again
+  EXPECT_TRUE(words.link.take_notes().empty());
 }
 
 // Words laid out like the hardware outputs (A.2: set point A, set point B, Busy, Fault), pinned
 // by the model, are reported in the layout the models read (busy bit 0, fault bit 1, set points
 // at 8 and 9; bits 4-7, Memory Lost 7, stay).
 TEST(WhedcoScripted, StatusWordsLaidOutLikeTheOutputsAreRearranged) {
-  asio::io_context io;
-  test::LineTransport transport(
-      io, test::LineTransport::scripted(
-              {"0\r\n*", "0\r\n*", "1\r\n*", "4\r\n*", "13\r\n*", "1\r\n*", "136\r\n*"}));
-  Link link(transport);
-  WhedcoFamily family;
-  family.configure_node(node("4"), status_model("options: {status_layout: outputs}\n"));
-  const auto word = [&](const char* command) {
-    const auto r = test::run(io, family.transact(link, node("4"), read(command), kTiming));
-    EXPECT_EQ(r.status, Status::ok) << r.text;
-    return r.values.empty() ? int64_t{-1} : r.values[0];
-  };
-  EXPECT_EQ(word("RS"), 0);
-  EXPECT_EQ(word("RS"), 0x100);  // set point A alone: not busy
-  EXPECT_EQ(word("RSX"), 1);     // busy
-  EXPECT_EQ(word("RS"), 0x103);  // busy, fault, set point A
-  EXPECT_EQ(word("RS"), 0x100);
-  EXPECT_EQ(word("RS"), 0x82);  // fault, Memory Lost (bit 7) stays
+  StatusWords words({"0\r\n*", "0\r\n*", "1\r\n*", "4\r\n*", "13\r\n*", "1\r\n*", "136\r\n*"},
+                    "options: {status_layout: outputs}\n");
+  EXPECT_EQ(words.word("RS"), 0);
+  EXPECT_EQ(words.word("RS"), 0x100);  // set point A alone: not busy
+  EXPECT_EQ(words.word("RSX"), 1);     // busy
+  EXPECT_EQ(words.word("RS"), 0x103);  // busy, fault, set point A
+  EXPECT_EQ(words.word("RS"), 0x100);
+  EXPECT_EQ(words.word("RS"), 0x82);  // fault, Memory Lost (bit 7) stays
 }
 
 TEST(WhedcoScripted, StatusLayoutPinnedByTheModel) {
   for (const auto& [layout, expected] :
        std::vector<std::pair<std::string, int64_t>>{{"busy_first", 4}, {"outputs", 1}}) {
-    const std::string text = "model: m\nfamily: whedco-cmc\noptions: {status_layout: " + layout +
-                             "}\npoll_classes: {fast: 100ms}\npoints:\n"
-                             "  s: {type: uint16, read: RS, poll: fast}\n";
-    Diagnostics d;
-    const auto model = load_model_text(text, "m.yaml", d);
-    ASSERT_TRUE(model && d.ok()) << d.to_text();
+    const auto model = status_model("options: {status_layout: " + layout + "}\n");
+    ASSERT_TRUE(model) << layout;
     WhedcoFamily family;
-    family.validate_model(*model, d);
-    ASSERT_TRUE(d.ok()) << d.to_text();
     family.configure_node(node("4"), *model);
     asio::io_context io;
     test::LineTransport transport(io, test::LineTransport::scripted({"0\r\n*", "4\r\n*"}));
@@ -549,14 +545,10 @@ namespace {
 
 // Whatever arrives, the family answers with a status: no crash, no exception, no hang.
 TEST(WhedcoRobustness, RandomRepliesGetAStatus) {
-  std::mt19937 random(7);
-  const std::string alphabet = "4RPX*\r\n -+.0123456789AFaf?!=V\x01\xff Faulted Unit Functional";
-  std::uniform_int_distribution<std::size_t> pick(0, alphabet.size() - 1);
-  std::uniform_int_distribution<int> length(0, 40);
+  test::RandomText text(7, "4RPX*\r\n -+.0123456789AFaf?!=V\x01\xff Faulted Unit Functional", 0,
+                        40);
   for (int i = 0; i < 20000; ++i) {
-    std::string frame;
-    for (int n = length(random); n > 0; --n) frame += alphabet[pick(random)];
-    frame += '*';
+    const std::string frame = text.next() + '*';
     for (const auto kind :
          {QueryKind::plain, QueryKind::axis_fault, QueryKind::unit_fault, QueryKind::bit_list}) {
       auto x = query("4RPX", static_cast<EchoMode>(i % 3), kind, 1 + i % 10000);

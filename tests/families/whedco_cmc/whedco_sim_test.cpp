@@ -2,11 +2,11 @@
 // units, motion, profiles, faults, and the line with several units.
 #include <gtest/gtest.h>
 
-#include <random>
 #include <sstream>
 
 #include "sim/whedco/cmc_line.hpp"
 #include "tests/harness/exchange_table.hpp"
+#include "tests/harness/random_text.hpp"
 
 namespace fieldgate::sim::whedco {
 namespace {
@@ -374,18 +374,14 @@ namespace {
 // Lines made of the grammar's own characters: every one gets an answer, nothing crashes, and
 // a profile stuck in a loop cannot hang the simulator.
 TEST(WhedcoRobustness, RandomLinesAreAnsweredOrRefused) {
-  std::mt19937 random(11);
-  const std::string alphabet = "WXYZABCDEFGHILMNOPRSTUV0123456789=?*/+-.<>![]";
-  std::uniform_int_distribution<std::size_t> pick(0, alphabet.size() - 1);
-  std::uniform_int_distribution<int> length(1, 12);
+  test::RandomText text(11, "WXYZABCDEFGHILMNOPRSTUV0123456789=?*/+-.<>![]", 1, 12);
   LineOptions o;
   o.units = parse_units("4", "XY", "", "");
   CmcLine line(o, kT0);
   std::string error;
   line.unit(4)->define_profile(1, {"V1=V1+V2", "GT1"}, error);
   for (int i = 0; i < 20000; ++i) {
-    std::string body;
-    for (int n = length(random); n > 0; --n) body += alphabet[pick(random)];
+    const std::string body = text.next();
     const auto reply = line.handle("4" + body + "\r", at(i * 0.001));
     ASSERT_FALSE(reply.bytes.empty()) << body;
     EXPECT_EQ(reply.bytes.back(), '*') << body;
