@@ -68,8 +68,8 @@ void read_units(const Plant& plant, unsigned seed, const FaultProperty& property
     if (r.ok()) ++reads.good;
     property.check_read(*second, unit, r, reads);
     // A value served wrong stays in the image until the next poll, tens of milliseconds, so a
-    // read every 2 ms still sees it. Unpaced, this loop and the daemon answering it took a core
-    // each, and several such tests at once starved the daemons' own reply timeouts.
+    // read every 2 ms still sees it. Unpaced, this loop and the daemon answering it took half a
+    // core each, and several such tests at once ran for minutes or past their ctest timeout.
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
 }
