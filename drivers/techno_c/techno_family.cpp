@@ -211,6 +211,7 @@ void TechnoFamily::after_interrupt(CommandKind kind) {
     state.moved = false;
     state.last_change = now;
     state.motion_error = 0;  // the stop's ramp is what the next polls report on
+    state.error_after_reply = 0;
   }
 }
 
@@ -377,7 +378,11 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, BoundNode& bound, cons
   const auto values = techno::parse_values(c.values).value_or(std::vector<int64_t>{});
   const microseconds budget = reply_budget(bound, request.command, timing);
   if (resync_) co_await resync(link, timing);
-  if (bound.state.motion_pending) co_await collect_motion_error(link, bound.state, timing);
+  if (bound.state.motion_pending) {
+    if (const auto e = std::exchange(bound.state.error_after_reply, 0))
+      bound.state.motion_error = e;
+    co_await collect_motion_error(link, bound.state, timing);
+  }
   // Replies carry no address: anything left from an earlier exchange would be taken for this one.
   link.discard_input();
   for (int i = 0; urgent_writing_ && i < 2000; ++i) co_await link.pause(microseconds(100));
@@ -404,7 +409,7 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, BoundNode& bound, cons
       if (c.kind != CommandKind::position && c.kind != CommandKind::peek)
         co_await check_single_handshake(link, c, reply, timing);
       else
-        co_await take_optional_terminator(link, waited.read.frame, reply, timing);
+        co_await take_optional_terminator(link, bound.state, waited.read.frame, reply, timing);
       break;
     case LinkRead::Status::timeout:
       if (!waited.read.partial.empty()) {
@@ -497,9 +502,11 @@ void TechnoFamily::take_leading_motion_error(BoundNode& node, const Request& req
 
 // A query's reply ended by its digit count may still be followed by a CR (or CR LF): the
 // manual leaves that open (README). Every reading's trailing bytes are read here, until the byte
-// gap, so a late CR is never taken for the next request's answer; anything else is garbled.
-asio::awaitable<void> TechnoFamily::take_optional_terminator(Link& link, std::string_view frame,
-                                                             Reply& reply,
+// gap, so a late CR is never taken for the next request's answer. While a lower-case motion
+// runs, one error character after them is that motion ending (a limit hit just after the
+// controller answered); anything else is garbled.
+asio::awaitable<void> TechnoFamily::take_optional_terminator(Link& link, NodeState& state,
+                                                             std::string_view frame, Reply& reply,
                                                              const LinkTiming& timing) {
   if (frame.empty() || frame.back() == '\n') co_return;
   std::string extra;
@@ -511,7 +518,21 @@ asio::awaitable<void> TechnoFamily::take_optional_terminator(Link& link, std::st
     if (extra.back() == '\n') break;
   }
   const std::string_view allowed = frame.back() == '\r' ? "\n" : "\r\n";
-  if (extra.empty() || extra == allowed || (allowed.size() == 2 && extra == "\r")) co_return;
+  const auto terminator_only = [&](std::string_view bytes) {
+    return bytes.empty() || bytes == allowed || (allowed.size() == 2 && bytes == "\r");
+  };
+  if (terminator_only(extra)) co_return;
+  if (const char last = extra.back();
+      state.motion_pending && last != techno::kAck && last != '\r' && last != '\n' &&
+      techno::is_error_code(last) &&
+      terminator_only(std::string_view(extra).substr(0, extra.size() - 1))) {
+    state.error_after_reply = static_cast<unsigned char>(last);
+    link.note(
+        fmt::format("techno-c: the controller reported {} right after answering a query "
+                    "during a motion it had acknowledged",
+                    techno::describe_error(last)));
+    co_return;
+  }
   reply = Reply::of(
       Reply::Status::garbled,
       fmt::format("reply '{}' followed by '{}'", printable_bytes(frame), printable_bytes(extra)));

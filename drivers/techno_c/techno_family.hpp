@@ -60,6 +60,10 @@ class TechnoFamily final : public ProtocolFamily {
     bool moved = false;  // the polled positions changed since the acknowledge
     Clock::time_point last_change{};
     int64_t motion_error = 0;  // field kFieldMotionError
+    // An error character that came right after a query's answer: taken before the next
+    // exchange, as if it had come a moment later, so that the answer it followed (sampled
+    // while the axis still moved) reports the motion as it was.
+    int64_t error_after_reply = 0;
     bool initialised = false;  // init_on_connect has run since the link opened
     // Whether this controller answers `P` during a lower-case motion (false: it keeps the query
     // in its input buffer until the motion ends, p.73), once seen.
@@ -111,7 +115,8 @@ class TechnoFamily final : public ProtocolFamily {
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
   void take_leading_motion_error(BoundNode& node, const Request& request, std::string_view frame,
                                  Reply& reply);
-  asio::awaitable<void> take_optional_terminator(Link& link, std::string_view frame, Reply& reply,
+  asio::awaitable<void> take_optional_terminator(Link& link, NodeState& state,
+                                                 std::string_view frame, Reply& reply,
                                                  const LinkTiming& timing);
   asio::awaitable<void> check_single_handshake(Link& link, const techno::Command& c, Reply& reply,
                                                const LinkTiming& timing);

@@ -157,16 +157,34 @@ void PartyLine::start_line(char first, std::string& out) {
   if (options_.echo_name) out += disturbed(first);
 }
 
+// A read holds what arrived since the one before it, but not when each character came: a
+// simulator that was not scheduled for a while reads a paced line's characters together. They
+// count as back to back when the line started in this read (one write, as an unpaced host
+// sends a line; the name and the first character may come together), or when too little time
+// passed since the line's previous read for them to have come a spacing apart.
+bool PartyLine::back_to_back(std::size_t in_this_read, bool started_in_this_read,
+                             SimTime now) const {
+  if (in_this_read < 2) return false;
+  if (started_in_this_read) return true;
+  return now - line_.last_read < in_this_read * options_.overrun_spacing;
+}
+
 std::string PartyLine::echo(std::string_view received) {
   std::string out;
   std::size_t in_this_read = 0;
+  bool started_in_this_read = false;
+  const SimTime now = clock_();
   for (const char c : received) {
     if (c == kEscape || c == kControlC) {
       line_ = {};  // ESC clears the input line; ^C resets the unit
       continue;
     }
     if (!line_.started) {
-      if (c != '\n') start_line(c, out);
+      if (c != '\n') {
+        start_line(c, out);
+        started_in_this_read = true;
+        line_.last_read = now;
+      }
       continue;
     }
     line_.text += c;
@@ -177,14 +195,15 @@ std::string PartyLine::echo(std::string_view received) {
       if (line_.body == 1 && c == 'W' && line_.target == Target::unit) line_.hold_linefeed = true;
       if (line_.fault == Fault::truncate && line_.body > 1) line_.echoing = false;
     }
-    if (line_.target == Target::unit && options_.overrun_above > 0 && in_this_read >= 2 &&
-        line_.fault != Fault::overrun) {
+    if (line_.target == Target::unit && options_.overrun_above > 0 &&
+        line_.fault != Fault::overrun && back_to_back(in_this_read, started_in_this_read, now)) {
       // Characters back to back while the unit steps fast: its UART overruns (p.14) and the
       // line is lost.
       const auto named = units_named(line_.text.front());
-      if (!named.empty() && named.front()->indexer.step_rate(clock_()) > options_.overrun_above) {
+      if (!named.empty() && named.front()->indexer.step_rate(now) > options_.overrun_above) {
         line_.fault = Fault::overrun;
         line_.echoing = false;
+        ++named.front()->overruns;
       }
     }
     if (c == '\n') {
@@ -201,6 +220,7 @@ std::string PartyLine::echo(std::string_view received) {
     }
     if (line_.echoing) out += disturbed(c);
   }
+  if (line_.started) line_.last_read = now;
   return out;
 }
 
@@ -347,10 +367,10 @@ std::optional<std::string> PartyLine::control(std::string_view verb,
     char buffer[256];
     std::snprintf(buffer, sizeof buffer,
                   "ok %c position=%.2f status=%d rate=%.0f outputs=%d eeprom_writes=%d "
-                  "slew=%.0f accel=%d decel=%d online=%d duplicate=%d",
+                  "slew=%.0f accel=%d decel=%d online=%d duplicate=%d overruns=%d",
                   *name, x.position(now), x.status(now), x.step_rate(now), x.outputs(),
                   x.eeprom_writes(), x.parameters().slew, x.parameters().accel,
-                  x.parameters().decel, u.online ? 1 : 0, u.duplicate ? 1 : 0);
+                  x.parameters().decel, u.online ? 1 : 0, u.duplicate ? 1 : 0, u.overruns);
     return std::string(buffer);
   }
   if (verb == "reset") {

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <chrono>
 #include <deque>
 #include <functional>
 #include <map>
@@ -32,6 +33,10 @@ struct PartyLineOptions {
   // A unit stepping faster than this (steps/s) drops characters that arrive back to back
   // (manual p.14); 0 turns the overrun off.
   double overrun_above = 10'000;
+  // Characters read together came back to back unless at least this much time per character
+  // passed since the line's previous read: a host pacing by time (the alignment proof's 5 ms)
+  // gets through a simulator that was not scheduled for a while.
+  std::chrono::microseconds overrun_spacing{1000};
   std::uint32_t seed = 1;
 };
 
@@ -76,6 +81,7 @@ class PartyLine {
     Indexer indexer;
     bool online = true;
     bool duplicate = false;  // a second unit with the same name answers too
+    int overruns = 0;        // lines it lost to characters arriving back to back
   };
 
   // The line being received, as the listening units see it.
@@ -88,9 +94,11 @@ class PartyLine {
     bool hold_linefeed = false;      // W keeps its LF until the wait ends
     bool withheld_linefeed = false;  // the echoed LF comes with the result or at execution
     std::size_t body = 0;            // characters after the name
+    SimTime last_read{};             // when the previous read brought characters of this line
   };
 
   void start_line(char first, std::string& out);
+  bool back_to_back(std::size_t in_this_read, bool started_in_this_read, SimTime now) const;
   char disturbed(char c);
   std::vector<Unit*> units_named(char name);
   std::vector<Unit*> online_units();

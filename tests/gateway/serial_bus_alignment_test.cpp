@@ -16,6 +16,7 @@
 #include <iostream>
 #include <map>
 #include <optional>
+#include <ostream>
 #include <random>
 #include <string>
 #include <vector>
@@ -118,6 +119,11 @@ struct Run {
   bool pauses;
   unsigned seed;
 };
+
+// Without it GoogleTest prints the bytes, the pointer among them, into the ctest name.
+void PrintTo(const Run& run, std::ostream* os) {
+  *os << (run.pauses ? "pauses" : "late e 32") << ", seed " << run.seed;
+}
 
 class SerialBusAlignment : public ::testing::TestWithParam<Run> {
  protected:

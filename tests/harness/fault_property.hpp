@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <ostream>
 #include <random>
 #include <string>
 #include <vector>
@@ -58,6 +59,13 @@ struct FaultRun {
   unsigned seed;
   bool non_echo = false;  // Whedco: SW2-5 set to non-echo on every unit, configured so
 };
+
+// What ctest shows after the name: without it GoogleTest prints the struct's bytes, the
+// pointer among them, and the test's ctest name changes with every build.
+inline void PrintTo(const FaultRun& run, std::ostream* os) {
+  *os << (run.slow_wire ? "9600 baud on an emulated wire" : "115200 baud") << ", seed " << run.seed
+      << (run.non_echo ? ", non-echo" : "");
+}
 
 inline std::string fault_run_name(const ::testing::TestParamInfo<FaultRun>& info) {
   return info.param.name;

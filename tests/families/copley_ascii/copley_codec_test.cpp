@@ -1,6 +1,8 @@
 // Vectors from shared/protocols/copley-ascii.md §3 ("Every command-level transcript") and §2.
 #include <gtest/gtest.h>
 
+#include <ostream>
+
 #include "drivers/copley_ascii/copley_codec.hpp"
 
 namespace fieldgate::copley {
@@ -34,6 +36,18 @@ struct ReplyVector {
   ParsedReply::Kind kind;
   std::vector<int64_t> values;
 };
+
+// The line as ctest shows it, CR and LF spelt out (the struct's bytes hold a pointer).
+void PrintTo(const ReplyVector& v, std::ostream* os) {
+  for (const char* c = v.line; *c; ++c) {
+    if (*c == '\r')
+      *os << "<CR>";
+    else if (*c == '\n')
+      *os << "<LF>";
+    else
+      *os << *c;
+  }
+}
 
 class CopleyReplyTranscripts : public ::testing::TestWithParam<ReplyVector> {};
 

@@ -8,6 +8,7 @@
 // faulted (e 33) or offline (silence), never online.
 #include <gtest/gtest.h>
 
+#include <ostream>
 #include <thread>
 
 #include "harness.hpp"
@@ -28,6 +29,11 @@ struct Reading {
   std::vector<std::string> sim_switches;
   const char* nodes;  // config
 };
+
+// Without it GoogleTest prints the bytes, pointers among them, into the ctest name.
+void PrintTo(const Reading& r, std::ostream* os) {
+  for (const auto& s : r.sim_switches) *os << (&s == &r.sim_switches.front() ? "" : " ") << s;
+}
 
 SimulatedBus copley_bus(const Reading& r) {
   SimulatedBus bus;

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <optional>
+#include <string>
 #include <thread>
 
 #include "harness.hpp"
@@ -60,6 +62,23 @@ class ImsEndToEnd : public PlantTest {
   uint32_t transactions(int unit) { return input_u32(unit, kDiagTransactions); }
   bool command(int unit, int code) { return client_->write_single(unit, kCommand, code).ok(); }
   bool done(int unit) { return holding(unit, kActionStatus) == 2; }
+  // The lines unit `name` lost to overruns, as the simulator counts them (`status NAME`).
+  std::optional<int> overruns(char name) {
+    const std::string tag = std::string("ok ") + name + " position=";
+    const auto answers = [&] {
+      const std::string log = plant_->sim().log();
+      std::size_t n = 0;
+      for (auto at = log.find(tag); at != std::string::npos; at = log.find(tag, at + 1)) ++n;
+      return n;
+    };
+    const std::size_t before = answers();
+    plant_->sim().send_line(std::string("status ") + name);
+    if (!wait_until([&] { return answers() > before; })) return std::nullopt;
+    const std::string log = plant_->sim().log();
+    const auto field = log.find("overruns=", log.rfind(tag));
+    if (field == std::string::npos) return std::nullopt;
+    return std::stoi(log.substr(field + 9));
+  }
 };
 
 TEST_F(ImsEndToEnd, ReadsThePositionsOfThreeAxes) {
@@ -204,8 +223,11 @@ TEST_F(ImsEndToEnd, FastAxisIsPacedAndEveryAxisKeepsAnswering) {
   const uint32_t e = errors(1) + errors(2) + errors(3);
   const int32_t p0 = client_->read_input_i32(1, kPosition).value_or(0);
   std::this_thread::sleep_for(1500ms);
-  EXPECT_EQ(errors(1) + errors(2) + errors(3), e)
-      << "a unit stepping at 15,000 steps/s overruns on unpaced lines";
+  // The simulator's count, not the gateway's errors: on a loaded machine a reply can also time
+  // out, which says nothing about pacing.
+  EXPECT_EQ(overruns('A'), 0) << "a unit stepping at 15,000 steps/s overruns on unpaced lines; "
+                              << errors(1) + errors(2) + errors(3) - e << " errors meanwhile\n"
+                              << plant_->daemon().log();
   EXPECT_GT(client_->read_input_i32(1, kPosition).value_or(0), p0 + 10000);
   for (int unit : {2, 3}) EXPECT_LT(input_u32(unit, kDiagLastGoodAge), 600u);
   ASSERT_TRUE(command(1, kStopJog));

@@ -302,6 +302,29 @@ TEST_F(Chain, FastUnitOverrunsOnBackToBackCharacters) {
   EXPECT_EQ(exchange("AZ\n", 1), "Z\n  15000\r\n");
 }
 
+// A read does not say when its characters came. A line paced by time that the simulator read
+// late (a loaded machine) arrives in pieces that are each long enough after the one before;
+// the same characters close together are back to back.
+TEST_F(Chain, ALateReadOfAPacedLineIsNotAnOverrun) {
+  exchange("AK0 0\n");
+  exchange("AM15000\n", 0);
+  now_ = at(1);
+  std::string out = chain_->echo("A");
+  now_ += std::chrono::milliseconds(12);  // '^', '\n' sent 5 ms apart, read together
+  out += chain_->echo("^\n");
+  EXPECT_EQ(out, "^\n");
+  EXPECT_FALSE(chain_->respond("A^\n", now_).bytes.empty());
+  EXPECT_NE(control("status", {"A"}, 1).find("overruns=0"), std::string::npos);
+
+  now_ = at(2);
+  out = chain_->echo("A");
+  now_ += std::chrono::microseconds(300);  // too soon for two characters a spacing apart
+  out += chain_->echo("^\n");
+  EXPECT_EQ(out, "^") << "the unit lost the rest of the line";
+  EXPECT_TRUE(chain_->respond("A^\n", now_).bytes.empty());
+  EXPECT_NE(control("status", {"A"}, 2).find("overruns=1"), std::string::npos);
+}
+
 TEST_F(Chain, ControlChannel) {
   EXPECT_EQ(control("axis-off", {"A"}), "ok axis-off A");
   EXPECT_FALSE(chain_->online('A'));

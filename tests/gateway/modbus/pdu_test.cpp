@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -248,6 +249,10 @@ struct ReadLimit {
   std::uint8_t function;
   std::uint16_t max;
 };
+
+void PrintTo(const ReadLimit& limit, std::ostream* os) {
+  *os << "function " << int(limit.function) << ", at most " << limit.max;
+}
 
 class PduReadLimits : public ::testing::TestWithParam<ReadLimit> {};
 
