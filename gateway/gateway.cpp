@@ -6,6 +6,7 @@
 #include <boost/asio/detached.hpp>
 #include <boost/asio/ip/address.hpp>
 
+#include "gateway/console/plant_view.hpp"
 #include "gateway/lifecycle/log.hpp"
 #include "gateway/metrics/metrics.hpp"
 #include "gateway/sparkplug/edge_node.hpp"
@@ -175,6 +176,7 @@ void Gateway::start() {
     listeners_.push_back({current_->config->gateway.listener_name(l), open_listener(*current_, l)});
   rtu_.apply(*current_->config, rtu_handler(*current_));
   start_metrics();
+  start_console();
   start_sparkplug();
   for (auto& bus : pending_start_) spawn(bus);
   pending_start_.clear();
@@ -212,6 +214,27 @@ void Gateway::start_metrics() {
   }
 }
 
+void Gateway::start_console() {
+  const auto& c = current_->config->gateway.console;
+  if (console_) console_->stop();
+  console_.reset();
+  if (!c.enabled) return;
+  try {
+    console_ = std::make_unique<ConsoleServer>(io_.get_executor(), c, [this] {
+      return plant_json(*this, std::chrono::steady_clock::now(), std::chrono::system_clock::now());
+    });
+    console_->start();
+    const auto ep = console_->local_endpoint();
+    const bool v6 = ep.address().is_v6();
+    log::notice("console: http://{}{}{}:{}/{}", v6 ? "[" : "", ep.address().to_string(),
+                v6 ? "]" : "", ep.port(),
+                c.token_sha256.empty() ? "" : " (open it with ?token=... )");
+  } catch (const boost::system::system_error& e) {
+    // The console is secondary: the gateway keeps serving Modbus without it.
+    log::error("console: cannot listen on {}:{}: {}", c.address, c.port, e.code().message());
+  }
+}
+
 std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
   std::vector<std::shared_ptr<Bus>> fresh;
   auto next = build(std::move(config), current_.get(), fresh);
@@ -236,6 +259,8 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
   retired_.push_back(current_);
   current_ = next;
   if (metrics_changed) start_metrics();
+  // Its allow list or token may have changed; open pages reconnect on their own.
+  start_console();
   if (!sparkplug_ || sparkplug_->config() != current_->config->gateway.sparkplug)
     start_sparkplug();
   else
@@ -299,6 +324,7 @@ void Gateway::stop() {
     if (l.server) l.server->stop();
   rtu_.stop();
   if (metrics_) metrics_->stop();
+  if (console_) console_->stop();
   if (sparkplug_) sparkplug_->stop();
   if (current_) {
     for (auto& bus : current_->buses) bus->stop();

@@ -10,6 +10,7 @@
 
 #include "gateway/bus/bus.hpp"
 #include "gateway/config/config_loader.hpp"
+#include "gateway/console/console_server.hpp"
 #include "gateway/image/process_image.hpp"
 #include "gateway/metrics/metrics_server.hpp"
 #include "gateway/modbus/modbus_rtu_port.hpp"
@@ -94,6 +95,7 @@ class Gateway {
   std::string apply_listeners(const Generation& next);
   void spawn(const std::shared_ptr<Bus>& bus);
   void start_metrics();
+  void start_console();
   void start_sparkplug();
 
   asio::io_context& io_;
@@ -103,6 +105,7 @@ class Gateway {
   std::vector<Listener> listeners_;
   ModbusRtuPort rtu_{io_};
   std::unique_ptr<MetricsServer> metrics_;
+  std::unique_ptr<ConsoleServer> console_;
   std::unique_ptr<sparkplug::EdgeNode> sparkplug_;
   std::vector<std::shared_ptr<Bus>> pending_start_;
 };

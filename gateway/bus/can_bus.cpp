@@ -427,7 +427,7 @@ asio::awaitable<void> CanBus::read_loop() {
 
 void CanBus::trace_frame(const CanFrame& frame, TraceDirection direction, SteadyTime at,
                          std::string_view outcome) {
-  if (!trace_.enabled()) return;
+  if (!trace_.active()) return;
   const int id = family_.frame_node(frame);
   std::string node = id == FrameFamily::kNoNode      ? "-"
                      : id == FrameFamily::kEveryNode ? "*"

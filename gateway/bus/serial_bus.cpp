@@ -62,7 +62,7 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
       wake_(executor),
       trace_(config.name, config.trace) {
   link_.set_tap([this](bool tx, std::string_view bytes) {
-    if (!trace_.enabled()) return;
+    if (!trace_.active()) return;
     if (trace_collecting_) {
       traced_.push_back({Clock::now(), tx, std::string(bytes)});
       return;
@@ -333,7 +333,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     }
     const auto started = Clock::now();
     const auto received_before = link_.stats().bytes_received;
-    trace_collecting_ = trace_.enabled();
+    trace_collecting_ = trace_.active();
     reply = co_await family_.transact_node(link_, *n.family_context, request, n.timing);
     trace_collecting_ = false;
     // The trace's outcome names (docs/wire-trace.md), as CAN buses give them.
@@ -394,7 +394,7 @@ void SerialBus::trace_transaction(const NodeRuntime& n, std::string_view outcome
 
 asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed, bool heard) {
   if (!transport_->is_open()) co_return;
-  trace_collecting_ = trace_.enabled();
+  trace_collecting_ = trace_.active();
   const auto found = co_await family_.resync_after_failure(link_, n.timing);
   drained_before_proof_ += found.drained;
   trace_collecting_ = false;
@@ -470,7 +470,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
     // Whole replies drained while the line went quiet were owed ones arriving.
     debt_.settle(drained_before_proof_, proof->steps.front().splitter);
     drained_before_proof_.clear();
-    trace_collecting_ = trace_.enabled();
+    trace_collecting_ = trace_.active();
     const auto guard = guard_time(n->timing, link_.char_time_us());
     // A node that has not answered gets one attempt: it may be absent, and others may prove it.
     const int attempts = std::min(attempts_left, answering(n) ? 2 : 1);

@@ -21,6 +21,11 @@ WireTrace::Sink& sink() {
   return s;
 }
 
+WireTrace::Observer& observer() {
+  static WireTrace::Observer o;
+  return o;
+}
+
 }  // namespace
 
 TokenBucket::TokenBucket(double rate, double burst) : rate_(rate), burst_(burst), tokens_(burst) {}
@@ -75,6 +80,7 @@ void WireTrace::write(std::string_view line) {
 
 void WireTrace::emit(std::chrono::steady_clock::time_point at, std::string_view node,
                      TraceDirection direction, std::string_view outcome, std::string_view bytes) {
+  if (observer()) observer()(TraceFrame{bus_, at, node, direction, outcome, bytes});
   if (!enabled_) return;
   if (!bucket_.take(at)) {
     ++dropped_;
@@ -92,6 +98,14 @@ void WireTrace::emit(std::chrono::steady_clock::time_point at, std::string_view 
 
 void WireTrace::set_sink(Sink s) {
   sink() = std::move(s);
+}
+
+void WireTrace::set_observer(Observer o) {
+  observer() = std::move(o);
+}
+
+bool WireTrace::observed() {
+  return static_cast<bool>(observer());
 }
 
 std::vector<WireTrace*> WireTrace::all() {

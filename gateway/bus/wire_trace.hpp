@@ -47,9 +47,20 @@ struct TraceControlResult {
 };
 TraceControlResult trace_control(std::string_view target);
 
+// One frame as a live viewer (the web console) takes it, whether the log trace is on or not.
+struct TraceFrame {
+  std::string_view bus;
+  std::chrono::steady_clock::time_point at;
+  std::string_view node;
+  TraceDirection direction;
+  std::string_view outcome;
+  std::string_view bytes;
+};
+
 class WireTrace {
  public:
   using Sink = std::function<void(std::string_view line)>;
+  using Observer = std::function<void(const TraceFrame& frame)>;
   static constexpr double kDefaultRate = 200;   // lines per second
   static constexpr double kDefaultBurst = 400;  // one poll cycle of a long chain
 
@@ -61,6 +72,9 @@ class WireTrace {
 
   const std::string& bus() const { return bus_; }
   bool enabled() const { return enabled_; }
+  // Whether frames are wanted at all: the log trace is on, or an observer watches.
+  bool active() const { return enabled_ || observed(); }
+  static bool observed();
   void set_enabled(bool on);
   void emit(std::chrono::steady_clock::time_point at, std::string_view node,
             TraceDirection direction, std::string_view outcome, std::string_view bytes);
@@ -69,6 +83,9 @@ class WireTrace {
 
   // Where every trace writes; the log by default (tests capture it).
   static void set_sink(Sink sink);
+  // Sees every frame of every bus, with no rate limit, while set (empty: none). Set only while
+  // someone watches: each frame then costs a call.
+  static void set_observer(Observer observer);
   // Every live trace (one per running bus), for the run-time switches.
   static std::vector<WireTrace*> all();
   // Switches the named bus's trace (a reload may briefly hold two); returns how many matched.

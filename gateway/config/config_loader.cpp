@@ -16,6 +16,7 @@
 #include "gateway/bus/poll_budget.hpp"
 #include "gateway/config/device_writes.hpp"
 #include "gateway/config/modbus_rtu_config.hpp"
+#include "gateway/console/console_access.hpp"
 #include "gateway/sparkplug/sparkplug_config.hpp"
 #include "mapping/model_loader.hpp"
 #include "mapping/yaml_reader.hpp"
@@ -26,6 +27,12 @@ bool ModbusConfig::unit_read_only(uint8_t unit) const {
   for (const auto u : read_only_units)
     if (u == unit) return true;
   return false;
+}
+
+bool ConsoleConfig::loopback() const {
+  boost::system::error_code ec;
+  const auto a = asio::ip::make_address(address, ec);
+  return !ec && a.is_loopback();
 }
 
 microseconds NodeConfig::period_of(const std::string& poll_class) const {
@@ -83,7 +90,8 @@ class ConfigParser {
     if (!root.IsDefined()) return std::nullopt;
     if (!r_.expect_map(root, "gateway configuration")) return std::nullopt;
     r_.reject_unknown_keys(
-        root, {"modbus", "listeners", "modbus_rtu", "metrics", "models", "buses", "sparkplug"},
+        root,
+        {"modbus", "listeners", "modbus_rtu", "metrics", "console", "models", "buses", "sparkplug"},
         "gateway configuration");
     GatewayConfig config;
     config.file = r_.file();
@@ -93,6 +101,7 @@ class ConfigParser {
         listeners && r_.expect_sequence(listeners, "listeners"))
       for (const auto& l : listeners) parse_listener(l, config);
     if (root["metrics"]) parse_metrics(root["metrics"], config.metrics);
+    if (root["console"]) parse_console(root["console"], config.console);
     if (root["sparkplug"])
       sparkplug::parse_sparkplug_config(r_, root["sparkplug"], config.sparkplug);
     parse_model_dirs(root["models"], config);
@@ -225,6 +234,53 @@ class ConfigParser {
     if (node["listen"]) parse_listen(node["listen"], "metrics listen", m.address, m.port);
   }
 
+  void parse_console(const YAML::Node& node, ConsoleConfig& c) {
+    if (!r_.expect_map(node, "console")) return;
+    r_.reject_unknown_keys(node, {"listen", "enabled", "allow", "token_file"}, "console");
+    c.enabled = true;
+    if (node["enabled"]) c.enabled = r_.boolean(node["enabled"], "console enabled").value_or(true);
+    if (node["listen"]) parse_listen(node["listen"], "console listen", c.address, c.port);
+    if (const auto allow = node["allow"]) c.allow = parse_allow(allow, "console");
+    if (const auto file = node["token_file"]) {
+      if (const auto text = expand(file, "console token_file")) {
+        fs::path p(*text);
+        if (p.is_relative()) p = fs::path(r_.file()).parent_path() / p;
+        c.token_file = p.lexically_normal().string();
+        std::string error;
+        if (auto hash = read_token_hash(c.token_file, error))
+          c.token_sha256 = *hash;
+        else
+          r_.error(file, "console token_file: " + error);
+      }
+    }
+    if (!c.enabled || c.loopback()) return;
+    // Off loopback the plant's state is visible to a network: say who may look.
+    if (c.allow.empty())
+      r_.error(node, fmt::format("console: listening on {} (not loopback) needs an allow list "
+                                 "of the clients that may look (allow: [10.0.0.0/8], ...)",
+                                 c.address));
+    if (!node["token_file"])
+      r_.error(node, fmt::format("console: listening on {} (not loopback) needs token_file: a "
+                                 "file holding the SHA-256 of the access token "
+                                 "(printf %s TOKEN | sha256sum > FILE)",
+                                 c.address));
+  }
+
+  ClientAllowList parse_allow(const YAML::Node& allow, const std::string& what) {
+    std::vector<Cidr> entries;
+    if (!r_.expect_sequence(allow, what + " allow")) return {};
+    for (const auto& item : allow) {
+      auto text = r_.string(item, what + " allow");
+      if (!text) continue;
+      std::string error;
+      if (auto c = Cidr::parse(*text, error))
+        entries.push_back(*c);
+      else
+        r_.error(item, what + " allow: " + error);
+    }
+    return ClientAllowList(std::move(entries));
+  }
+
   // `what` is "modbus" or "listener NAME"; a listener entry also has a name.
   void parse_modbus(const YAML::Node& node, ModbusConfig& m, const std::string& what,
                     bool named = false) {
@@ -286,19 +342,7 @@ class ConfigParser {
     if (node["request_timeout"])
       m.request_timeout = r_.duration(node["request_timeout"], what + " request_timeout")
                               .value_or(m.request_timeout);
-    if (const auto allow = node["allow"]; allow && r_.expect_sequence(allow, what + " allow")) {
-      std::vector<Cidr> entries;
-      for (const auto& item : allow) {
-        auto text = r_.string(item, what + " allow");
-        if (!text) continue;
-        std::string error;
-        if (auto c = Cidr::parse(*text, error))
-          entries.push_back(*c);
-        else
-          r_.error(item, what + " allow: " + error);
-      }
-      m.allow = ClientAllowList(std::move(entries));
-    }
+    if (const auto allow = node["allow"]) m.allow = parse_allow(allow, what);
     if (const auto units = node["read_only_units"];
         units && r_.expect_sequence(units, what + " read_only_units"))
       for (const auto& item : units)

@@ -133,11 +133,25 @@ struct MetricsConfig {
   uint16_t port = 9502;
 };
 
+// The web console (gateway/console): read-only pages of the plant, off unless configured.
+// Bound to loopback, any local client may look; bound elsewhere, a client needs an address on
+// `allow` and the token whose SHA-256 the token file holds.
+struct ConsoleConfig {
+  bool enabled = false;
+  std::string address = "127.0.0.1";
+  uint16_t port = 9580;
+  ClientAllowList allow;
+  std::string token_file;
+  std::string token_sha256;  // lower-case hex, read from token_file when the config loads
+  bool loopback() const;
+};
+
 struct GatewayConfig {
   std::string file;
   ModbusConfig modbus;                    // the default listener
   std::vector<ListenerConfig> listeners;  // further listeners: listener index 1, 2, ...
   MetricsConfig metrics;
+  ConsoleConfig console;
   std::optional<ModbusRtuConfig> modbus_rtu;
   sparkplug::SparkplugConfig sparkplug;
   std::vector<std::string> model_dirs;

@@ -140,7 +140,11 @@ ProfileAxisRuntime& AxisProfileServer::runtime(const ProfileUnit& unit) {
 
 AxisObservation AxisProfileServer::observe(const ProfileUnit& unit,
                                            const ProfileAxisRuntime& rt) const {
-  const auto& node = image_.node(unit.node_index);
+  return observe_axis(unit, image_.node(unit.node_index), rt);
+}
+
+AxisObservation observe_axis(const ProfileUnit& unit, const NodeImage& node,
+                             const ProfileAxisRuntime& rt) {
   const Model& model = *unit.model;
   const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
   AxisObservation o;
@@ -160,6 +164,43 @@ AxisObservation AxisProfileServer::observe(const ProfileUnit& unit,
   return o;
 }
 
+AxisReading read_axis(const ProfileUnit& unit, const NodeImage& node,
+                      const ProfileAxisRuntime& rt) {
+  const Model& model = *unit.model;
+  const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
+  AxisReading r;
+  r.position = point_value(model, node, axis.position);
+  r.velocity = point_value(model, node, axis.velocity);
+  r.online = node.state == NodeState::online;
+  const AxisObservation o = observe_axis(unit, node, rt);
+  r.state = derive_state(o);
+  const auto set = [&](StatusBit b, bool on) {
+    if (on) r.status_word |= static_cast<uint16_t>(1u << static_cast<unsigned>(b));
+  };
+  set(StatusBit::enabled, o.enabled);
+  set(StatusBit::homed, status_bit(model, node, axis, StatusBit::homed));
+  set(StatusBit::moving, o.moving);
+  set(StatusBit::in_position, o.enabled && !o.moving && rt.status != CommandStatus::busy &&
+                                  rt.status != CommandStatus::error);
+  set(StatusBit::error, o.error);
+  set(StatusBit::limit_positive, status_bit(model, node, axis, StatusBit::limit_positive));
+  set(StatusBit::limit_negative, status_bit(model, node, axis, StatusBit::limit_negative));
+  set(StatusBit::warning, status_bit(model, node, axis, StatusBit::warning));
+  set(StatusBit::velocity_reported, r.velocity.has_value());
+  set(StatusBit::online, r.online);
+  r.error_id = rt.error_latched ? rt.error_id : 0;
+  if (o.error && r.error_id == 0) {
+    const auto code = point_value(model, node, axis.error_code);
+    r.error_id = code && *code != 0 ? static_cast<uint16_t>(*code) : kProfileErrorDeviceFault;
+  }
+  r.sequence = rt.sequence;
+  r.command = rt.command;
+  r.status = rt.status;
+  r.command_error = rt.command_error;
+  r.supported = axis.supported_mask();
+  return r;
+}
+
 modbus::ReadRegistersResult AxisProfileServer::read(const ProfileUnit& unit,
                                                     modbus::RegisterTable table, uint16_t address,
                                                     uint16_t count, WordOrder order) {
@@ -168,8 +209,6 @@ modbus::ReadRegistersResult AxisProfileServer::read(const ProfileUnit& unit,
   if (static_cast<uint32_t>(address) + count > size) return ExceptionCode::illegal_data_address;
   auto& rt = runtime(unit);
   const auto& node = image_.node(unit.node_index);
-  const Model& model = *unit.model;
-  const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
   std::vector<uint16_t> page(size, 0);
   const auto put32 = [&](uint16_t at, int64_t v) {
     const auto words = to_registers(ValueType::int32, v, order);
@@ -181,44 +220,20 @@ modbus::ReadRegistersResult AxisProfileServer::read(const ProfileUnit& unit,
     page[ap::command_code] = static_cast<uint16_t>(rt.command);
     page[ap::sequence_number] = rt.sequence;
   } else {
-    const auto position = point_value(model, node, axis.position);
-    if (!position) return ExceptionCode::gateway_target_failed;
-    const bool online = node.state == NodeState::online;
-    if (!online && modbus_.offline_reads == OfflineReads::exception)
+    const AxisReading r = read_axis(unit, node, rt);
+    if (!r.position) return ExceptionCode::gateway_target_failed;
+    if (!r.online && modbus_.offline_reads == OfflineReads::exception)
       return ExceptionCode::gateway_target_failed;
-    put32(ap::actual_position, *position);
-    const auto velocity = point_value(model, node, axis.velocity);
-    put32(ap::actual_velocity, velocity.value_or(0));
-    const AxisObservation o = observe(unit, rt);
-    const PlcopenState state = derive_state(o);
-    uint16_t word = 0;
-    const auto set = [&](StatusBit b, bool on) {
-      if (on) word |= static_cast<uint16_t>(1u << static_cast<unsigned>(b));
-    };
-    set(StatusBit::enabled, o.enabled);
-    set(StatusBit::homed, status_bit(model, node, axis, StatusBit::homed));
-    set(StatusBit::moving, o.moving);
-    set(StatusBit::in_position, o.enabled && !o.moving && rt.status != CommandStatus::busy &&
-                                    rt.status != CommandStatus::error);
-    set(StatusBit::error, o.error);
-    set(StatusBit::limit_positive, status_bit(model, node, axis, StatusBit::limit_positive));
-    set(StatusBit::limit_negative, status_bit(model, node, axis, StatusBit::limit_negative));
-    set(StatusBit::warning, status_bit(model, node, axis, StatusBit::warning));
-    set(StatusBit::velocity_reported, velocity.has_value());
-    set(StatusBit::online, online);
-    page[ap::status_word] = word;
-    page[ap::plcopen_state] = static_cast<uint16_t>(state);
-    uint16_t error_id = rt.error_latched ? rt.error_id : 0;
-    if (o.error && error_id == 0) {
-      const auto code = point_value(model, node, axis.error_code);
-      error_id = code && *code != 0 ? static_cast<uint16_t>(*code) : kProfileErrorDeviceFault;
-    }
-    page[ap::error_id] = error_id;
-    page[ap::sequence_echo] = rt.sequence;
-    page[ap::command_status] = static_cast<uint16_t>(rt.status);
-    page[ap::command_echo] = static_cast<uint16_t>(rt.command);
-    page[ap::command_error] = rt.command_error;
-    page[ap::supported_commands] = axis.supported_mask();
+    put32(ap::actual_position, *r.position);
+    put32(ap::actual_velocity, r.velocity.value_or(0));
+    page[ap::status_word] = r.status_word;
+    page[ap::plcopen_state] = static_cast<uint16_t>(r.state);
+    page[ap::error_id] = r.error_id;
+    page[ap::sequence_echo] = r.sequence;
+    page[ap::command_status] = static_cast<uint16_t>(r.status);
+    page[ap::command_echo] = static_cast<uint16_t>(r.command);
+    page[ap::command_error] = r.command_error;
+    page[ap::supported_commands] = r.supported;
   }
   return std::vector<uint16_t>(page.begin() + address, page.begin() + address + count);
 }

@@ -3,6 +3,7 @@
 #include <boost/asio/awaitable.hpp>
 
 #include <memory>
+#include <optional>
 #include <span>
 
 #include "gateway/config/gateway_config.hpp"
@@ -20,6 +21,26 @@ struct ProfileUnit {
   ModelPtr model;
   int axis = 0;  // index into model->profile_axes
 };
+
+// What a profile axis presents, in domain terms: its input page before it becomes registers.
+// Every reader of an axis (the Modbus page, the web console) takes it from here.
+struct AxisReading {
+  std::optional<int64_t> position;  // nullopt: never read
+  std::optional<int64_t> velocity;  // nullopt: the controller does not report it
+  bool online = false;
+  uint16_t status_word = 0;  // StatusBit bits
+  PlcopenState state = PlcopenState::disabled;
+  uint16_t error_id = 0;
+  uint16_t sequence = 0;
+  ProfileCommand command = ProfileCommand::none;
+  CommandStatus status = CommandStatus::idle;
+  uint16_t command_error = 0;
+  uint16_t supported = 0;  // bit n: command code n
+};
+
+AxisObservation observe_axis(const ProfileUnit& unit, const NodeImage& node,
+                             const ProfileAxisRuntime& rt);
+AxisReading read_axis(const ProfileUnit& unit, const NodeImage& node, const ProfileAxisRuntime& rt);
 
 // Serves the axis profile page (mapping/axis_profile.hpp) of profile units: reads from the
 // process image, commands through the model's actions with the sequence-number handshake.

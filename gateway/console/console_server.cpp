@@ -1,0 +1,321 @@
+#include "gateway/console/console_server.hpp"
+
+#include <boost/asio/as_tuple.hpp>
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/detached.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/use_awaitable.hpp>
+#include <boost/asio/write.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/json.hpp>
+
+#include <deque>
+
+#include "gateway/bus/wire_trace.hpp"
+#include "gateway/console/console_access.hpp"
+#include "gateway/console/console_assets.hpp"
+#include "gateway/lifecycle/log.hpp"
+
+namespace fieldgate {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace json = boost::json;
+
+namespace {
+constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
+using Clock = std::chrono::steady_clock;
+
+// A frame as the page takes it, serialized once however many streams send it.
+struct TraceEntry {
+  std::uint64_t seq = 0;
+  std::string json;
+};
+}  // namespace
+
+struct ConsoleServer::State : std::enable_shared_from_this<ConsoleServer::State> {
+  State(asio::any_io_executor ex, ConsoleConfig c, Snapshot s)
+      : acceptor(ex, asio::ip::tcp::endpoint(asio::ip::make_address(c.address), c.port)),
+        accept_retry(ex),
+        config(std::move(c)),
+        snapshot(std::move(s)) {}
+
+  // The plant, rendered at most every snapshot_reuse for all streams together.
+  const std::string& plant() {
+    const auto now = Clock::now();
+    if (!cached_at || now - *cached_at >= snapshot_reuse) {
+      cached = snapshot();
+      cached_at = now;
+    }
+    return cached;
+  }
+
+  // Frames are taken from the buses only while a stream shows them.
+  void watch_trace(bool on) {
+    if (stopped) return;  // stop() let go of the buses' frames already
+    trace_streams += on ? 1 : -1;
+    if (trace_streams > 0 && !WireTrace::observed()) {
+      std::weak_ptr<State> weak = shared_from_this();
+      WireTrace::set_observer([weak](const TraceFrame& f) {
+        if (auto s = weak.lock()) s->record(f);
+      });
+    } else if (trace_streams == 0) {
+      WireTrace::set_observer({});
+    }
+  }
+
+  void record(const TraceFrame& f) {
+    const auto wall =
+        std::chrono::system_clock::now() -
+        std::chrono::duration_cast<std::chrono::system_clock::duration>(Clock::now() - f.at);
+    json::object o;
+    o["t"] = static_cast<double>(
+                 std::chrono::duration_cast<std::chrono::microseconds>(wall.time_since_epoch())
+                     .count()) /
+             1000.0;
+    o["bus"] = f.bus;
+    o["node"] = f.node.empty() ? std::string_view("-") : f.node;
+    o["dir"] = f.direction == TraceDirection::tx ? "tx" : "rx";
+    o["outcome"] = f.outcome.empty() ? std::string_view("-") : f.outcome;
+    o["bytes"] = f.bytes;
+    TraceEntry e{next_seq++, json::serialize(o)};
+    trace.push_back(std::move(e));
+    while (trace.size() > trace_ring) trace.pop_front();
+  }
+
+  asio::ip::tcp::acceptor acceptor;
+  asio::steady_timer accept_retry;
+  ConsoleConfig config;
+  Snapshot snapshot;
+  std::size_t open = 0;     // connections being served now
+  std::size_t streams = 0;  // of them, event streams
+  int trace_streams = 0;
+  ConsoleServerStats stats;
+  bool stopped = false;
+  std::string cached;
+  std::optional<Clock::time_point> cached_at;
+  std::deque<TraceEntry> trace;
+  std::uint64_t next_seq = 0;
+};
+
+namespace {
+
+template <typename Response>
+void common_headers(Response& res) {
+  res.set(http::field::server, "fieldgate");
+  res.set(http::field::cache_control, "no-store");
+  res.set("X-Content-Type-Options", "nosniff");
+  res.set("Content-Security-Policy",
+          "default-src 'self'; img-src 'self' data:; object-src 'none'; frame-ancestors 'none'");
+}
+
+// The frames a stream has not seen yet, as one `trace` event; empty when there are none.
+std::string trace_event(ConsoleServer::State& state, std::uint64_t& next) {
+  std::uint64_t dropped = 0;
+  if (!state.trace.empty() && next < state.trace.front().seq) {
+    dropped = state.trace.front().seq - next;
+    next = state.trace.front().seq;
+  }
+  std::string frames;
+  std::size_t count = 0;
+  if (!state.trace.empty() && next >= state.trace.front().seq) {
+    for (std::size_t i = next - state.trace.front().seq;
+         i < state.trace.size() && count < ConsoleServer::trace_per_event; ++i, ++count) {
+      if (count > 0) frames += ',';
+      frames += state.trace[i].json;
+      next = state.trace[i].seq + 1;
+    }
+  }
+  if (count == 0 && dropped == 0) return {};
+  return "event: trace\ndata: {\"dropped\":" + std::to_string(dropped) + ",\"frames\":[" + frames +
+         "]}\n\n";
+}
+
+asio::awaitable<void> stream_events(beast::tcp_stream& stream, ConsoleServer::State& state,
+                                    unsigned version, bool with_trace) {
+  http::response<http::empty_body> res{http::status::ok, version};
+  common_headers(res);
+  res.set(http::field::content_type, "text/event-stream");
+  res.keep_alive(false);
+  http::response_serializer<http::empty_body> header(res);
+  stream.expires_after(ConsoleServer::exchange_timeout);
+  if (auto [ec, n] = co_await http::async_write_header(stream, header, use_tuple); ec) co_return;
+  // A new trace viewer starts with the last few frames, so the page is not empty.
+  std::uint64_t next = state.next_seq > 200 ? state.next_seq - 200 : 0;
+  asio::steady_timer tick(stream.get_executor());
+  std::string out = "retry: 2000\n\n";
+  while (!state.stopped) {
+    out += "event: plant\ndata: " + state.plant() + "\n\n";
+    if (with_trace) out += trace_event(state, next);
+    stream.expires_after(ConsoleServer::exchange_timeout);
+    auto [ec, n] = co_await asio::async_write(stream, asio::buffer(out), use_tuple);
+    (void)n;
+    if (ec) {
+      // A browser that stopped reading (a stalled tab): cut off, its memory freed.
+      if (ec == beast::error::timeout) ++state.stats.streams_dropped;
+      co_return;
+    }
+    out.clear();
+    tick.expires_after(ConsoleServer::plant_interval);
+    co_await tick.async_wait(use_tuple);
+  }
+}
+
+std::string_view path_of(std::string_view target) {
+  return target.substr(0, target.find('?'));
+}
+
+bool query_flag(std::string_view target, std::string_view flag) {
+  const auto q = target.find('?');
+  if (q == std::string_view::npos) return false;
+  std::string_view rest = target.substr(q + 1);
+  while (!rest.empty()) {
+    const auto amp = rest.find('&');
+    const auto pair = rest.substr(0, amp);
+    if (pair == std::string(flag) + "=1") return true;
+    if (amp == std::string_view::npos) break;
+    rest.remove_prefix(amp + 1);
+  }
+  return false;
+}
+
+asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& state) {
+  beast::flat_buffer buffer(8192);
+  http::request_parser<http::empty_body> parser;
+  parser.header_limit(8192);
+  stream.expires_after(ConsoleServer::exchange_timeout);
+  auto [ec, n] = co_await http::async_read(stream, buffer, parser, use_tuple);
+  (void)n;
+  if (ec) co_return;
+  ++state.stats.requests;
+  const auto& req = parser.get();
+  const std::string_view target(req.target().data(), req.target().size());
+  const std::string_view path = path_of(target);
+  http::response<http::string_body> res;
+  res.version(req.version());
+  res.keep_alive(false);
+  common_headers(res);
+  res.set(http::field::content_type, "text/plain; charset=utf-8");
+
+  boost::system::error_code peer_ec;
+  const auto peer = stream.socket().remote_endpoint(peer_ec).address();
+  const auto authorization = req[http::field::authorization];
+  const auto access =
+      peer_ec ? ConsoleAccess::address_refused
+              : check_console_access(
+                    state.config, peer,
+                    request_token({authorization.data(), authorization.size()}, target));
+  const bool head = req.method() == http::verb::head;
+  if (access != ConsoleAccess::allowed) {
+    ++state.stats.denied;
+    res.result(http::status::forbidden);
+    res.body() =
+        std::string("fieldgate console: ") + std::string(to_string(access)) +
+        (access == ConsoleAccess::token_missing ? " (open the page with ?token=...)" : "") + "\n";
+  } else if (req.method() != http::verb::get && !head) {
+    // Read-only: nothing on the console changes the plant.
+    res.result(http::status::method_not_allowed);
+    res.set(http::field::allow, "GET, HEAD");
+    res.body() = "the console is read-only\n";
+  } else if (path == "/events" && !head) {
+    if (state.streams >= ConsoleServer::max_streams) {
+      res.result(http::status::service_unavailable);
+      res.set(http::field::retry_after, "5");
+      res.body() = "too many live views open\n";
+    } else {
+      const bool with_trace = query_flag(target, "trace");
+      ++state.streams;
+      ++state.stats.streams;
+      if (with_trace) state.watch_trace(true);
+      co_await stream_events(stream, state, req.version(), with_trace);
+      if (with_trace) state.watch_trace(false);
+      --state.streams;
+      co_return;
+    }
+  } else if (path == "/api/plant") {
+    res.result(http::status::ok);
+    res.set(http::field::content_type, "application/json");
+    res.body() = state.plant();
+  } else if (const ConsoleAsset* asset = find_console_asset(path)) {
+    res.result(http::status::ok);
+    res.set(http::field::content_type, std::string(asset->content_type));
+    res.body() = std::string(asset->body);
+  } else {
+    res.result(http::status::not_found);
+    res.body() = "no such page; the console is at /\n";
+  }
+  res.prepare_payload();
+  if (head) res.body().clear();
+  stream.expires_after(ConsoleServer::exchange_timeout);
+  auto [wec, wn] = co_await http::async_write(stream, res, use_tuple);
+  (void)wec;
+  (void)wn;
+  beast::error_code ignored;
+  stream.socket().shutdown(asio::ip::tcp::socket::shutdown_send, ignored);
+}
+
+asio::awaitable<void> serve(beast::tcp_stream stream, std::shared_ptr<ConsoleServer::State> state) {
+  try {
+    co_await exchange(stream, *state);
+  } catch (const std::exception& e) {
+    // Belongs to this connection alone.
+    log::debug("console: connection ended: {}", e.what());
+  }
+  --state->open;
+}
+
+asio::awaitable<void> accept_loop(std::shared_ptr<ConsoleServer::State> state) {
+  while (!state->stopped) {
+    auto [ec, socket] = co_await state->acceptor.async_accept(use_tuple);
+    if (state->stopped) co_return;
+    if (ec) {
+      // E.g. EMFILE: retrying at once would spin.
+      state->accept_retry.expires_after(std::chrono::milliseconds(100));
+      co_await state->accept_retry.async_wait(use_tuple);
+      continue;
+    }
+    if (state->open >= ConsoleServer::max_connections) {
+      // Closed at once: browsers must not take the descriptors the Modbus server needs.
+      ++state->stats.refused;
+      continue;
+    }
+    ++state->open;
+    asio::co_spawn(state->acceptor.get_executor(),
+                   serve(beast::tcp_stream(std::move(socket)), state), asio::detached);
+  }
+}
+
+}  // namespace
+
+ConsoleServer::ConsoleServer(asio::any_io_executor executor, ConsoleConfig config,
+                             Snapshot snapshot)
+    : state_(std::make_shared<State>(executor, std::move(config), std::move(snapshot))) {}
+
+ConsoleServer::~ConsoleServer() {
+  stop();
+}
+
+void ConsoleServer::start() {
+  asio::co_spawn(state_->acceptor.get_executor(), accept_loop(state_), asio::detached);
+}
+
+void ConsoleServer::stop() {
+  if (state_->stopped) return;
+  state_->stopped = true;
+  boost::system::error_code ignored;
+  state_->acceptor.close(ignored);
+  state_->accept_retry.cancel();
+  if (state_->trace_streams > 0) WireTrace::set_observer({});
+  state_->trace_streams = 0;
+}
+
+const ConsoleServerStats& ConsoleServer::stats() const {
+  return state_->stats;
+}
+
+asio::ip::tcp::endpoint ConsoleServer::local_endpoint() const {
+  return state_->acceptor.local_endpoint();
+}
+
+}  // namespace fieldgate

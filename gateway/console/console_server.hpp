@@ -1,0 +1,60 @@
+#pragma once
+
+#include <boost/asio/any_io_executor.hpp>
+#include <boost/asio/ip/tcp.hpp>
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "gateway/config/gateway_config.hpp"
+
+namespace fieldgate {
+
+namespace asio = boost::asio;
+
+struct ConsoleServerStats {
+  std::uint64_t requests = 0;
+  std::uint64_t refused = 0;          // closed at once: max_connections were open
+  std::uint64_t denied = 0;           // 403: address or token
+  std::uint64_t streams = 0;          // live streams opened
+  std::uint64_t streams_dropped = 0;  // a client that stopped reading was cut off
+};
+
+// The web console (docs/console.md): its pages from the binary, GET /api/plant (the plant as
+// JSON) and GET /events, a server-sent event stream of the plant twice a second and, with
+// ?trace=1, every frame of every bus. Read-only: no
+// request changes anything. Runs on the daemon's executor; every connection is bounded in time
+// and memory, so browsers, however many or stalled, cannot hold up Modbus service.
+class ConsoleServer {
+ public:
+  using Snapshot = std::function<std::string()>;
+
+  static constexpr std::size_t max_connections = 160;
+  static constexpr std::size_t max_streams = 128;
+  // A request must arrive, and each write of a reply or event go out, within this.
+  static constexpr std::chrono::seconds exchange_timeout{5};
+  static constexpr std::chrono::milliseconds plant_interval{500};
+  // The plant is rendered at most this often, whatever the number of streams.
+  static constexpr std::chrono::milliseconds snapshot_reuse{200};
+  static constexpr std::size_t trace_ring = 4000;      // frames kept for late readers
+  static constexpr std::size_t trace_per_event = 500;  // frames sent per stream per tick
+
+  // Binds at once; throws boost::system::system_error if it cannot.
+  ConsoleServer(asio::any_io_executor executor, ConsoleConfig config, Snapshot snapshot);
+  ~ConsoleServer();
+  void start();
+  void stop();
+  asio::ip::tcp::endpoint local_endpoint() const;
+  const ConsoleServerStats& stats() const;
+
+  struct State;  // shared with the connection coroutines, which may outlive the server
+
+ private:
+  std::shared_ptr<State> state_;
+};
+
+}  // namespace fieldgate

@@ -1,0 +1,180 @@
+#include "gateway/console/plant_view.hpp"
+
+#include <boost/json.hpp>
+
+#include "gateway/bus/wire_trace.hpp"
+#include "gateway/gateway.hpp"
+#include "gateway/register_map/axis_profile_server.hpp"
+
+namespace fieldgate {
+
+namespace json = boost::json;
+
+namespace {
+
+double epoch_ms(std::chrono::system_clock::time_point t) {
+  return static_cast<double>(
+      std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count());
+}
+
+std::string link_of(const BusConfig& bus) {
+  switch (bus.transport.kind) {
+    case TransportConfig::Kind::serial:
+      return bus.transport.serial.device;
+    case TransportConfig::Kind::tcp:
+      return bus.transport.host + ":" + std::to_string(bus.transport.port);
+    case TransportConfig::Kind::can:
+      return bus.transport.can_interface;
+  }
+  return {};
+}
+
+json::object bus_view(const Bus& bus) {
+  const BusCounters& c = bus.counters();
+  const BusConfig& config = bus.config();
+  json::object o;
+  o["name"] = config.name;
+  o["protocol"] = config.protocol;
+  o["link"] = link_of(config);
+  o["link_up"] = c.link_up;
+  o["transactions"] = c.transactions;
+  o["timeouts"] = c.timeouts;
+  o["errors"] = c.errors;
+  o["retries"] = c.retries;
+  o["reconnects"] = c.reconnects;
+  o["resyncs"] = c.resyncs;
+  o["alignment_proofs"] = c.alignment_proofs;
+  o["alignment_failures"] = c.alignment_failures;
+  bool trace = false;
+  for (const auto* t : WireTrace::all()) trace = trace || (t->bus() == config.name && t->enabled());
+  o["trace"] = trace;
+  return o;
+}
+
+json::object node_view(const BusConfig& bus, const NodeConfig& config, const NodeImage& image,
+                       std::chrono::steady_clock::time_point now) {
+  const NodeCounters& c = image.counters;
+  json::object o;
+  o["name"] = config.name;
+  o["bus"] = bus.name;
+  o["address"] = config.address.text;
+  o["model"] = config.model ? config.model->name : std::string();
+  o["unit"] = config.unit_id;
+  o["state"] = std::string(to_string(image.state));
+  // Why a node that is not online is not: the last failure as the log words it.
+  o["reason"] = image.state == NodeState::online ? std::string() : c.last_error_text;
+  o["transactions"] = c.transactions;
+  o["timeouts"] = c.timeouts;
+  o["unreachable"] = c.unreachable;
+  o["errors"] = c.errors;
+  o["retries"] = c.retries;
+  o["unknown_writes"] = c.unknown_writes;
+  o["consecutive_timeouts"] = c.consecutive_timeouts;
+  if (c.ever_good)
+    o["last_good_age_ms"] =
+        std::chrono::duration_cast<std::chrono::milliseconds>(now - c.last_good).count();
+  else
+    o["last_good_age_ms"] = nullptr;
+  o["last_device_error"] = c.last_device_error;
+  o["last_error_text"] = c.last_error_text;
+  return o;
+}
+
+json::array status_names(uint16_t word) {
+  json::array names;
+  for (int b = 0; b < kStatusBitCount; ++b)
+    if (word & (1u << b)) names.emplace_back(std::string(to_string(static_cast<StatusBit>(b))));
+  return names;
+}
+
+json::object axis_view(const ProfileUnit& unit, const NodeImage& image, uint8_t unit_id,
+                       const std::string& listener) {
+  const auto& def = unit.model->profile_axes[static_cast<std::size_t>(unit.axis)];
+  const std::size_t slot = static_cast<std::size_t>(unit.axis);
+  // Until a PLC first reads or commands the axis, its runtime is the default one.
+  const ProfileAxisRuntime none;
+  const ProfileAxisRuntime& rt = slot < image.profile_axes.size() ? image.profile_axes[slot] : none;
+  const AxisReading r = read_axis(unit, image, rt);
+  json::object o;
+  o["name"] = unit.node->name + "/" + def.name;
+  o["node"] = unit.node->name;
+  o["axis"] = def.name;
+  o["unit"] = unit_id;
+  o["listener"] = listener;
+  o["online"] = r.online;
+  o["state"] = std::string(to_string(r.state));
+  if (r.position)
+    o["position"] = *r.position;
+  else
+    o["position"] = nullptr;
+  if (r.velocity)
+    o["velocity"] = *r.velocity;
+  else
+    o["velocity"] = nullptr;
+  o["status"] = status_names(r.status_word);
+  o["error_id"] = r.error_id;
+  o["command"] = std::string(to_string(r.command));
+  o["command_status"] = std::string(to_string(r.status));
+  o["command_error"] = r.command_error;
+  o["sequence"] = r.sequence;
+  return o;
+}
+
+json::object listener_view(const Gateway::Listener& l) {
+  json::object o;
+  o["name"] = l.name;
+  if (!l.server) return o;
+  const auto& s = l.server->stats();
+  o["clients_connected"] = s.clients_connected;
+  o["clients_accepted"] = s.clients_accepted;
+  o["clients_refused"] = s.clients_refused;
+  o["clients_denied"] = s.clients_denied;
+  o["clients_timed_out"] = s.clients_timed_out;
+  o["framing_errors"] = s.framing_errors;
+  json::array functions;
+  for (std::size_t f = 0; f < s.functions.size(); ++f) {
+    if (s.functions[f].requests == 0) continue;
+    json::object fo;
+    fo["function"] = f;
+    fo["requests"] = s.functions[f].requests;
+    fo["exceptions"] = s.functions[f].exceptions;
+    functions.push_back(std::move(fo));
+  }
+  o["functions"] = std::move(functions);
+  return o;
+}
+
+}  // namespace
+
+std::string plant_json(const Gateway& gateway, std::chrono::steady_clock::time_point now,
+                       std::chrono::system_clock::time_point wall) {
+  const auto& config = gateway.config().gateway;
+  const auto& image = gateway.image();
+  json::object root;
+  root["time_ms"] = epoch_ms(wall);
+  json::array buses;
+  for (const auto& bus : gateway.buses()) buses.push_back(bus_view(*bus));
+  root["buses"] = std::move(buses);
+  json::array nodes, axes;
+  int index = 0;
+  for (const auto& bus : config.buses)
+    for (const auto& node : bus.nodes) {
+      const NodeImage& ni = image.node(index);
+      nodes.push_back(node_view(bus, node, ni, now));
+      for (const auto& [axis_name, unit_id] : node.axis_units)
+        if (const auto* def = node.model->find_profile_axis(axis_name)) {
+          const ProfileUnit unit{index, &node, node.model,
+                                 static_cast<int>(def - node.model->profile_axes.data())};
+          axes.push_back(axis_view(unit, ni, unit_id, config.listener_name(node.listener)));
+        }
+      ++index;
+    }
+  root["nodes"] = std::move(nodes);
+  root["axes"] = std::move(axes);
+  json::array listeners;
+  for (const auto& l : gateway.listeners()) listeners.push_back(listener_view(l));
+  root["listeners"] = std::move(listeners);
+  return json::serialize(root);
+}
+
+}  // namespace fieldgate
