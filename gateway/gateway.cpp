@@ -6,6 +6,7 @@
 #include <boost/asio/detached.hpp>
 #include <boost/asio/ip/address.hpp>
 
+#include "gateway/console/fleet_watch.hpp"
 #include "gateway/console/plant_view.hpp"
 #include "gateway/lifecycle/log.hpp"
 #include "gateway/metrics/metrics.hpp"
@@ -218,10 +219,19 @@ void Gateway::start_console() {
   const auto& c = current_->config->gateway.console;
   if (console_) console_->stop();
   console_.reset();
+  if (fleet_) fleet_->stop();
+  fleet_.reset();
   if (!c.enabled) return;
   try {
+    const auto& s = current_->config->gateway.sparkplug;
+    // Where the gateway is an edge node, the console shows the whole group it belongs to.
+    if (s.enabled) {
+      fleet_ = std::make_unique<FleetWatch>(io_.get_executor(), s);
+      fleet_->start();
+    }
     console_ = std::make_unique<ConsoleServer>(io_.get_executor(), c, [this] {
-      return plant_json(*this, std::chrono::steady_clock::now(), std::chrono::system_clock::now());
+      return plant_json(*this, std::chrono::steady_clock::now(), std::chrono::system_clock::now(),
+                        fleet_.get());
     });
     console_->start();
     const auto ep = console_->local_endpoint();
@@ -325,6 +335,7 @@ void Gateway::stop() {
   rtu_.stop();
   if (metrics_) metrics_->stop();
   if (console_) console_->stop();
+  if (fleet_) fleet_->stop();
   if (sparkplug_) sparkplug_->stop();
   if (current_) {
     for (auto& bus : current_->buses) bus->stop();

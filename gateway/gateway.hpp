@@ -20,6 +20,8 @@
 
 namespace fieldgate {
 
+class FleetWatch;
+
 namespace sparkplug {
 class EdgeNode;
 struct SessionStats;
@@ -106,6 +108,7 @@ class Gateway {
   ModbusRtuPort rtu_{io_};
   std::unique_ptr<MetricsServer> metrics_;
   std::unique_ptr<ConsoleServer> console_;
+  std::unique_ptr<FleetWatch> fleet_;  // the console's view of the Sparkplug group
   std::unique_ptr<sparkplug::EdgeNode> sparkplug_;
   std::vector<std::shared_ptr<Bus>> pending_start_;
 };

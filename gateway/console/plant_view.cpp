@@ -3,6 +3,7 @@
 #include <boost/json.hpp>
 
 #include "gateway/bus/wire_trace.hpp"
+#include "gateway/console/fleet_watch.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/register_map/axis_profile_server.hpp"
 
@@ -144,10 +145,61 @@ json::object listener_view(const Gateway::Listener& l) {
   return o;
 }
 
+json::array metrics_view(const std::map<std::string, sparkplug::FleetView::MetricState>& metrics) {
+  json::array out;
+  for (const auto& [name, m] : metrics) {
+    json::object o;
+    o["name"] = name;
+    o["value"] = m.value;
+    o["datatype"] = m.datatype;
+    out.push_back(std::move(o));
+  }
+  return out;
+}
+
+json::object fleet_view(const FleetWatch& fleet) {
+  json::object o;
+  o["group"] = fleet.config().group_id;
+  o["broker"] = fleet.config().host + ":" + std::to_string(fleet.config().port);
+  o["connected"] = fleet.connected();
+  o["malformed"] = fleet.view().malformed();
+  json::array nodes;
+  for (const auto& [name, n] : fleet.view().edge_nodes()) {
+    json::object no;
+    no["name"] = name;
+    no["born"] = n.born;
+    if (n.bd_seq)
+      no["bd_seq"] = *n.bd_seq;
+    else
+      no["bd_seq"] = nullptr;
+    no["messages"] = n.messages;
+    no["seq_gaps"] = n.seq_gaps;
+    no["changed_ms"] = n.changed_ms;
+    no["metrics"] = metrics_view(n.metrics);
+    json::array devices;
+    for (const auto& [dname, d] : n.devices) {
+      json::object dobj;
+      dobj["name"] = dname;
+      dobj["born"] = d.born;
+      dobj["messages"] = d.messages;
+      dobj["changed_ms"] = d.changed_ms;
+      dobj["metrics"] = metrics_view(d.metrics);
+      devices.push_back(std::move(dobj));
+    }
+    no["devices"] = std::move(devices);
+    nodes.push_back(std::move(no));
+  }
+  o["edge_nodes"] = std::move(nodes);
+  json::object hosts;
+  for (const auto& [id, state] : fleet.view().hosts()) hosts[id] = state;
+  o["hosts"] = std::move(hosts);
+  return o;
+}
+
 }  // namespace
 
 std::string plant_json(const Gateway& gateway, std::chrono::steady_clock::time_point now,
-                       std::chrono::system_clock::time_point wall) {
+                       std::chrono::system_clock::time_point wall, const FleetWatch* fleet) {
   const auto& config = gateway.config().gateway;
   const auto& image = gateway.image();
   json::object root;
@@ -174,6 +226,10 @@ std::string plant_json(const Gateway& gateway, std::chrono::steady_clock::time_p
   json::array listeners;
   for (const auto& l : gateway.listeners()) listeners.push_back(listener_view(l));
   root["listeners"] = std::move(listeners);
+  if (fleet)
+    root["fleet"] = fleet_view(*fleet);
+  else
+    root["fleet"] = nullptr;
   return json::serialize(root);
 }
 

@@ -12,11 +12,47 @@
 #include "gateway/lifecycle/reload_verdict.hpp"
 #include "gateway/modbus/modbus_rtu_port.hpp"
 #include "gateway/register_map/profile_units_document.hpp"
+#include "gateway/sparkplug/sparkplug_spy.hpp"
 #include "mapping/register_map_document.hpp"
+#include "mapping/yaml_reader.hpp"
 
 using namespace fieldgate;
 
 namespace {
+
+// The group to watch: from --broker and --group, else the configuration's sparkplug: section.
+int run_spy(const std::string& broker, const std::string& group, const std::string& config_path) {
+  sparkplug::SparkplugConfig c;
+  if (broker.empty()) {
+    auto config = load_config_or_report(config_path);
+    if (!config) return 1;
+    c = config->gateway.sparkplug;
+    if (c.group_id.empty()) {
+      std::cerr << "fieldgate sparkplug-spy: " << config_path
+                << " has no sparkplug: section; give --broker and --group\n";
+      return 2;
+    }
+    if (!group.empty()) c.group_id = group;
+  } else {
+    if (group.empty()) {
+      std::cerr << "fieldgate sparkplug-spy: --broker needs --group\n";
+      return 2;
+    }
+    // The section's own parser checks the URL and the ID, so both read as in a gateway file.
+    Diagnostics d;
+    YamlReader reader("sparkplug-spy", d);
+    YAML::Node node;
+    node["broker"] = broker;
+    node["group_id"] = group;
+    node["edge_node_id"] = "sparkplug-spy";
+    sparkplug::parse_sparkplug_config(reader, node, c);
+    if (!d.ok()) {
+      std::cerr << d.to_text();
+      return 2;
+    }
+  }
+  return sparkplug::run_sparkplug_spy(c, std::cout);
+}
 
 int run_check(const std::string& path) {
   auto config = load_config_or_report(path);
@@ -102,6 +138,13 @@ int main(int argc, char** argv) {
   auto* models = app.add_subcommand("models", "list the protocol families and their model options");
   std::string models_family;
   models->add_option("--options", models_family, "describe this family's model options");
+  auto* spy = app.add_subcommand(
+      "sparkplug-spy",
+      "decode a Sparkplug B group live: every birth, death, data and command on the broker");
+  std::string spy_broker, spy_group;
+  spy->add_option("--broker", spy_broker,
+                  "mqtt://HOST[:PORT] or mqtts://... (default: the configuration's broker)");
+  spy->add_option("--group", spy_group, "group ID (default: the configuration's)");
   auto* reload = app.add_subcommand(
       "reload", "check the running daemon's configuration, reload it, and wait for its verdict");
   ReloadOptions reload_options;
@@ -126,6 +169,7 @@ int main(int argc, char** argv) {
     return run_reload(reload_options);
   }
   if (*models) return run_models(models_family);
+  if (*spy) return run_spy(spy_broker, spy_group, config_path);
   if (*map && map_profile) {
     std::cout << write_axis_profile_document();
     if (map_path.empty()) return 0;

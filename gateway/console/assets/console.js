@@ -151,6 +151,61 @@ function renderAxes(plant) {
   }
 }
 
+function metricList(metrics) {
+  const dl = document.createElement("dl");
+  dl.className = "metrics";
+  for (const m of metrics) {
+    const dt = document.createElement("dt");
+    dt.textContent = m.name;
+    const dd = document.createElement("dd");
+    dd.textContent = m.value + (m.datatype ? " (" + m.datatype + ")" : "");
+    dl.append(dt, dd);
+  }
+  return dl;
+}
+
+function renderFleet(plant) {
+  const summary = document.getElementById("fleet-summary");
+  const body = document.querySelector("#fleet-nodes tbody");
+  const devices = document.getElementById("fleet-devices");
+  const f = plant.fleet;
+  if (!f) {
+    summary.textContent = "Sparkplug is off on this gateway (docs/sparkplug.md): no fleet to show.";
+    body.replaceChildren();
+    devices.replaceChildren();
+    return;
+  }
+  const hosts = Object.entries(f.hosts).map(([id, s]) => id + ": " + s).join(", ");
+  summary.textContent = "group " + f.group + " on " + f.broker + " (" +
+      (f.connected ? "connected" : "not connected") + ")" +
+      (hosts ? "; primary hosts " + hosts : "") +
+      (f.malformed ? "; " + f.malformed + " malformed message(s)" : "");
+  body.replaceChildren();
+  devices.replaceChildren();
+  for (const n of f.edge_nodes) {
+    const row = body.insertRow();
+    row.dataset.edge = n.name;
+    row.dataset.state = n.born ? "born" : "dead";
+    cell(row, n.name);
+    cell(row, n.born ? "born" : "dead", "state " + (n.born ? "state-online" : "state-offline"));
+    cell(row, n.bd_seq, "num");
+    cell(row, n.messages, "num");
+    cell(row, n.seq_gaps, "num");
+    cell(row, n.devices.filter((d) => d.born).length + " of " + n.devices.length, "num");
+    cell(row, n.metrics.length, "num");
+    for (const d of n.devices) {
+      const details = document.createElement("details");
+      details.dataset.device = n.name + "/" + d.name;
+      details.dataset.state = d.born ? "born" : "dead";
+      const s = document.createElement("summary");
+      s.textContent = n.name + "/" + d.name + ": " + (d.born ? "born" : "dead") + ", " +
+                      d.metrics.length + " metrics";
+      details.append(s, metricList(d.metrics));
+      devices.append(details);
+    }
+  }
+}
+
 function traceLine(f) {
   const t = new Date(f.t);
   const stamp = t.toISOString().replace("T", " ").replace("Z", "") +
@@ -193,6 +248,7 @@ function onPlant(event) {
   renderBuses(plant);
   renderAxes(plant);
   renderListeners(plant);
+  renderFleet(plant);
 }
 
 function connect(withTrace) {
@@ -236,4 +292,4 @@ document.getElementById("trace-download").addEventListener("click", () => {
 
 const initial = location.hash.slice(1);
 connect(initial === "bus");
-show(["plant", "axes", "bus"].includes(initial) ? initial : "plant");
+show(["plant", "axes", "bus", "fleet"].includes(initial) ? initial : "plant");
