@@ -142,6 +142,18 @@ json::object listener_view(const Gateway::Listener& l) {
     functions.push_back(std::move(fo));
   }
   o["functions"] = std::move(functions);
+  json::array clients;
+  for (const auto& c : l.server->clients()) {
+    json::object co;
+    co["address"] = c.address;
+    co["port"] = c.port;
+    co["connected_s"] = std::chrono::duration_cast<std::chrono::seconds>(c.connected_for).count();
+    co["idle_ms"] = std::chrono::duration_cast<std::chrono::milliseconds>(c.idle).count();
+    co["requests"] = c.requests;
+    co["exceptions"] = c.exceptions;
+    clients.push_back(std::move(co));
+  }
+  o["clients"] = std::move(clients);
   return o;
 }
 

@@ -36,8 +36,11 @@ Clock::time_point after(Clock::duration timeout) {
 }
 
 struct Session {
-  Session(tcp::socket s, asio::ip::address peer_address)
-      : socket(std::move(s)), peer(peer_address), timer(socket.get_executor()) {}
+  Session(tcp::socket s, asio::ip::address peer_address, std::uint16_t peer_port_number)
+      : socket(std::move(s)),
+        peer(peer_address),
+        peer_port(peer_port_number),
+        timer(socket.get_executor()) {}
 
   // The watchdog sleeps until the deadline; moving it earlier has to wake it.
   void set_deadline(Clock::time_point t) {
@@ -54,6 +57,10 @@ struct Session {
 
   tcp::socket socket;
   asio::ip::address peer;
+  std::uint16_t peer_port = 0;
+  Clock::time_point connected_at = Clock::now();
+  std::uint64_t requests = 0;
+  std::uint64_t exceptions = 0;
   asio::steady_timer timer;
   Clock::time_point deadline = Clock::time_point::max();
   // When the last complete request arrived (or the connection, before the first one).
@@ -122,6 +129,16 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
     return acceptor_.local_endpoint(ignored);
   }
   const ModbusTcpServerStats& stats() const { return stats_; }
+  std::vector<ModbusClientInfo> clients() const {
+    std::vector<ModbusClientInfo> out;
+    const auto now = Clock::now();
+    for (const auto& session : sessions_) {
+      if (session->closing) continue;
+      out.push_back({session->peer.to_string(), session->peer_port, now - session->connected_at,
+                     now - session->last_request, session->requests, session->exceptions});
+    }
+    return out;
+  }
 
  private:
   asio::awaitable<void> accept_loop(std::shared_ptr<Impl> self) {
@@ -151,7 +168,8 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
       // Replies are first written directly and only awaited when the send buffer is full.
       socket.non_blocking(true, ignored);
       // The session is listed at once, so the next accept already counts it.
-      sessions_.push_back(std::make_shared<Session>(std::move(socket), peer));
+      const auto port = socket.remote_endpoint(peer_ec).port();
+      sessions_.push_back(std::make_shared<Session>(std::move(socket), peer, port));
       ++stats_.clients_accepted;
       ++stats_.clients_connected;
       asio::co_spawn(executor_, run_session(self, std::prev(sessions_.end())), asio::detached);
@@ -248,8 +266,10 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
     }
     FunctionCounters& counters = stats_.functions[function];
     ++counters.requests;
+    ++s.requests;
     if (response[0] & 0x80) {
       ++counters.exceptions;
+      ++s.exceptions;
       const std::size_t code = response.size() > 1 ? response[1] : 0;
       ++counters.exception_codes[code < counters.exception_codes.size() ? code : 0];
     }
@@ -318,6 +338,9 @@ tcp::endpoint ModbusTcpServer::local_endpoint() const {
 }
 const ModbusTcpServerStats& ModbusTcpServer::stats() const {
   return impl_->stats();
+}
+std::vector<ModbusClientInfo> ModbusTcpServer::clients() const {
+  return impl_->clients();
 }
 
 }  // namespace fieldgate::modbus

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include <boost/asio/any_io_executor.hpp>
 #include <boost/asio/ip/tcp.hpp>
@@ -63,6 +65,16 @@ struct ModbusTcpServerStats {
   std::uint64_t framing_errors = 0;               // closed: bad MBAP protocol id or length
 };
 
+// One open client connection, for the console.
+struct ModbusClientInfo {
+  std::string address;
+  std::uint16_t port = 0;
+  std::chrono::steady_clock::duration connected_for{};
+  std::chrono::steady_clock::duration idle{};  // since its last complete request
+  std::uint64_t requests = 0;
+  std::uint64_t exceptions = 0;
+};
+
 // Every member function must be called on the executor's thread (as all the daemon is).
 class ModbusTcpServer {
  public:
@@ -89,6 +101,7 @@ class ModbusTcpServer {
 
   asio::ip::tcp::endpoint local_endpoint() const;
   const ModbusTcpServerStats& stats() const;
+  std::vector<ModbusClientInfo> clients() const;
 
  private:
   class Impl;

@@ -279,6 +279,11 @@ def main():
         text = browser.eval("document.getElementById('trace').textContent")
         check("the bus filter shows that bus alone",
               text and all(" ims-party-line " in l for l in text.splitlines()), text[:300])
+        clients = wait_for(lambda: browser.eval(
+            "[...document.querySelectorAll('#clients tbody tr')].map(r => [r.dataset.client,"
+            " +r.cells[4].textContent])"), 5)
+        check("the Modbus client is listed with its requests",
+              clients and any(requests >= 2 for _, requests in clients), clients)
         browser.screenshot("bus-trace")
 
         # 100 live views and one client that stopped reading: Modbus keeps answering.

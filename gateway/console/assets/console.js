@@ -75,6 +75,19 @@ function renderBuses(plant) {
 function renderListeners(plant) {
   const body = document.querySelector("#listeners tbody");
   body.replaceChildren();
+  const clients = document.querySelector("#clients tbody");
+  clients.replaceChildren();
+  for (const l of plant.listeners)
+    for (const c of l.clients || []) {
+      const row = clients.insertRow();
+      row.dataset.client = c.address + ":" + c.port;
+      cell(row, l.name);
+      cell(row, c.address + ":" + c.port);
+      cell(row, c.connected_s + " s", "num");
+      cell(row, age(c.idle_ms), "num");
+      cell(row, c.requests, "num");
+      cell(row, c.exceptions, "num");
+    }
   for (const l of plant.listeners) {
     const row = body.insertRow();
     cell(row, l.name);
