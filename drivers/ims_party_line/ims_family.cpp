@@ -14,6 +14,10 @@ namespace fieldgate {
 
 namespace {
 
+// A character every 5 ms leaves the echo of each time to come back even at 9600 baud: how a
+// fast chain is paced where the echo is not waited for.
+constexpr std::chrono::milliseconds kPacedCharGap{5};
+
 using Clock = std::chrono::steady_clock;
 
 char name_of(const NodeAddress& node) {
@@ -90,7 +94,11 @@ asio::awaitable<std::pair<std::optional<Reply>, std::string>> send_paced(Link& l
   const std::string line = ims::encode_line(name, request.command);
   const std::string_view with_name(line);
   const std::string_view without_name = with_name.substr(1);
-  const auto gap = std::chrono::microseconds(static_cast<int64_t>(2 * link.char_time_us()) + 1);
+  // After a failure the rest of the line still goes out, paced by time as the proof is: back
+  // to back, a unit stepping fast would overrun and could take a garbled line for another.
+  const auto gap =
+      std::max(std::chrono::microseconds(static_cast<int64_t>(2 * link.char_time_us()) + 1),
+               std::chrono::microseconds(kPacedCharGap));
   std::optional<Reply> failure;
   std::string echoed;
   for (std::size_t i = 0; i < line.size(); ++i) {
@@ -208,7 +216,7 @@ std::optional<AlignmentProof> ImsPartyLineFamily::alignment_proof(NodeContext& c
     // A unit stepping fast overruns on back-to-back characters (manual p.14): the proof is
     // paced like every other line, by time here (its echo is part of the answer): 5 ms leaves
     // the echo of each character time to come back even at 9600 baud.
-    for (auto& step : proof.steps) step.char_gap = std::chrono::milliseconds(5);
+    for (auto& step : proof.steps) step.char_gap = kPacedCharGap;
   }
   return proof;
 }

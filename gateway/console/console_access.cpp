@@ -47,17 +47,10 @@ std::optional<std::string> read_token_hash(const std::string& path, std::string&
 }
 
 std::string_view to_string(ConsoleAccess access) {
-  switch (access) {
-    case ConsoleAccess::allowed:
-      return "allowed";
-    case ConsoleAccess::address_refused:
-      return "address not on the console's allow list";
-    case ConsoleAccess::token_missing:
-      return "no token";
-    case ConsoleAccess::token_wrong:
-      return "wrong token";
-  }
-  return "?";
+  // In the order of the enumeration.
+  static constexpr std::string_view kText[] = {"allowed", "address not on the console's allow list",
+                                               "no token", "wrong token"};
+  return kText[static_cast<std::size_t>(access)];
 }
 
 ConsoleAccess check_console_access(const ConsoleConfig& config, const asio::ip::address& peer,

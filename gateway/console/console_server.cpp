@@ -15,6 +15,7 @@
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/console/console_access.hpp"
 #include "gateway/console/console_assets.hpp"
+#include "gateway/http/accept_loop.hpp"
 #include "gateway/lifecycle/log.hpp"
 
 namespace fieldgate {
@@ -255,37 +256,6 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& 
   stream.socket().shutdown(asio::ip::tcp::socket::shutdown_send, ignored);
 }
 
-asio::awaitable<void> serve(beast::tcp_stream stream, std::shared_ptr<ConsoleServer::State> state) {
-  try {
-    co_await exchange(stream, *state);
-  } catch (const std::exception& e) {
-    // Belongs to this connection alone.
-    log::debug("console: connection ended: {}", e.what());
-  }
-  --state->open;
-}
-
-asio::awaitable<void> accept_loop(std::shared_ptr<ConsoleServer::State> state) {
-  while (!state->stopped) {
-    auto [ec, socket] = co_await state->acceptor.async_accept(use_tuple);
-    if (state->stopped) co_return;
-    if (ec) {
-      // E.g. EMFILE: retrying at once would spin.
-      state->accept_retry.expires_after(std::chrono::milliseconds(100));
-      co_await state->accept_retry.async_wait(use_tuple);
-      continue;
-    }
-    if (state->open >= ConsoleServer::max_connections) {
-      // Closed at once: browsers must not take the descriptors the Modbus server needs.
-      ++state->stats.refused;
-      continue;
-    }
-    ++state->open;
-    asio::co_spawn(state->acceptor.get_executor(),
-                   serve(beast::tcp_stream(std::move(socket)), state), asio::detached);
-  }
-}
-
 }  // namespace
 
 ConsoleServer::ConsoleServer(asio::any_io_executor executor, ConsoleConfig config,
@@ -297,7 +267,11 @@ ConsoleServer::~ConsoleServer() {
 }
 
 void ConsoleServer::start() {
-  asio::co_spawn(state_->acceptor.get_executor(), accept_loop(state_), asio::detached);
+  asio::co_spawn(
+      state_->acceptor.get_executor(),
+      accept_http_connections(state_, ConsoleServer::max_connections,
+                              [](auto& stream, auto& state) { return exchange(stream, state); }),
+      asio::detached);
 }
 
 void ConsoleServer::stop() {

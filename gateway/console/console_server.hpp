@@ -17,6 +17,7 @@ namespace fieldgate {
 namespace asio = boost::asio;
 
 struct ConsoleServerStats {
+  std::uint64_t accepted = 0;
   std::uint64_t requests = 0;
   std::uint64_t refused = 0;          // closed at once: max_connections were open
   std::uint64_t denied = 0;           // 403: address or token

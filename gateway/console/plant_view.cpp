@@ -30,6 +30,16 @@ std::string link_of(const BusConfig& bus) {
   return {};
 }
 
+// The counters buses and nodes both keep, under the same names.
+template <typename Counters>
+void put_exchange_counters(json::object& o, const Counters& c) {
+  o["transactions"] = c.transactions;
+  o["timeouts"] = c.timeouts;
+  o["errors"] = c.errors;
+  o["retries"] = c.retries;
+  o["unreachable"] = c.unreachable;
+}
+
 json::object bus_view(const Bus& bus) {
   const BusCounters& c = bus.counters();
   const BusConfig& config = bus.config();
@@ -38,10 +48,7 @@ json::object bus_view(const Bus& bus) {
   o["protocol"] = config.protocol;
   o["link"] = link_of(config);
   o["link_up"] = c.link_up;
-  o["transactions"] = c.transactions;
-  o["timeouts"] = c.timeouts;
-  o["errors"] = c.errors;
-  o["retries"] = c.retries;
+  put_exchange_counters(o, c);
   o["reconnects"] = c.reconnects;
   o["resyncs"] = c.resyncs;
   o["alignment_proofs"] = c.alignment_proofs;
@@ -64,11 +71,7 @@ json::object node_view(const BusConfig& bus, const NodeConfig& config, const Nod
   o["state"] = std::string(to_string(image.state));
   // Why a node that is not online is not: the last failure as the log words it.
   o["reason"] = image.state == NodeState::online ? std::string() : c.last_error_text;
-  o["transactions"] = c.transactions;
-  o["timeouts"] = c.timeouts;
-  o["unreachable"] = c.unreachable;
-  o["errors"] = c.errors;
-  o["retries"] = c.retries;
+  put_exchange_counters(o, c);
   o["unknown_writes"] = c.unknown_writes;
   o["consecutive_timeouts"] = c.consecutive_timeouts;
   if (c.ever_good)

@@ -9,6 +9,7 @@
 #include <boost/beast/http.hpp>
 
 #include "gateway/bus/wire_trace.hpp"
+#include "gateway/http/accept_loop.hpp"
 
 namespace fieldgate {
 
@@ -71,38 +72,6 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, MetricsServer::State& 
   stream.socket().shutdown(asio::ip::tcp::socket::shutdown_send, ignored);
 }
 
-// The accept loop counted this connection in state->open already.
-asio::awaitable<void> serve(beast::tcp_stream stream, std::shared_ptr<MetricsServer::State> state) {
-  try {
-    co_await exchange(stream, *state);
-  } catch (...) {
-    // Belongs to this connection alone.
-  }
-  --state->open;
-}
-
-asio::awaitable<void> accept_loop(std::shared_ptr<MetricsServer::State> state) {
-  while (!state->stopped) {
-    auto [ec, socket] = co_await state->acceptor.async_accept(use_tuple);
-    if (state->stopped) co_return;
-    if (ec) {
-      // E.g. EMFILE: retrying at once would spin; stop() closes the acceptor meanwhile.
-      state->accept_retry.expires_after(std::chrono::milliseconds(100));
-      co_await state->accept_retry.async_wait(use_tuple);
-      continue;
-    }
-    if (state->open >= MetricsServer::max_connections) {
-      // Closed at once: stalled scrapers must not take the descriptors the Modbus server needs.
-      ++state->stats.refused;
-      continue;
-    }
-    ++state->stats.accepted;
-    ++state->open;
-    asio::co_spawn(state->acceptor.get_executor(),
-                   serve(beast::tcp_stream(std::move(socket)), state), asio::detached);
-  }
-}
-
 }  // namespace
 
 MetricsServer::MetricsServer(asio::any_io_executor executor, asio::ip::tcp::endpoint endpoint,
@@ -114,7 +83,11 @@ MetricsServer::~MetricsServer() {
 }
 
 void MetricsServer::start() {
-  asio::co_spawn(state_->acceptor.get_executor(), accept_loop(state_), asio::detached);
+  asio::co_spawn(
+      state_->acceptor.get_executor(),
+      accept_http_connections(state_, MetricsServer::max_connections,
+                              [](auto& stream, auto& state) { return exchange(stream, state); }),
+      asio::detached);
 }
 
 void MetricsServer::stop() {

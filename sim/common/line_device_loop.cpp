@@ -234,7 +234,10 @@ void LineExchange::journal(SimTime now, std::string_view request, std::string_vi
 
 std::string LineExchange::garbage(std::string_view reply) {
   // Same length as the real reply and still terminated, so the host sees a complete line it
-  // cannot parse; `truncate` covers the missing-terminator case.
+  // cannot parse; `truncate` covers the missing-terminator case. No blanks (a host may take
+  // them for padding: a garbled Whedco prompt " *" would be a prompt), and a first byte above
+  // ASCII, which no reply of these families carries: garbage that happened to spell a valid
+  // reply would be no garbage.
   std::string out;
   std::string_view body = reply;
   std::string_view terminator;
@@ -246,8 +249,9 @@ std::string LineExchange::garbage(std::string_view reply) {
   const std::size_t length = std::max<std::size_t>(1, body.size());
   while (out.size() < length) {
     const char c = static_cast<char>(byte(random_));
-    if (options_.terminators.find(c) == std::string::npos) out += c;
+    if (options_.terminators.find(c) == std::string::npos && c != ' ' && c != '\t') out += c;
   }
+  out[0] = static_cast<char>(static_cast<unsigned char>(out[0]) | 0x80);
   out += terminator;
   return out;
 }

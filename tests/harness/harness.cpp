@@ -128,6 +128,22 @@ bool wait_until(const std::function<bool()>& pred, std::chrono::milliseconds tim
   return pred();
 }
 
+std::optional<std::string> control_answer(ChildProcess& sim, const std::string& line,
+                                          const std::string& tag,
+                                          std::chrono::milliseconds timeout) {
+  const auto answers = [&] {
+    const std::string log = sim.log();
+    std::size_t n = 0;
+    for (auto at = log.find(tag); at != std::string::npos; at = log.find(tag, at + 1)) ++n;
+    return n;
+  };
+  const std::size_t before = answers();
+  sim.send_line(line);
+  if (!wait_until([&] { return answers() > before; }, timeout)) return std::nullopt;
+  const std::string log = sim.log();
+  return log.substr(log.rfind(tag));
+}
+
 ModbusClient::ModbusClient(const std::string& host, int port) {
   ctx_ = modbus_new_tcp(host.c_str(), port);
   if (!ctx_ || modbus_connect(ctx_) != 0)

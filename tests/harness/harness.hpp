@@ -52,6 +52,12 @@ class ChildProcess {
 bool wait_until(const std::function<bool()>& pred,
                 std::chrono::milliseconds timeout = std::chrono::seconds(10));
 
+// Sends a control line to a simulator and waits for its answer, a log line holding `tag` (one
+// more than before); returns the log from the last `tag` on, or nullopt if none came in time.
+std::optional<std::string> control_answer(
+    ChildProcess& sim, const std::string& line, const std::string& tag,
+    std::chrono::milliseconds timeout = std::chrono::seconds(5));
+
 struct ModbusResult {
   std::vector<uint16_t> values;
   int exception = 0;  // Modbus exception code, 0 on success, -1 on another error

@@ -25,6 +25,8 @@ import websocket
 import yaml
 from pymodbus.client import ModbusTcpClient
 
+from process_helpers import free_port, stop_processes, wait_for
+
 FIELDGATE, BUILD, MODELS, DEMO_YAML, OUT = sys.argv[1:6]
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 # The simulators behind the demo's serial buses, as scripts/demo starts them, by link name.
@@ -46,22 +48,6 @@ def check(name, cond, detail=""):
     if not cond:
         failures.append(name)
     return cond
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_for(pred, timeout=15.0, step=0.1):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        r = pred()
-        if r:
-            return r
-        time.sleep(step)
-    return pred()
 
 
 class Plant:
@@ -106,13 +92,7 @@ class Plant:
         return open(self.log_path).read()
 
     def stop(self):
-        for p in [self.daemon, *self.sims.values()]:
-            if p.poll() is None:
-                p.terminate()
-                try:
-                    p.wait(10)
-                except subprocess.TimeoutExpired:
-                    p.kill()
+        stop_processes(self.daemon, *self.sims.values())
 
 
 class Browser:
@@ -173,11 +153,7 @@ class Browser:
         try:
             self.ws.close()
         finally:
-            self.proc.terminate()
-            try:
-                self.proc.wait(10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
+            stop_processes(self.proc)
 
 
 ROW_STATES = ("Object.fromEntries([...document.querySelectorAll('#nodes tbody tr')]"

@@ -25,6 +25,7 @@ mode, FIELDGATE, SIM, MODELS, PB2 = sys.argv[1:6]
 BUILD, DEMO_YAML = (sys.argv[6:8] + [None, None])[:2]
 sys.path.insert(0, PB2)
 import paho.mqtt.client as mqtt  # noqa: E402
+from process_helpers import free_port, stop_processes, wait_for  # noqa: E402
 import yaml  # noqa: E402
 import sparkplug_b_pb2  # noqa: E402
 
@@ -38,33 +39,6 @@ def check(name, cond, detail=""):
     if not cond:
         failures.append(name)
     return cond
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def wait_for(pred, timeout=15.0):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        r = pred()
-        if r:
-            return r
-        time.sleep(0.05)
-    return pred()
-
-
-def stop_processes(*processes):
-    """Terminates each process still running; one that does not exit within 10 s is killed."""
-    for p in processes:
-        if p.poll() is None:
-            p.terminate()
-            try:
-                p.wait(10)
-            except subprocess.TimeoutExpired:
-                p.kill()
 
 
 class Broker:

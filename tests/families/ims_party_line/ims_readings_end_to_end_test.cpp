@@ -116,20 +116,10 @@ class ImsLateEndToEnd : public PlantFixture<::testing::TestWithParam<LateCase>> 
  protected:
   // The sim's `status NAME` outputs field, after a control round trip.
   int sim_outputs(char name) {
-    const std::string tag = std::string("ok ") + name + " position=";
-    const auto count = [&] {
-      const std::string log = plant_->sim().log();
-      std::size_t n = 0;
-      for (auto p = log.find(tag); p != std::string::npos; p = log.find(tag, p + 1)) ++n;
-      return n;
-    };
-    const std::size_t before = count();
-    plant_->sim().send_line(std::string("status ") + name);
-    if (!wait_until([&] { return count() > before; }, 5s)) return -1;
-    const std::string log = plant_->sim().log();
-    const std::string line = log.substr(log.rfind(tag));
+    const auto answer = control_answer(plant_->sim(), std::string("status ") + name,
+                                       std::string("ok ") + name + " position=");
     std::smatch m;
-    if (!std::regex_search(line, m, std::regex(" outputs=([0-9]+)"))) return -1;
+    if (!answer || !std::regex_search(*answer, m, std::regex(" outputs=([0-9]+)"))) return -1;
     return std::stoi(m[1]);
   }
 };
