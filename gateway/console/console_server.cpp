@@ -267,19 +267,13 @@ ConsoleServer::~ConsoleServer() {
 }
 
 void ConsoleServer::start() {
-  asio::co_spawn(
-      state_->acceptor.get_executor(),
-      accept_http_connections(state_, ConsoleServer::max_connections,
-                              [](auto& stream, auto& state) { return exchange(stream, state); }),
-      asio::detached);
+  start_accepting(state_, max_connections,
+                  [](auto& stream, auto& state) { return exchange(stream, state); });
 }
 
 void ConsoleServer::stop() {
   if (state_->stopped) return;
-  state_->stopped = true;
-  boost::system::error_code ignored;
-  state_->acceptor.close(ignored);
-  state_->accept_retry.cancel();
+  stop_accepting(*state_);
   if (state_->trace_streams > 0) WireTrace::set_observer({});
   state_->trace_streams = 0;
 }

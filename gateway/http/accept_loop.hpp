@@ -55,4 +55,21 @@ asio::awaitable<void> accept_http_connections(std::shared_ptr<State> state, std:
   }
 }
 
+// Starts accept_http_connections on the acceptor's executor.
+template <typename State, typename Exchange>
+void start_accepting(std::shared_ptr<State> state, std::size_t max_open, Exchange exchange) {
+  auto executor = state->acceptor.get_executor();
+  asio::co_spawn(executor, accept_http_connections(std::move(state), max_open, exchange),
+                 asio::detached);
+}
+
+// Ends the accept loop: connections being served finish on their own deadlines.
+template <typename State>
+void stop_accepting(State& state) {
+  state.stopped = true;
+  boost::system::error_code ignored;
+  state.acceptor.close(ignored);
+  state.accept_retry.cancel();
+}
+
 }  // namespace fieldgate

@@ -83,18 +83,12 @@ MetricsServer::~MetricsServer() {
 }
 
 void MetricsServer::start() {
-  asio::co_spawn(
-      state_->acceptor.get_executor(),
-      accept_http_connections(state_, MetricsServer::max_connections,
-                              [](auto& stream, auto& state) { return exchange(stream, state); }),
-      asio::detached);
+  start_accepting(state_, max_connections,
+                  [](auto& stream, auto& state) { return exchange(stream, state); });
 }
 
 void MetricsServer::stop() {
-  state_->stopped = true;
-  boost::system::error_code ignored;
-  state_->acceptor.close(ignored);
-  state_->accept_retry.cancel();
+  stop_accepting(*state_);
 }
 
 const MetricsServerStats& MetricsServer::stats() const {

@@ -25,31 +25,11 @@ import websocket
 import yaml
 from pymodbus.client import ModbusTcpClient
 
-from process_helpers import free_port, stop_processes, wait_for
+from process_helpers import DEMO_SIMULATORS, check, failures, free_port, stop_processes, wait_for
 
 FIELDGATE, BUILD, MODELS, DEMO_YAML, OUT = sys.argv[1:6]
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-# The simulators behind the demo's serial buses, as scripts/demo starts them, by link name.
-SIMULATORS = {
-    "copley0": ("copley/fieldgate-sim-copley", ["--nodes", "0,3,5", "--baud", "115200"]),
-    "ims0": ("ims/fieldgate-sim-ims", ["--axes", "A,B,C", "--baud", "9600"]),
-    "centent0": ("centent/fieldgate-sim-centent",
-                 ["--units", "0,1,2", "--baud", "9600", "--hop-delay-us", "500", "--power-up"]),
-    "techno-c142": ("techno/fieldgate-sim-techno", ["--variant", "c142", "--baud", "19200"]),
-    "techno-it116g": ("techno/fieldgate-sim-techno", ["--variant", "it116g", "--baud", "9600"]),
-    "whedco0": ("whedco/fieldgate-sim-whedco", ["--units", "4", "--axes", "XY", "--baud", "38400"]),
-}
 ABSENT = {"axis_7"}  # configured in the demo, on no simulated bus
-failures = []
-
-
-def check(name, cond, detail=""):
-    print(("ok: " if cond else "FAIL: ") + name + ("" if cond else f" ({detail})"), flush=True)
-    if not cond:
-        failures.append(name)
-    return cond
-
-
 class Plant:
     """The demo's serial buses behind their simulators, and the daemon with its console."""
 
@@ -61,7 +41,7 @@ class Plant:
         self.nodes = []
         for bus in buses:
             link = os.path.basename(bus["serial"]["device"])
-            path, args = SIMULATORS[link]
+            path, args = DEMO_SIMULATORS[link]
             bus["serial"]["device"] = os.path.join(d, link)
             log = open(os.path.join(d, link + ".log"), "w")
             self.sims[link] = subprocess.Popen(

@@ -32,3 +32,29 @@ def stop_processes(*processes):
                 p.wait(10)
             except subprocess.TimeoutExpired:
                 p.kill()
+
+
+# The checks that failed; a test exits non-zero if any did.
+failures = []
+
+
+def check(name, cond, detail=""):
+    """Prints the check's outcome; a failed one is recorded in failures."""
+    print(("ok: " if cond else "FAIL: ") + name + ("" if cond else f" ({detail})"), flush=True)
+    if not cond:
+        failures.append(name)
+    return cond
+
+
+# The simulators behind the demo plant's serial buses (config/demo.yaml), started as
+# scripts/demo starts them, by the name of their link (the bus's device): the program under the
+# build's sim/ and its arguments.
+DEMO_SIMULATORS = {
+    "copley0": ("copley/fieldgate-sim-copley", ["--nodes", "0,3,5", "--baud", "115200"]),
+    "ims0": ("ims/fieldgate-sim-ims", ["--axes", "A,B,C", "--baud", "9600"]),
+    "centent0": ("centent/fieldgate-sim-centent",
+                 ["--units", "0,1,2", "--baud", "9600", "--hop-delay-us", "500", "--power-up"]),
+    "techno-c142": ("techno/fieldgate-sim-techno", ["--variant", "c142", "--baud", "19200"]),
+    "techno-it116g": ("techno/fieldgate-sim-techno", ["--variant", "it116g", "--baud", "9600"]),
+    "whedco0": ("whedco/fieldgate-sim-whedco", ["--units", "4", "--axes", "XY", "--baud", "38400"]),
+}

@@ -25,22 +25,13 @@ mode, FIELDGATE, SIM, MODELS, PB2 = sys.argv[1:6]
 BUILD, DEMO_YAML = (sys.argv[6:8] + [None, None])[:2]
 sys.path.insert(0, PB2)
 import paho.mqtt.client as mqtt  # noqa: E402
-from process_helpers import free_port, stop_processes, wait_for  # noqa: E402
+from process_helpers import (DEMO_SIMULATORS, check, failures, free_port,  # noqa: E402
+                             stop_processes, wait_for)
 import yaml  # noqa: E402
 import sparkplug_b_pb2  # noqa: E402
 
 MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
 GROUP = "plant"
-failures = []
-
-
-def check(name, cond, detail=""):
-    print(("ok: " if cond else "FAIL: ") + name + ("" if cond else f" ({detail})"), flush=True)
-    if not cond:
-        failures.append(name)
-    return cond
-
-
 class Broker:
     def __init__(self, d, port, conf=None):
         self.port = port
@@ -503,17 +494,6 @@ def fleet(d):
         end_session(host, broker, gws)
 
 
-# The simulators behind the demo plant's serial buses, started as scripts/demo starts them, by
-# the name of their link (the bus's device in config/demo.yaml).
-DEMO_SIMULATORS = {
-    "copley0": ("copley/fieldgate-sim-copley", ["--nodes", "0,3,5", "--baud", "115200"]),
-    "ims0": ("ims/fieldgate-sim-ims", ["--axes", "A,B,C", "--baud", "9600"]),
-    "centent0": ("centent/fieldgate-sim-centent",
-                 ["--units", "0,1,2", "--baud", "9600", "--hop-delay-us", "500", "--power-up"]),
-    "techno-c142": ("techno/fieldgate-sim-techno", ["--variant", "c142", "--baud", "19200"]),
-    "techno-it116g": ("techno/fieldgate-sim-techno", ["--variant", "it116g", "--baud", "9600"]),
-    "whedco0": ("whedco/fieldgate-sim-whedco", ["--units", "4", "--axes", "XY", "--baud", "38400"]),
-}
 # The demo plant split between three edge nodes, by bus. The CANopen bus is left out: its
 # simulator needs a vcan interface, which the CI machine does not have outside QEMU.
 DEMO_SPLIT = {"gw1": ["copley-rs232", "techno-c142"],
