@@ -96,20 +96,25 @@ std::string percent_decoded(std::string_view text) {
 
 }  // namespace
 
-std::optional<std::string> request_token(std::string_view authorization, std::string_view target) {
-  constexpr std::string_view kBearer = "Bearer ";
-  if (authorization.starts_with(kBearer)) return std::string(authorization.substr(kBearer.size()));
+std::optional<std::string> query_parameter(std::string_view target, std::string_view key) {
   const auto query = target.find('?');
   if (query == std::string_view::npos) return std::nullopt;
   std::string_view rest = target.substr(query + 1);
   while (!rest.empty()) {
     const auto amp = rest.find('&');
     const std::string_view pair = rest.substr(0, amp);
-    if (pair.starts_with("token=")) return percent_decoded(pair.substr(6));
+    if (pair.size() > key.size() && pair.starts_with(key) && pair[key.size()] == '=')
+      return percent_decoded(pair.substr(key.size() + 1));
     if (amp == std::string_view::npos) break;
     rest.remove_prefix(amp + 1);
   }
   return std::nullopt;
+}
+
+std::optional<std::string> request_token(std::string_view authorization, std::string_view target) {
+  constexpr std::string_view kBearer = "Bearer ";
+  if (authorization.starts_with(kBearer)) return std::string(authorization.substr(kBearer.size()));
+  return query_parameter(target, "token");
 }
 
 }  // namespace fieldgate

@@ -26,6 +26,9 @@ std::string_view to_string(ConsoleAccess access);
 ConsoleAccess check_console_access(const ConsoleConfig& config, const asio::ip::address& peer,
                                    std::optional<std::string_view> token);
 
+// The value of `key` in the target's query, percent-decoded; nullopt if it is not there.
+std::optional<std::string> query_parameter(std::string_view target, std::string_view key);
+
 // The token a request carries: `Authorization: Bearer TOKEN`, else `token=` in the query (an
 // EventSource cannot set headers).
 std::optional<std::string> request_token(std::string_view authorization, std::string_view target);

@@ -167,20 +167,6 @@ std::string_view path_of(std::string_view target) {
   return target.substr(0, target.find('?'));
 }
 
-bool query_flag(std::string_view target, std::string_view flag) {
-  const auto q = target.find('?');
-  if (q == std::string_view::npos) return false;
-  std::string_view rest = target.substr(q + 1);
-  while (!rest.empty()) {
-    const auto amp = rest.find('&');
-    const auto pair = rest.substr(0, amp);
-    if (pair == std::string(flag) + "=1") return true;
-    if (amp == std::string_view::npos) break;
-    rest.remove_prefix(amp + 1);
-  }
-  return false;
-}
-
 asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& state) {
   beast::flat_buffer buffer(8192);
   http::request_parser<http::empty_body> parser;
@@ -225,7 +211,7 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& 
       res.set(http::field::retry_after, "5");
       res.body() = "too many live views open\n";
     } else {
-      const bool with_trace = query_flag(target, "trace");
+      const bool with_trace = query_parameter(target, "trace") == "1";
       ++state.streams;
       ++state.stats.streams;
       if (with_trace) state.watch_trace(true);
