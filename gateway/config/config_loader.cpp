@@ -13,6 +13,8 @@
 
 #include <boost/asio/ip/address.hpp>
 
+#include "drivers/protocol_file/protocol_file_family.hpp"
+#include "drivers/protocol_file/protocol_loader.hpp"
 #include "gateway/bus/poll_budget.hpp"
 #include "gateway/config/device_writes.hpp"
 #include "gateway/config/modbus_rtu_config.hpp"
@@ -89,10 +91,10 @@ class ConfigParser {
   std::optional<GatewayConfig> parse(const YAML::Node& root) {
     if (!root.IsDefined()) return std::nullopt;
     if (!r_.expect_map(root, "gateway configuration")) return std::nullopt;
-    r_.reject_unknown_keys(
-        root,
-        {"modbus", "listeners", "modbus_rtu", "metrics", "console", "models", "buses", "sparkplug"},
-        "gateway configuration");
+    r_.reject_unknown_keys(root,
+                           {"modbus", "listeners", "modbus_rtu", "metrics", "console", "models",
+                            "protocols", "buses", "sparkplug"},
+                           "gateway configuration");
     GatewayConfig config;
     config.file = r_.file();
     if (root["modbus"]) parse_modbus(root["modbus"], config.modbus, "modbus");
@@ -106,6 +108,8 @@ class ConfigParser {
       sparkplug::parse_sparkplug_config(r_, root["sparkplug"], config.sparkplug);
     parse_model_dirs(root["models"], config);
     for (const auto& dir : config.model_dirs) library_.load_directory(dir, r_.diagnostics());
+    parse_protocol_dirs(root["protocols"], config);
+    for (const auto& dir : config.protocol_dirs) protocols_.load_directory(dir, r_.diagnostics());
     if (auto buses = r_.require(root, "buses", "gateway configuration");
         buses && r_.expect_sequence(*buses, "buses")) {
       for (const auto& bus : *buses) parse_bus(bus, config);
@@ -364,29 +368,41 @@ class ConfigParser {
   }
 
   void parse_model_dirs(const YAML::Node& node, GatewayConfig& config) {
+    parse_dirs(node, "models", config.model_dirs, true);
+  }
+
+  // Protocol files: a `protocols/` folder beside the configuration is read when it exists.
+  void parse_protocol_dirs(const YAML::Node& node, GatewayConfig& config) {
+    parse_dirs(node, "protocols", config.protocol_dirs, false);
+  }
+
+  void parse_dirs(const YAML::Node& node, std::string_view key, std::vector<std::string>& dirs,
+                  bool default_required) {
     const fs::path base = fs::path(r_.file()).parent_path();
     auto add = [&](const YAML::Node& item) {
-      if (auto dir = expand(item, "models")) {
+      if (auto dir = expand(item, key)) {
         fs::path p(*dir);
         const bool relative = p.is_relative();
         if (relative) p = base / p;
         std::error_code ec;
         if (!fs::is_directory(p, ec)) {
-          r_.error(item, fmt::format("models: no directory {}{}", p.lexically_normal().string(),
+          r_.error(item, fmt::format("{}: no directory {}{}", key, p.lexically_normal().string(),
                                      relative ? fmt::format(" ('{}' is resolved from the directory "
                                                             "of this file)",
                                                             *dir)
                                               : std::string()));
           return;
         }
-        config.model_dirs.push_back(p.lexically_normal().string());
+        dirs.push_back(p.lexically_normal().string());
       }
     };
     if (!node) {
-      config.model_dirs.push_back((base / "models").lexically_normal().string());
+      const fs::path fallback = (base / std::string(key)).lexically_normal();
+      std::error_code ec;
+      if (default_required || fs::is_directory(fallback, ec)) dirs.push_back(fallback.string());
     } else if (node.IsScalar()) {
       add(node);
-    } else if (r_.expect_sequence(node, "models")) {
+    } else if (r_.expect_sequence(node, key)) {
       for (const auto& item : node) add(item);
     }
   }
@@ -530,9 +546,13 @@ class ConfigParser {
       if (auto s = r_.string(*p, where + " protocol")) {
         bus.protocol = *s;
         bus.family = make_family(*s);
+        if (!bus.family)
+          if (auto spec = protocols_.find(*s))
+            bus.family = protocol_file::make_protocol_file_family(std::move(spec));
         if (!bus.family) {
           std::string known;
           for (const auto& f : family_names()) known += (known.empty() ? "" : ", ") + f;
+          for (const auto& f : protocols_.all()) known += ", " + f->name + " (protocol file)";
           r_.error(*p, fmt::format("{}: unknown protocol '{}' (known: {})", where, *s, known));
         }
       }
@@ -867,6 +887,7 @@ class ConfigParser {
 
   YamlReader& r_;
   ModelLibrary library_;
+  protocol_file::ProtocolLibrary protocols_;
   std::set<std::string> node_names_;
   struct UnitOwner {
     std::string node;

@@ -155,6 +155,7 @@ struct GatewayConfig {
   std::optional<ModbusRtuConfig> modbus_rtu;
   sparkplug::SparkplugConfig sparkplug;
   std::vector<std::string> model_dirs;
+  std::vector<std::string> protocol_dirs;  // protocol files (docs/protocol-files.md)
   std::vector<BusConfig> buses;
   std::vector<std::string> warnings;  // e.g. poll budgets that cannot be met
 

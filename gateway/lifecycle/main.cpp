@@ -1,9 +1,12 @@
+#include <fmt/ranges.h>
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <filesystem>
 #include <iostream>
 
 #include "drivers/protocol_family.hpp"
+#include "drivers/protocol_file/protocol_loader.hpp"
 #include "gateway/config/config_loader.hpp"
 #include "gateway/config/device_writes.hpp"
 #include "gateway/lifecycle/daemon.hpp"
@@ -87,13 +90,52 @@ std::vector<ListenerMap> listener_maps(const LoadedConfig& config) {
   return maps;
 }
 
-int run_models(const std::string& family) {
+// Protocol files of the given directories; a directory that is not there is said, not an error
+// (the default one exists only where the package is installed).
+void list_protocol_files(const std::vector<std::string>& dirs) {
+  for (const auto& dir : dirs) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(dir, ec)) {
+      std::cout << fmt::format("Protocol files: no directory {}\n", dir);
+      continue;
+    }
+    Diagnostics d;
+    protocol_file::ProtocolLibrary library;
+    library.load_directory(dir, d);
+    std::cout << fmt::format("Protocol files in {} (a bus's protocol, a model's family):\n", dir);
+    for (const auto& spec : library.all())
+      std::cout << fmt::format("  {} ({} command(s), {}): {}\n", spec->name, spec->commands.size(),
+                               std::filesystem::path(spec->file).filename().string(),
+                               spec->description);
+    if (!d.ok()) std::cout << "  refused (fieldgate check --protocol FILE):\n" << d.to_text();
+  }
+}
+
+int run_check_protocols(const std::vector<std::string>& files) {
+  int status = 0;
+  for (const auto& file : files) {
+    Diagnostics d;
+    const auto spec = protocol_file::load_protocol_file(file, d);
+    if (!spec) {
+      std::cerr << d.to_text();
+      status = 1;
+      continue;
+    }
+    std::cout << fmt::format("{}: ok (protocol {}, {} command(s), alignment proof {})\n", file,
+                             spec->name, spec->commands.size(),
+                             fmt::join(spec->alignment, " then "));
+  }
+  return status;
+}
+
+int run_models(const std::string& family, const std::vector<std::string>& protocol_dirs) {
   if (family.empty()) {
     std::cout << "Families (fieldgate models --options FAMILY describes a family's model "
                  "options):\n";
     for (const auto& name : family_names())
       std::cout << fmt::format("  {} ({} model option(s))\n", name,
                                make_family(name)->model_options().size());
+    list_protocol_files(protocol_dirs);
     return 0;
   }
   const auto names = family_names();
@@ -125,6 +167,9 @@ int main(int argc, char** argv) {
   auto* check_given = check->add_option("config", check_path, "gateway configuration (YAML)")
                           ->capture_default_str();
   auto* check_named = check->add_option("-c,--config", check_path, "the same, by name");
+  std::vector<std::string> check_protocols;
+  check->add_option("--protocol", check_protocols,
+                    "check protocol files alone (docs/protocol-files.md), not a configuration");
   auto* map = app.add_subcommand("map", "write the register map document for the PLC programmer");
   std::string map_path = FIELDGATE_DEFAULT_CONFIG;
   std::string map_format = "md";
@@ -138,6 +183,9 @@ int main(int argc, char** argv) {
   auto* models = app.add_subcommand("models", "list the protocol families and their model options");
   std::string models_family;
   models->add_option("--options", models_family, "describe this family's model options");
+  std::vector<std::string> models_protocols{FIELDGATE_PROTOCOL_DIR};
+  models->add_option("--protocols", models_protocols, "list the protocol files of this directory")
+      ->capture_default_str();
   auto* spy = app.add_subcommand(
       "sparkplug-spy",
       "decode a Sparkplug B group live: every birth, death, data and command on the broker");
@@ -168,7 +216,7 @@ int main(int argc, char** argv) {
         std::chrono::milliseconds(static_cast<long long>(reload_timeout * 1000));
     return run_reload(reload_options);
   }
-  if (*models) return run_models(models_family);
+  if (*models) return run_models(models_family, models_protocols);
   if (*spy) return run_spy(spy_broker, spy_group, config_path);
   if (*map && map_profile) {
     std::cout << write_axis_profile_document();
@@ -192,6 +240,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (verbose) log::set_verbosity(log::Level::debug);
+  if (*check && !check_protocols.empty()) return run_check_protocols(check_protocols);
   if (*check) return run_check(check_path);
   auto config = load_config_or_report(config_path);
   if (!config) {

@@ -1,0 +1,55 @@
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "drivers/link.hpp"
+#include "drivers/protocol_family.hpp"
+#include "drivers/protocol_file/protocol_spec.hpp"
+
+namespace fieldgate::protocol_file {
+
+// The device code of a command whose confirmation shows that it did not take (a read-back that
+// differs, a state it does not lead to); the device's own codes are its error table's.
+inline constexpr int64_t kNotTaken = 0xFFFA;
+
+// The I/O-free parts of one exchange with a protocol-file device (drivers/README.md, "The shape
+// of a stream family's exchange"): what goes on the wire, how a reply is framed, and what a
+// framed reply means. The family's transact() is the glue.
+
+// The request's bytes: the command with its arguments and the node's address (or the
+// broadcast prefix), the checksum, the send terminator. nullopt with `why` for an argument the
+// command's field cannot carry.
+std::optional<std::string> encode_request(const ProtocolSpec& spec, const CommandSpec& command,
+                                          const std::vector<int64_t>& arguments,
+                                          std::string_view address, std::string& why);
+
+// Frames one reply: the echo of `request` first where the protocol echoes (always; or when
+// the input starts with it, optional), then the reply up to its terminator or fixed length.
+FrameSplitter reply_splitter(const ProtocolSpec& spec, std::string request);
+
+// What a framed reply is.
+struct ReplyReading {
+  enum class Kind { reply, unsolicited } kind = Kind::reply;
+  Reply reply;                    // when kind is reply: ok (with values), device_error, garbled
+  std::vector<Capture> captures;  // of an ok reply (and of a device error), for confirmations
+  std::string line;               // the reply without echo, prefix, checksum and terminator
+};
+
+ReplyReading interpret_reply(const ProtocolSpec& spec, const CommandSpec& command,
+                             std::string_view request, std::string_view frame,
+                             std::string_view address);
+
+// Whether a confirmation's reply shows that the confirmed command was taken; the reason if
+// not (a device error keeps the confirmation's code and text).
+Reply judge_confirmation(const ProtocolSpec& spec, const CommandSpec& confirmed,
+                         const std::vector<int64_t>& arguments, const ConfirmStep& step,
+                         const ReplyReading& confirmation);
+
+// The meaning of a device error code from the protocol's error table, if it has one.
+std::string error_text(const ProtocolSpec& spec, const Capture& code);
+
+}  // namespace fieldgate::protocol_file

@@ -1,0 +1,630 @@
+#include "drivers/protocol_file/protocol_loader.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <set>
+
+#include "drivers/printable_bytes.hpp"
+#include "drivers/protocol_family.hpp"
+#include "mapping/yaml_reader.hpp"
+
+namespace fieldgate::protocol_file {
+
+namespace {
+
+bool is_protocol_name(std::string_view s) {
+  if (s.empty() || !(s[0] >= 'a' && s[0] <= 'z')) return false;
+  return std::all_of(s.begin(), s.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-';
+  });
+}
+
+class ProtocolParser {
+ public:
+  explicit ProtocolParser(YamlReader& reader) : r_(reader) {}
+
+  ProtocolSpecPtr parse(const YAML::Node& root) {
+    if (!root.IsDefined()) return nullptr;
+    if (!r_.expect_map(root, "protocol file")) return nullptr;
+    auto spec = std::make_shared<ProtocolSpec>();
+    spec->file = r_.file();
+    spec->mark = r_.mark(root);
+    r_.reject_unknown_keys(root,
+                           {"protocol", "description", "manual", "framing", "address", "checksum",
+                            "errors", "unsolicited", "startup", "alignment", "commands"},
+                           "protocol file");
+    if (auto n = r_.require(root, "protocol", "protocol file"))
+      if (auto s = r_.string(*n, "protocol")) {
+        spec->name = *s;
+        if (!is_protocol_name(*s))
+          r_.error(*n, fmt::format("protocol '{}': a name is lower case letters, digits and -, "
+                                   "starting with a letter (it is a bus's 'protocol:' and a "
+                                   "model's 'family:')",
+                                   *s));
+        else if (make_family(*s))
+          r_.error(*n, fmt::format("protocol '{}' is the name of a built-in family", *s));
+      }
+    if (root["description"])
+      spec->description = r_.string(root["description"], "description").value_or("");
+    if (root["manual"]) spec->manual = r_.string(root["manual"], "manual").value_or("");
+    if (root["framing"]) parse_framing(root["framing"], *spec);
+    parse_address(root["address"], root, *spec);
+    if (root["checksum"]) parse_checksum(root["checksum"], *spec);
+    if (root["errors"]) parse_errors(root["errors"], *spec);
+    if (auto c = r_.require(root, "commands", "protocol file"); c && r_.expect_map(*c, "commands"))
+      for (const auto& item : *c) parse_command(item.first, item.second, *spec);
+    // After the commands: these refer to them.
+    for (auto& cmd : spec->commands) check_command_references(cmd, *spec);
+    if (root["unsolicited"]) parse_unsolicited(root["unsolicited"], *spec);
+    if (root["startup"]) parse_startup(root["startup"], *spec);
+    parse_alignment(root["alignment"], root, *spec);
+    return r_.diagnostics().ok() ? spec : nullptr;
+  }
+
+ private:
+  // The mark of a template's character `offset` (a quoted scalar starts with its quote).
+  SourceMark at(const YAML::Node& node, std::size_t offset) const {
+    SourceMark m = r_.mark(node);
+    if (m.line == 0) return m;
+    m.column += static_cast<int>(offset) + (node.Tag() == "!" ? 1 : 0);
+    return m;
+  }
+
+  std::optional<FieldPattern> pattern(const YAML::Node& node, const std::string& what) {
+    const auto text = r_.string(node, what);
+    if (!text) return std::nullopt;
+    PatternError e;
+    auto p = FieldPattern::compile(*text, e);
+    if (!p) r_.diagnostics().error(at(node, e.offset), fmt::format("{}: {}", what, e.message));
+    return p;
+  }
+
+  void parse_framing(const YAML::Node& node, ProtocolSpec& spec) {
+    if (!r_.expect_map(node, "framing")) return;
+    r_.reject_unknown_keys(node,
+                           {"send_terminator", "reply_terminator", "reply_length", "echo",
+                            "reply_prefix", "max_reply"},
+                           "framing");
+    if (node["send_terminator"])
+      spec.send_terminator = r_.string(node["send_terminator"], "send_terminator").value_or("");
+    if (node["reply_terminator"])
+      spec.reply_terminator = r_.string(node["reply_terminator"], "reply_terminator").value_or("");
+    if (node["reply_length"]) {
+      spec.reply_length = static_cast<std::size_t>(
+          r_.integer(node["reply_length"], "reply_length", 1, 1024).value_or(0));
+      if (!node["reply_terminator"]) spec.reply_terminator.clear();
+    }
+    if (spec.reply_length == 0 && spec.reply_terminator.empty())
+      r_.error(node, "framing: a reply needs a reply_terminator or a fixed reply_length");
+    if (auto e = node["echo"]) {
+      const auto s = r_.string(e, "echo").value_or("");
+      if (s == "none")
+        spec.echo = ProtocolSpec::Echo::none;
+      else if (s == "always")
+        spec.echo = ProtocolSpec::Echo::always;
+      else if (s == "optional")
+        spec.echo = ProtocolSpec::Echo::optional;
+      else
+        r_.error(e, fmt::format("echo: '{}' is none, always or optional", s));
+    }
+    if (node["reply_prefix"])
+      spec.reply_prefix = r_.string(node["reply_prefix"], "reply_prefix").value_or("");
+    if (node["max_reply"])
+      spec.max_reply = static_cast<std::size_t>(
+          r_.integer(node["max_reply"], "max_reply", 8, 65536).value_or(256));
+  }
+
+  void parse_address(const YAML::Node& node, const YAML::Node& root, ProtocolSpec& spec) {
+    PatternError e;
+    spec.address_format = *FieldPattern::compile("{addr}", e);
+    if (!node) {
+      r_.error(root,
+               "protocol file: 'address' is missing (its range, e.g. address: {range: [1, "
+               "31]})");
+      return;
+    }
+    if (!r_.expect_map(node, "address")) return;
+    r_.reject_unknown_keys(node, {"range", "format", "broadcast"}, "address");
+    if (auto range = r_.require(node, "range", "address")) {
+      if (range->IsSequence() && range->size() == 2) {
+        spec.address_min =
+            static_cast<int>(r_.integer((*range)[0], "address range", 0, 9999).value_or(0));
+        spec.address_max =
+            static_cast<int>(r_.integer((*range)[1], "address range", 0, 9999).value_or(0));
+        if (spec.address_max < spec.address_min)
+          r_.error(*range, "address range: the first number is the lowest address");
+      } else {
+        r_.error(*range, "address range: [lowest, highest], e.g. [1, 31]");
+      }
+    }
+    if (auto f = node["format"]) {
+      if (auto p = pattern(f, "address format")) {
+        const auto& pieces = p->pieces();
+        if (pieces.size() != 1 || !pieces[0].field || pieces[0].field->name != "addr")
+          r_.error(f, "address format: one {addr} field, e.g. '{addr}' or '{addr:int(2)}'");
+        else
+          spec.address_format = *p;
+      }
+    }
+    if (node["broadcast"])
+      spec.broadcast_prefix = r_.string(node["broadcast"], "address broadcast");
+  }
+
+  void parse_checksum(const YAML::Node& node, ProtocolSpec& spec) {
+    if (!r_.expect_map(node, "checksum")) return;
+    r_.reject_unknown_keys(node,
+                           {"preset", "algorithm", "width", "poly", "init", "xor_out", "reflect",
+                            "encoding", "skip", "replies"},
+                           "checksum");
+    ChecksumSpec c;
+    if (auto p = node["preset"]) {
+      const auto name = r_.string(p, "checksum preset").value_or("");
+      if (auto preset = checksum_preset(name))
+        c = *preset;
+      else
+        r_.error(p, fmt::format("checksum preset '{}' is not known (known: {})", name,
+                                checksum_preset_names()));
+    } else if (auto a = r_.require(node, "algorithm", "checksum (or a preset)")) {
+      const auto s = r_.string(*a, "checksum algorithm").value_or("");
+      if (s == "crc")
+        c.algorithm = ChecksumSpec::Algorithm::crc;
+      else if (s == "sum")
+        c.algorithm = ChecksumSpec::Algorithm::sum;
+      else if (s == "xor")
+        c.algorithm = ChecksumSpec::Algorithm::xor_bytes;
+      else if (s == "lrc")
+        c.algorithm = ChecksumSpec::Algorithm::lrc;
+      else
+        r_.error(*a, fmt::format("checksum algorithm '{}' is crc, sum, xor or lrc", s));
+      if (c.algorithm == ChecksumSpec::Algorithm::crc && !node["poly"])
+        r_.error(node, "checksum: a crc needs its poly (and init, xor_out, reflect if not 0)");
+    }
+    if (auto w = node["width"]) {
+      c.width = static_cast<int>(r_.integer(w, "checksum width", 8, 32).value_or(8));
+      if (c.width != 8 && c.width != 16 && c.width != 32)
+        r_.error(w, "checksum width: 8, 16 or 32 bits");
+    }
+    const auto mask = c.width == 32 ? 0xFFFFFFFFLL : (int64_t{1} << c.width) - 1;
+    if (node["poly"])
+      c.poly = static_cast<uint64_t>(r_.integer(node["poly"], "poly", 1, mask).value_or(1));
+    if (node["init"])
+      c.init = static_cast<uint64_t>(r_.integer(node["init"], "init", 0, mask).value_or(0));
+    if (node["xor_out"])
+      c.xor_out =
+          static_cast<uint64_t>(r_.integer(node["xor_out"], "xor_out", 0, mask).value_or(0));
+    if (node["reflect"]) c.reflect = r_.boolean(node["reflect"], "reflect").value_or(false);
+    if (auto e = node["encoding"]) {
+      const auto s = r_.string(e, "checksum encoding").value_or("");
+      if (s == "hex")
+        c.encoding = ChecksumSpec::Encoding::hex;
+      else if (s == "hex_lower")
+        c.encoding = ChecksumSpec::Encoding::hex_lower;
+      else if (s == "binary_big")
+        c.encoding = ChecksumSpec::Encoding::binary_big;
+      else if (s == "binary_little")
+        c.encoding = ChecksumSpec::Encoding::binary_little;
+      else
+        r_.error(e, fmt::format("checksum encoding '{}' is hex, hex_lower, binary_big or "
+                                "binary_little",
+                                s));
+    }
+    if (node["skip"])
+      c.skip =
+          static_cast<std::size_t>(r_.integer(node["skip"], "checksum skip", 0, 16).value_or(0));
+    if (node["replies"])
+      spec.checksum_on_replies = r_.boolean(node["replies"], "replies").value_or(true);
+    spec.checksum = c;
+  }
+
+  void parse_errors(const YAML::Node& node, ProtocolSpec& spec) {
+    if (!r_.expect_map(node, "errors")) return;
+    for (const auto& item : node) {
+      const auto code = r_.string(item.first, "error code");
+      const auto text = r_.string(item.second, "error text");
+      if (code && text) spec.error_texts[*code] = *text;
+    }
+  }
+
+  CaptureValue capture_value(const YAML::Node& node, const std::string& what, bool text) {
+    CaptureValue v;
+    v.is_text = text;
+    if (text) {
+      v.text = r_.string(node, what).value_or("");
+    } else {
+      v.number = r_.integer(node, what, INT64_MIN, INT64_MAX).value_or(0);
+    }
+    return v;
+  }
+
+  std::vector<int64_t> numbers(const YAML::Node& node, const std::string& what) {
+    std::vector<int64_t> out;
+    if (!r_.expect_sequence(node, what)) return out;
+    for (const auto& n : node)
+      if (auto v = r_.integer(n, what, INT64_MIN, INT64_MAX)) out.push_back(*v);
+    return out;
+  }
+
+  const Field* reply_field(const CommandSpec& cmd, const YAML::Node& where, const std::string& name,
+                           const std::string& what) {
+    if (!cmd.reply) {
+      r_.error(where, fmt::format("command {}: {} names capture '{}', but the command has no "
+                                  "reply",
+                                  cmd.name, what, name));
+      return nullptr;
+    }
+    for (const Field* f : cmd.reply->named_fields())
+      if (f->name == name) return f;
+    std::string known;
+    for (const Field* f : cmd.reply->named_fields()) known += (known.empty() ? "" : ", ") + f->name;
+    r_.error(where, fmt::format("command {}: {} names capture '{}', which its reply '{}' does not "
+                                "have (captures: {})",
+                                cmd.name, what, name, cmd.reply->source(),
+                                known.empty() ? "none" : known));
+    return nullptr;
+  }
+
+  void parse_command(const YAML::Node& key, const YAML::Node& node, ProtocolSpec& spec) {
+    CommandSpec cmd;
+    cmd.name = r_.string(key, "command name").value_or("");
+    cmd.mark = r_.mark(key);
+    const std::string where = "command " + cmd.name;
+    if (spec.find(cmd.name)) {
+      r_.error(key, fmt::format("{}: defined twice", where));
+      return;
+    }
+    if (!r_.expect_map(node, where)) return;
+    r_.reject_unknown_keys(
+        node, {"description", "send", "reply", "timeout", "error", "flags", "confirm"}, where);
+    if (node["description"])
+      cmd.description = r_.string(node["description"], "description").value_or("");
+    bool ok = true;
+    if (auto s = r_.require(node, "send", where)) {
+      if (auto p = pattern(*s, where + " send")) {
+        cmd.request = *p;
+        for (const auto& piece : p->pieces())
+          if (piece.field && (piece.field->name == "_" || piece.field->type == FieldType::text)) {
+            r_.diagnostics().error(at(*s, piece.field->offset),
+                                   fmt::format("{} send: {{{}}} cannot be sent (a request's fields "
+                                               "are the command's parameters)",
+                                               where, piece.field->name));
+            ok = false;
+          }
+      } else {
+        ok = false;
+      }
+    } else {
+      ok = false;
+    }
+    if (auto rep = node["reply"]) {
+      if (rep.IsNull() || (rep.IsScalar() && rep.Scalar() == "none")) {
+        // No reply: the confirmation below must prove the command was taken.
+      } else if (auto p = pattern(rep, where + " reply")) {
+        cmd.reply = *p;
+      } else {
+        ok = false;
+      }
+    } else {
+      r_.error(node, fmt::format("{}: 'reply' is missing (the reply's pattern, or none for a "
+                                 "command the device does not answer)",
+                                 where));
+      ok = false;
+    }
+    if (node["timeout"])
+      cmd.timeout = r_.duration(node["timeout"], where + " timeout").value_or(cmd.timeout);
+    if (ok) {
+      if (auto e = node["error"]) parse_error_check(e, cmd);
+      if (auto f = node["flags"]) parse_flags(f, cmd);
+    }
+    if (auto c = node["confirm"]) parse_confirm(c, cmd);
+    if (ok && !cmd.reply && cmd.confirm.empty())
+      r_.error(node, fmt::format("{}: the device answers nothing, so nothing would prove it took "
+                                 "the command: give 'confirm:' (a query after it, e.g. its error "
+                                 "query or a read-back)",
+                                 where));
+    spec.commands.push_back(std::move(cmd));
+  }
+
+  void parse_error_check(const YAML::Node& node, CommandSpec& cmd) {
+    const std::string where = "command " + cmd.name + " error";
+    if (!r_.expect_map(node, where)) return;
+    r_.reject_unknown_keys(node, {"capture", "ok", "text"}, where);
+    ErrorCheck e;
+    e.mark = r_.mark(node);
+    const Field* f = nullptr;
+    if (auto c = r_.require(node, "capture", where)) {
+      e.capture = r_.string(*c, where + " capture").value_or("");
+      f = reply_field(cmd, *c, e.capture, "error");
+    }
+    if (auto ok = r_.require(node, "ok", where); ok && f) {
+      const bool text = f->type == FieldType::character || f->type == FieldType::text;
+      if (ok->IsSequence()) {
+        for (const auto& v : *ok) e.ok.push_back(capture_value(v, where + " ok", text));
+      } else {
+        e.ok.push_back(capture_value(*ok, where + " ok", text));
+      }
+    }
+    if (auto t = node["text"]) {
+      e.text_capture = r_.string(t, where + " text").value_or("");
+      reply_field(cmd, t, e.text_capture, "error text");
+    }
+    cmd.error = std::move(e);
+  }
+
+  void parse_flags(const YAML::Node& node, CommandSpec& cmd) {
+    const std::string where = "command " + cmd.name + " flags";
+    if (!r_.expect_map(node, where)) return;
+    for (const auto& item : node) {
+      FlagSpec flag;
+      flag.name = r_.string(item.first, "flag name").value_or("");
+      flag.mark = r_.mark(item.first);
+      const std::string what = where + " " + flag.name;
+      if (!r_.expect_map(item.second, what)) continue;
+      r_.reject_unknown_keys(item.second, {"capture", "bit", "in", "not_in"}, what);
+      if (auto c = r_.require(item.second, "capture", what)) {
+        flag.capture = r_.string(*c, what + " capture").value_or("");
+        const Field* f = reply_field(cmd, *c, flag.capture, "flag " + flag.name);
+        if (f && (f->type == FieldType::text))
+          r_.error(*c, fmt::format("{}: a flag tests a number, not {{{}:text}}", what, f->name));
+      }
+      const int given = int(bool(item.second["bit"])) + int(bool(item.second["in"])) +
+                        int(bool(item.second["not_in"]));
+      if (given != 1) {
+        r_.error(item.second, fmt::format("{}: one of bit, in or not_in", what));
+        continue;
+      }
+      if (item.second["bit"])
+        flag.bit =
+            static_cast<int>(r_.integer(item.second["bit"], what + " bit", 0, 62).value_or(0));
+      if (item.second["in"]) flag.values = numbers(item.second["in"], what + " in");
+      if (item.second["not_in"]) {
+        flag.values = numbers(item.second["not_in"], what + " not_in");
+        flag.negate = true;
+      }
+      cmd.flags.push_back(std::move(flag));
+    }
+    if (cmd.flags.size() > 16) r_.error(node, fmt::format("{}: at most 16 flags", where));
+  }
+
+  void parse_confirm(const YAML::Node& node, CommandSpec& cmd) {
+    const std::string where = "command " + cmd.name + " confirm";
+    const auto one = [&](const YAML::Node& item) {
+      ConfirmStep step;
+      step.mark = r_.mark(item);
+      if (item.IsScalar()) {
+        step.command = item.Scalar();
+      } else if (r_.expect_map(item, where)) {
+        r_.reject_unknown_keys(item, {"command", "capture", "equals", "in"}, where);
+        if (auto c = r_.require(item, "command", where))
+          step.command = r_.string(*c, where).value_or("");
+        if (item["capture"])
+          step.capture = r_.string(item["capture"], where + " capture").value_or("");
+        if (item["equals"]) {
+          step.equals = r_.string(item["equals"], where + " equals").value_or("");
+          const auto params = cmd.parameters();
+          if (std::find(params.begin(), params.end(), step.equals) == params.end())
+            r_.error(item["equals"],
+                     fmt::format("{}: equals '{}' is not a parameter of {}'s "
+                                 "request '{}'",
+                                 where, step.equals, cmd.name, cmd.request.source()));
+        }
+        if (item["in"]) step.in = numbers(item["in"], where + " in");
+        if (!step.capture.empty() && step.equals.empty() && step.in.empty())
+          r_.error(item, fmt::format("{}: a capture to check needs equals (a parameter) or in "
+                                     "(values)",
+                                     where));
+        if (step.capture.empty() && (!step.equals.empty() || !step.in.empty()))
+          r_.error(item, fmt::format("{}: equals and in need the capture they check", where));
+      }
+      cmd.confirm.push_back(std::move(step));
+    };
+    if (node.IsSequence()) {
+      for (const auto& item : node) one(item);
+    } else {
+      one(node);
+    }
+  }
+
+  // Confirmations name other commands, which may come later in the file.
+  void check_command_references(CommandSpec& cmd, const ProtocolSpec& spec) {
+    for (const auto& step : cmd.confirm) {
+      const CommandSpec* q = spec.find(step.command);
+      if (!q) {
+        r_.diagnostics().error(step.mark, fmt::format("command {} confirm: no command '{}' in "
+                                                      "this file",
+                                                      cmd.name, step.command));
+        continue;
+      }
+      if (!q->reply) {
+        r_.diagnostics().error(step.mark, fmt::format("command {} confirm: {} has no reply, so it "
+                                                      "cannot confirm anything",
+                                                      cmd.name, q->name));
+        continue;
+      }
+      if (!q->parameters().empty())
+        r_.diagnostics().error(step.mark, fmt::format("command {} confirm: {} takes parameters "
+                                                      "({}); a confirmation sends none",
+                                                      cmd.name, q->name, q->request.source()));
+      if (!q->confirm.empty())
+        r_.diagnostics().error(step.mark, fmt::format("command {} confirm: {} has a confirmation "
+                                                      "of its own",
+                                                      cmd.name, q->name));
+      if (!step.capture.empty()) {
+        bool found = false;
+        for (const Field* f : q->reply->named_fields()) {
+          if (f->name != step.capture) continue;
+          found = true;
+          if (!step.equals.empty())
+            for (const auto& piece : cmd.request.pieces())
+              if (piece.field && piece.field->name == step.equals &&
+                  (piece.field->type != f->type || piece.field->scale != f->scale))
+                r_.diagnostics().error(
+                    step.mark,
+                    fmt::format("command {} confirm: {{{}}} is sent as {} and read back as {}: "
+                                "the two would never compare equal",
+                                cmd.name, step.equals, describe(*piece.field), describe(*f)));
+        }
+        if (!found)
+          r_.diagnostics().error(step.mark,
+                                 fmt::format("command {} confirm: {}'s reply '{}' has "
+                                             "no capture '{}'",
+                                             cmd.name, q->name, q->reply->source(), step.capture));
+      }
+    }
+  }
+
+  static std::string describe(const Field& f) {
+    if (f.type == FieldType::decimal) return fmt::format("decimal({})", f.scale);
+    return std::string(to_string(f.type));
+  }
+
+  void parse_unsolicited(const YAML::Node& node, ProtocolSpec& spec) {
+    if (node.IsScalar()) {
+      spec.unsolicited = pattern(node, "unsolicited");
+      return;
+    }
+    if (!r_.expect_map(node, "unsolicited")) return;
+    r_.reject_unknown_keys(node, {"pattern", "quiet_after"}, "unsolicited");
+    if (auto p = r_.require(node, "pattern", "unsolicited"))
+      spec.unsolicited = pattern(*p, "unsolicited pattern");
+    if (node["quiet_after"])
+      spec.quiet_after_unsolicited = r_.duration(node["quiet_after"], "unsolicited quiet_after")
+                                         .value_or(spec.quiet_after_unsolicited);
+  }
+
+  void parse_startup(const YAML::Node& node, ProtocolSpec& spec) {
+    if (!r_.expect_sequence(node, "startup")) return;
+    for (const auto& item : node) {
+      StartupStep step;
+      step.mark = r_.mark(item);
+      YAML::Node name_node = item;
+      if (item.IsMap()) {
+        r_.reject_unknown_keys(item, {"command", "arguments", "tolerate_errors"}, "startup step");
+        if (auto c = r_.require(item, "command", "startup step")) name_node = *c;
+        if (item["arguments"]) step.arguments = numbers(item["arguments"], "startup arguments");
+        if (item["tolerate_errors"])
+          step.tolerate_errors =
+              r_.boolean(item["tolerate_errors"], "tolerate_errors").value_or(false);
+      }
+      step.command = r_.string(name_node, "startup command").value_or("");
+      if (const CommandSpec* c = spec.find(step.command)) {
+        if (c->parameters().size() != step.arguments.size())
+          r_.error(item,
+                   fmt::format("startup: {} takes {} argument(s) ('{}'), {} given", c->name,
+                               c->parameters().size(), c->request.source(), step.arguments.size()));
+      } else if (!step.command.empty()) {
+        r_.error(name_node, fmt::format("startup: no command '{}' in this file", step.command));
+      }
+      spec.startup.push_back(std::move(step));
+    }
+  }
+
+  void parse_alignment(const YAML::Node& node, const YAML::Node& root, ProtocolSpec& spec) {
+    if (!node) {
+      r_.error(root,
+               "protocol file: 'alignment' is missing: two or more queries whose replies "
+               "differ from one another, which prove the line in step after a failure "
+               "(drivers/README.md, \"Proof of alignment\")");
+      return;
+    }
+    if (!r_.expect_sequence(node, "alignment")) return;
+    const CommandSpec* previous = nullptr;
+    for (const auto& item : node) {
+      const auto name = r_.string(item, "alignment step").value_or("");
+      const CommandSpec* c = spec.find(name);
+      if (!c) {
+        r_.error(item, fmt::format("alignment: no command '{}' in this file", name));
+        continue;
+      }
+      if (!c->reply || !c->parameters().empty() || !c->confirm.empty()) {
+        r_.error(item,
+                 fmt::format("alignment: {} must be a query with a reply and no parameters", name));
+        continue;
+      }
+      if (previous && same_shape(*previous->reply, *c->reply))
+        r_.error(item,
+                 fmt::format("alignment: {}'s reply '{}' has the shape of {}'s '{}' before "
+                             "it, so a late answer to one would pass for the other",
+                             name, c->reply->source(), previous->name, previous->reply->source()));
+      previous = c;
+      spec.alignment.push_back(name);
+    }
+    if (spec.alignment.size() < 2)
+      r_.error(node, "alignment: at least two queries, each reply unlike the one before");
+  }
+
+  // Two reply patterns that could answer each other: the same literals and field types.
+  static bool same_shape(const FieldPattern& a, const FieldPattern& b) {
+    if (a.pieces().size() != b.pieces().size()) return false;
+    for (std::size_t i = 0; i < a.pieces().size(); ++i) {
+      const auto& x = a.pieces()[i];
+      const auto& y = b.pieces()[i];
+      if (bool(x.field) != bool(y.field)) return false;
+      if (!x.field && x.literal != y.literal) return false;
+      if (x.field && (x.field->type != y.field->type || x.field->width != y.field->width))
+        return false;
+    }
+    return true;
+  }
+
+  YamlReader& r_;
+};
+
+}  // namespace
+
+ProtocolSpecPtr load_protocol_file(const std::string& path, Diagnostics& diagnostics) {
+  YamlReader reader(path, diagnostics);
+  ProtocolParser parser(reader);
+  return parser.parse(reader.load_file());
+}
+
+ProtocolSpecPtr load_protocol_text(const std::string& text, const std::string& name_for_errors,
+                                   Diagnostics& diagnostics) {
+  YamlReader reader(name_for_errors, diagnostics);
+  ProtocolParser parser(reader);
+  return parser.parse(reader.load_string(text));
+}
+
+void ProtocolLibrary::load_directory(const std::string& directory, Diagnostics& diagnostics) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(directory, ec)) {
+    diagnostics.error({directory, 0, 0}, "protocol directory does not exist");
+    return;
+  }
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(directory, ec))
+    if (entry.is_regular_file() &&
+        (entry.path().extension() == ".yaml" || entry.path().extension() == ".yml"))
+      files.push_back(entry.path());
+  std::sort(files.begin(), files.end());
+  for (const auto& f : files) {
+    Diagnostics d;
+    auto spec = load_protocol_file(f.string(), d);
+    diagnostics.append(d);
+    if (spec) add(std::move(spec), diagnostics);
+  }
+}
+
+void ProtocolLibrary::add(ProtocolSpecPtr spec, Diagnostics& diagnostics) {
+  if (const auto it = specs_.find(spec->name); it != specs_.end()) {
+    diagnostics.error(
+        spec->mark, fmt::format("protocol {} is also defined in {}", spec->name, it->second->file));
+    return;
+  }
+  specs_.emplace(spec->name, std::move(spec));
+}
+
+ProtocolSpecPtr ProtocolLibrary::find(std::string_view name) const {
+  const auto it = specs_.find(name);
+  return it == specs_.end() ? nullptr : it->second;
+}
+
+std::vector<ProtocolSpecPtr> ProtocolLibrary::all() const {
+  std::vector<ProtocolSpecPtr> out;
+  for (const auto& [name, spec] : specs_) out.push_back(spec);
+  return out;
+}
+
+}  // namespace fieldgate::protocol_file

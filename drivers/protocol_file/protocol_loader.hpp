@@ -1,0 +1,30 @@
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include "drivers/protocol_file/protocol_spec.hpp"
+#include "mapping/diagnostics.hpp"
+
+namespace fieldgate::protocol_file {
+
+// Reads one protocol file (docs/protocol-files.md). Every error is reported at its
+// file:line:column, a field of a template at the column of its '{'; nullptr when any was found.
+ProtocolSpecPtr load_protocol_file(const std::string& path, Diagnostics& diagnostics);
+ProtocolSpecPtr load_protocol_text(const std::string& text, const std::string& name_for_errors,
+                                   Diagnostics& diagnostics);
+
+// Every *.yaml protocol file of the given directories, by protocol name.
+class ProtocolLibrary {
+ public:
+  void load_directory(const std::string& directory, Diagnostics& diagnostics);
+  void add(ProtocolSpecPtr spec, Diagnostics& diagnostics);
+  ProtocolSpecPtr find(std::string_view name) const;
+  std::vector<ProtocolSpecPtr> all() const;
+
+ private:
+  std::map<std::string, ProtocolSpecPtr, std::less<>> specs_;
+};
+
+}  // namespace fieldgate::protocol_file

@@ -1,0 +1,126 @@
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "drivers/protocol_file/checksum.hpp"
+#include "drivers/protocol_file/field_pattern.hpp"
+#include "mapping/diagnostics.hpp"
+
+namespace fieldgate::protocol_file {
+
+// A value one of a reply's captures is compared with: text for char and text captures, a
+// number for the others.
+struct CaptureValue {
+  std::string text;
+  int64_t number = 0;
+  bool is_text = false;
+};
+
+bool capture_equals(const Capture& capture, const CaptureValue& value);
+
+// A named flag of a status reply: set when a capture has one of the values (an enumerated
+// state) or when one of its bits is set (a word or bit string). Flags add one value to the
+// read, after the captures: a word with flag k at bit k.
+struct FlagSpec {
+  std::string name;
+  std::string capture;
+  std::optional<int> bit;
+  std::vector<int64_t> values;  // any of these (when bit is not given)
+  bool negate = false;          // `not_in:` instead of `in:`
+  SourceMark mark;
+};
+
+// Which capture of a reply carries the device's error code, and the values that mean "no
+// error". Another value is a device error; its text comes from the error table, or from a
+// text capture.
+struct ErrorCheck {
+  std::string capture;
+  std::vector<CaptureValue> ok;
+  std::string text_capture;  // optional: the reply's own message
+  SourceMark mark;
+};
+
+// A query that runs after a command to prove it was taken (a controller that answers set
+// commands with nothing): its reply must match, its error check pass, and, where `capture` is
+// given, that capture must equal the command's argument `equals` (a read-back) or be one of
+// `in` (a state the command leads to).
+struct ConfirmStep {
+  std::string command;
+  std::string capture;
+  std::string equals;  // a parameter of the confirmed command
+  std::vector<int64_t> in;
+  SourceMark mark;
+};
+
+struct CommandSpec {
+  std::string name;
+  std::string description;
+  FieldPattern request;
+  std::optional<FieldPattern> reply;  // nullopt: the device answers nothing
+  std::vector<FlagSpec> flags;
+  std::optional<ErrorCheck> error;
+  std::vector<ConfirmStep> confirm;
+  std::chrono::microseconds timeout{0};  // 0: the bus's reply timeout
+  SourceMark mark;
+  // The parameters the request carries, in order (its named fields).
+  std::vector<std::string> parameters() const;
+  // The values a read of this command yields: its reply's named captures, then the flags word.
+  std::vector<std::string> value_names() const;
+};
+
+struct StartupStep {
+  std::string command;
+  std::vector<int64_t> arguments;
+  bool tolerate_errors = false;  // a unit that refuses it is still used (logged)
+  SourceMark mark;
+};
+
+struct ProtocolSpec {
+  std::string name;
+  std::string description;
+  std::string manual;
+  std::string file;
+  SourceMark mark;
+
+  // Framing.
+  std::string send_terminator = "\r";
+  std::string reply_terminator = "\r\n";
+  std::size_t reply_length = 0;  // fixed-length replies (then no terminator is looked for)
+  enum class Echo { none, always, optional } echo = Echo::none;
+  std::string reply_prefix;  // before every reply (Parker's '*')
+  std::size_t max_reply = 256;
+
+  // Addressing.
+  int address_min = 0;
+  int address_max = 0;
+  FieldPattern address_format;                  // how {addr} is written: {addr}, {addr:int(2)}
+  std::optional<FieldPattern> request_prefix;   // what goes before every command, e.g. {addr}
+  std::optional<std::string> broadcast_prefix;  // the prefix of a bus-wide command, if any
+
+  std::optional<ChecksumSpec> checksum;
+  bool checksum_on_replies = true;
+
+  std::map<std::string, std::string, std::less<>> error_texts;  // device code -> its meaning
+
+  std::optional<FieldPattern> unsolicited;  // lines the device sends on its own
+  std::chrono::microseconds quiet_after_unsolicited{0};
+
+  std::vector<StartupStep> startup;
+  std::vector<std::string> alignment;  // the proof: commands with replies, each unlike the last
+
+  std::vector<CommandSpec> commands;
+
+  const CommandSpec* find(std::string_view command) const;
+  // The node's address as the protocol writes it.
+  std::string address_text(int number) const;
+};
+
+using ProtocolSpecPtr = std::shared_ptr<const ProtocolSpec>;
+
+}  // namespace fieldgate::protocol_file

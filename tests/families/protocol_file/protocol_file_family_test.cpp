@@ -1,0 +1,232 @@
+// The family a protocol file describes, on an in-process line: the shipped SMC100 file's polls,
+// confirmed moves, refusals, read-backs that show a command did not take, replies that are not
+// this node's, unsolicited lines, the alignment proof and the model checks at load.
+#include <gtest/gtest.h>
+
+#include <deque>
+#include <map>
+
+#include "drivers/protocol_file/protocol_file_family.hpp"
+#include "drivers/protocol_file/protocol_loader.hpp"
+#include "fake_line.hpp"
+#include "mapping/model_loader.hpp"
+
+namespace fieldgate::protocol_file {
+namespace {
+
+using Status = Reply::Status;
+const LinkTiming kTiming{std::chrono::milliseconds(40), std::chrono::milliseconds(5)};
+
+ProtocolSpecPtr smc100() {
+  Diagnostics d;
+  auto spec = load_protocol_file(
+      std::string(FIELDGATE_SOURCE_DIR) + "/config/protocols/newport-smc100.yaml", d);
+  EXPECT_TRUE(spec) << d.to_text();
+  return spec;
+}
+
+// A far end answering each complete line from a table of answers (an empty answer: silence),
+// and recording what it was sent.
+class AnsweringLine final : public test::FakeLine {
+ public:
+  explicit AnsweringLine(asio::io_context& io)
+      : FakeLine(io, "in-process SMC100 line", 1e6 * 10 / 57600) {
+    set_far_end([this](std::string_view written) {
+      pending_ += written;
+      for (auto end = pending_.find("\r\n"); end != std::string::npos;
+           end = pending_.find("\r\n")) {
+        const std::string line = pending_.substr(0, end);
+        pending_.erase(0, end + 2);
+        lines.push_back(line);
+        auto& queue = answers[line];
+        if (queue.empty()) continue;
+        std::string a = queue.front();
+        if (queue.size() > 1) queue.pop_front();
+        if (!a.empty()) deliver(a + "\r\n");
+      }
+    });
+  }
+  std::map<std::string, std::deque<std::string>> answers;  // the last answer repeats
+  std::vector<std::string> lines;
+
+ private:
+  std::string pending_;
+};
+
+class Smc100Family : public ::testing::Test {
+ protected:
+  Smc100Family() : family_(smc100()), line_(io_), link_(line_) {}
+
+  Reply transact(const Request& r, int address = 1) {
+    return test::run(io_, family_.transact(link_, NodeAddress::numbered(address), r, kTiming));
+  }
+  Request poll(const char* command) { return {command, Request::Expect::values}; }
+  Request command(const char* text, std::map<std::string, int64_t> values = {}) {
+    std::string error;
+    auto t = CommandTemplate::compile(text, error);
+    EXPECT_TRUE(t) << error;
+    auto compiled = family_.compile(*t, error);
+    EXPECT_TRUE(compiled) << error;
+    t->set_compiled(compiled);
+    return Request::of_template(*t, [&](std::string_view n) { return values.at(std::string(n)); });
+  }
+
+  asio::io_context io_;
+  ProtocolFileFamily family_;
+  AnsweringLine line_;
+  Link link_;
+};
+
+TEST_F(Smc100Family, StatePollGivesErrorsStateAndFlags) {
+  line_.answers["1TS"] = {"1TS000028"};
+  const auto r = transact(poll("read_state"));
+  ASSERT_EQ(r.status, Status::ok) << r.text;
+  // flags: moving(0) homing(1) referenced(2) disabled(3) limit-(4) limit+(5) fault(6)
+  EXPECT_EQ(r.values, (std::vector<int64_t>{0, 0x28, 0b0000101}));
+  line_.answers["1TS"] = {"1TS00020A"};  // NOT REFERENCED, positive end of run
+  EXPECT_EQ(transact(poll("read_state")).values, (std::vector<int64_t>{2, 0x0A, 0b0100000}));
+  line_.answers["1TS"] = {"1TS00203C"};  // DISABLE after a following error
+  EXPECT_EQ(transact(poll("read_state")).values, (std::vector<int64_t>{0x20, 0x3C, 0b1001100}));
+}
+
+TEST_F(Smc100Family, PositionInUserUnitsBecomesCounts) {
+  line_.answers["3TP"] = {"3TP-12.34567"};
+  const auto r = transact(poll("read_position"), 3);
+  ASSERT_EQ(r.status, Status::ok) << r.text;
+  EXPECT_EQ(r.values, std::vector<int64_t>{-123457});
+}
+
+TEST_F(Smc100Family, AReplyOfAnotherNodeOrCommandIsGarbledNeverAValue) {
+  line_.answers["1TP"] = {"2TP5.0"};
+  EXPECT_EQ(transact(poll("read_position")).status, Status::garbled);
+  line_.answers["1TP"] = {"1TH5.0"};
+  EXPECT_EQ(transact(poll("read_position")).status, Status::garbled);
+  line_.answers["1TP"] = {"1TP5.0x"};
+  EXPECT_EQ(transact(poll("read_position")).status, Status::garbled);
+}
+
+TEST_F(Smc100Family, AMoveIsConfirmedByTheErrorQueryAndTheTargetReadBack) {
+  line_.answers["1TE"] = {"1TE@"};
+  line_.answers["1PA?"] = {"1PA12.3456"};
+  const auto r = transact(command("move_absolute {target}", {{"target", 123456}}));
+  EXPECT_EQ(r.status, Status::ok) << r.text;
+  EXPECT_EQ(line_.lines, (std::vector<std::string>{"1PA12.3456", "1TE", "1PA?"}));
+}
+
+TEST_F(Smc100Family, ARefusalIsTheDevicesErrorWithItsMeaning) {
+  line_.answers["1TE"] = {"1TEC"};
+  const auto r = transact(command("move_absolute {target}", {{"target", 9990000}}));
+  EXPECT_EQ(r.status, Status::device_error);
+  EXPECT_EQ(r.device_code, 'C');
+  EXPECT_NE(r.text.find("parameter missing or out of range"), std::string::npos) << r.text;
+  EXPECT_EQ(line_.lines.size(), 2u);  // no read-back after a refusal
+}
+
+TEST_F(Smc100Family, AMoveTheControllerNeverHeardIsNotConfirmed) {
+  // The PA was lost on the line: no error, and the set-point is still the last target.
+  line_.answers["1TE"] = {"1TE@"};
+  line_.answers["1PA?"] = {"1PA3"};
+  const auto r = transact(command("move_absolute {target}", {{"target", 123456}}));
+  EXPECT_EQ(r.status, Status::device_error);
+  EXPECT_EQ(r.device_code, kNotTaken);
+  EXPECT_NE(r.text.find("not taken"), std::string::npos) << r.text;
+}
+
+TEST_F(Smc100Family, NoAnswerToTheConfirmationLeavesTheOutcomeUnknown) {
+  const auto r = transact(command("stop"));
+  EXPECT_EQ(r.status, Status::timeout) << r.text;
+  EXPECT_EQ(line_.lines, (std::vector<std::string>{"1ST", "1TE"}));
+}
+
+TEST_F(Smc100Family, AnArgumentTheFieldCannotCarryIsNotSent) {
+  // decimal(4) of int64's most negative value has no text the family would write wrongly, but
+  // a bits or width field would; here the template takes any integer, so check the refusal of
+  // a missing argument instead.
+  std::string error;
+  auto t = CommandTemplate::compile("move_absolute {target}", error);
+  auto compiled = family_.compile(*t, error);
+  Request r{"move_absolute", Request::Expect::ack};
+  r.compiled = compiled;
+  const auto reply = transact(r);
+  EXPECT_EQ(reply.status, Status::device_error);
+  EXPECT_EQ(reply.device_code, kNotSent);
+  EXPECT_TRUE(line_.lines.empty());
+}
+
+TEST_F(Smc100Family, TheAlignmentProofAsksStateThenErrorOfTheNode) {
+  line_.answers["2TS"] = {"2TS000033"};
+  line_.answers["2TE"] = {"2TE@"};
+  auto proof = family_.alignment_proof(family_.context_of(NodeAddress::numbered(2)), kTiming);
+  ASSERT_TRUE(proof);
+  ASSERT_EQ(proof->steps.size(), 2u);
+  EXPECT_EQ(proof->steps[0].request, "2TS\r\n");
+  EXPECT_TRUE(proof->steps[0].matches("2TS000033\r\n"));
+  EXPECT_FALSE(proof->steps[0].matches("2TE@\r\n"));
+  EXPECT_FALSE(proof->steps[1].matches("2TS000033\r\n"));
+  const auto result =
+      test::run(io_, prove_alignment(link_, *proof, kTiming, kTiming.byte_timeout, 3));
+  EXPECT_TRUE(result.proved) << result.why;
+}
+
+TEST(ProtocolFileFamilyModels, ModelCommandsAreCheckedAgainstTheProtocolAtLoad) {
+  ProtocolFileFamily family(smc100());
+  Diagnostics d;
+  const auto model = load_model_text(R"(model: m
+family: newport-smc100
+points:
+  position: {type: int32, read: read_postion, poll: fast}
+  state: {type: uint16, read: {request: read_state, field: 3}, poll: fast}
+setpoints:
+  target: {type: int32}
+actions:
+  go:
+    code: 1
+    steps:
+      - move_absolute {target} 5
+      - "PA{target}"
+      - stop
+poll_classes: {fast: 100ms}
+)",
+                                     "m.yaml", d);
+  ASSERT_TRUE(model) << d.to_text();
+  family.validate_model(*model, d);
+  const auto text = d.to_text();
+  EXPECT_NE(
+      text.find("m.yaml:4:13: error: point position read: 'read_postion': protocol newport-smc100 "
+                "has no command 'read_postion'"),
+      std::string::npos)
+      << text;
+  EXPECT_NE(text.find("m.yaml:5:10: error: point state read: field 3 of read_state"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(
+      text.find("m.yaml:12:9: error: action go: 'move_absolute {target} 5': move_absolute takes 1 "
+                "argument(s)"),
+      std::string::npos)
+      << text;
+  EXPECT_NE(text.find("{target} is part of the word 'PA'"), std::string::npos) << text;
+  EXPECT_EQ(d.errors().size(), 4u) << text;
+}
+
+TEST(ProtocolFileFamilyModels, TheShippedModelIsValid) {
+  ProtocolFileFamily family(smc100());
+  Diagnostics d;
+  const auto model =
+      load_model_file(std::string(FIELDGATE_SOURCE_DIR) + "/config/models/newport-smc100.yaml", d);
+  ASSERT_TRUE(model) << d.to_text();
+  family.validate_model(*model, d);
+  EXPECT_TRUE(d.ok()) << d.to_text();
+}
+
+TEST(ProtocolFileFamilyAddresses, OnlyTheFilesRange) {
+  ProtocolFileFamily family(smc100());
+  std::string error;
+  EXPECT_EQ(family.parse_address("31", error)->number, 31);
+  EXPECT_FALSE(family.parse_address("32", error));
+  EXPECT_NE(error.find("1..31"), std::string::npos) << error;
+  EXPECT_FALSE(family.parse_address("0", error));
+  EXPECT_FALSE(family.parse_address("x", error));
+}
+
+}  // namespace
+}  // namespace fieldgate::protocol_file
