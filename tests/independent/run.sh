@@ -8,6 +8,7 @@ set -euo pipefail
 family=$1 fieldgate=$2 axis_py=$3 scenario=${4:-}
 here=$(cd "$(dirname "$0")" && pwd)
 models=$(cd "$here/../../config/models" && pwd)
+protocols=$(cd "$here/../../config/protocols" && pwd)
 source "$here/../integration/lib.sh"
 source "$here/../integration/axis_family.sh"
 scratch_dir
@@ -80,6 +81,13 @@ case $family in
     esac
     axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
                --refused-target 2000000)
+    ;;
+  smc100)
+    # Newport SMC100, run by its protocol file (config/protocols/newport-smc100.yaml): no C++
+    # of its own. Positions in 0.0001 mm; the controllers' software limits are +-25 mm.
+    unit=(smc100_unit.py --addresses 1,2)
+    axis_family_bus newport-smc100 "$dir/port" 200ms 20ms
+    axis_args=(--distance 20000 --refused-target 300000 --expect-homed)
     ;;
   *)
     echo "unknown family $family"

@@ -81,6 +81,16 @@ axis_family_bus() {
       esac
       nodes="      - {name: techno, address: 0, model: $family, unit_id: 1, $units_yaml}"
       ;;
+    newport-smc100)
+      # A controller described by a protocol file (config/protocols/newport-smc100.yaml).
+      protocol=newport-smc100 baud=57600
+      timing="reply_timeout: ${reply:-100ms}, byte_timeout: ${byte:-20ms}"
+      nodes="      - {name: smc_1, address: 1, model: newport-smc100, unit_id: 1, profile_unit: 51,
+         limits: {target: {min: -245000, max: 245000}}}
+      - {name: smc_2, address: 2, model: newport-smc100, unit_id: 2, profile_unit: 52,
+         limits: {target: {min: -245000, max: 245000}}}"
+      units=51,52
+      ;;
     canopen)
       # Needs a kernel SocketCAN interface: run under scripts/vcan-run (tests/vcan).
       bus="protocol: canopen

@@ -42,6 +42,7 @@ gateway_config() {
   {
     echo "modbus: {listen: 127.0.0.1:0}"
     echo "models: $models"
+    [ -z "${protocols:-}" ] || echo "protocols: $protocols"
     [ -z "${2:-}" ] || printf '%s\n' "$2"
     echo "buses:"
     cat

@@ -1,0 +1,527 @@
+#!/usr/bin/python3
+"""Newport SMC100CC / SMC100PP single-axis controllers on one RS-485 line (up to 31 addresses),
+written from the SMC100CC & SMC100PP user's manual (EDH0206En, section 6 "Commands") as far as
+it could be read, and from secondary transcriptions of its tables where the manual's own pages
+were not at hand (see "Sources"). Nothing here is taken from sim/, drivers/ or config/.
+
+  smc100_unit.py --link PATH [--addresses 1,2] [--baud 57600] [--decimals N]
+                 [--limit-error C|G] [--log first|all|none] [--self-test]
+
+Facts from the manual (6.3 Command Syntax, manualslib page 26 of EDH0206En2042):
+- Command format `nnAAxx`: optional/required controller address nn, a two-letter command
+  name, an optional value or `?` to query. Upper and lower case are accepted. Blanks are
+  allowed and ignored in any position, even inside a number (`2P A1.43 6` = `2PA1.436`).
+- A dot is the decimal separator. Commands execute when the terminator CR LF arrives; after
+  the execution "all remaining characters in the input string, if any, will be ignored" (no
+  concatenation of commands). An invalid command or parameter is not executed: the error is
+  memorised and read with TE.
+- Replies repeat address and command: `1TS000032`, `1TE@`, `1TP...`, each ending CR LF.
+  Set commands (PA, PR, OR, ST, MM, RS, VA, AC, SL, SR) produce no reply.
+- TS returns `1TSabcdef`: 4 hex digits of positioner error bits, 2 characters of controller
+  state. Positioner errors (SMC100CC): bit 0 negative end of run, 1 positive end of run,
+  2 peak current limit, 3 RMS current limit, 4 short circuit, 5 following error, 6 homing
+  time-out, 7 wrong ESP stage, 8 DC voltage too low, 9 80 W output power exceeded.
+  States: 0A..0F NOT REFERENCED from reset/homing/configuration/disable/ready/moving,
+  10 NOT REFERENCED ESP stage error, 11 NOT REFERENCED from jogging, 14 CONFIGURATION,
+  1E HOMING (RS-232-C), 1F HOMING (SMC-RC), 28 MOVING, 32..35 READY from homing/moving/
+  disable/jogging, 3C..3E DISABLE from ready/moving/jogging, 46/47 JOGGING from ready/disable.
+- TE letters: @ no error, A unknown message code or floating point controller address,
+  B controller address not correct, C parameter missing or out of range, D command not
+  allowed, E home sequence already started, F ESP stage name unknown, G displacement out of
+  limits, H..M command not allowed in NOT REFERENCED / CONFIGURATION / DISABLE / READY /
+  HOMING / MOVING state, N current position out of software limit, S communication time out,
+  U error during EEPROM access, V error during command execution, W not allowed for PP
+  version, X not allowed for CC version.
+- There is no jog command on the RS-485 line: the JOGGING states are entered from the SMC-RC
+  hand-held remote's keys; JD only leaves the JOGGING state. Nothing here can jog.
+
+Readings chosen where the manual (as found) is silent or was not at hand:
+- Terminator: a line executes on LF; a CR right before it is dropped. A line ending in CR
+  alone waits for its LF (the terminator is the pair). A line without an address, or for an
+  address that is not in --addresses, is ignored (no controller claims it; a real chain would
+  be silent too). The address is read as a decimal integer, so `01TS` is address 1.
+- Position format: `%.6f` with trailing zeros (and a trailing dot) removed: `1TP10.5`,
+  `1TP0`, `1TP-2.000125`. --decimals N prints exactly N decimals instead (`1TP10.500000`).
+  VA/AC/SL/SR/PA?/PR? read-backs use the same format.
+- PA/PR are executed only in READY (32..35); in the other states the state's letter (H, I, J,
+  L, M) is memorised. A target outside SL..SR is refused with C (--limit-error G memorises
+  G, "displacement out of limits", the other letter the table offers). PR is relative to the
+  current set-point. A missing or non-numeric value is C.
+- OR only in NOT REFERENCED (any 0A..11): HOMING 1E, the stage runs at OH (home search
+  velocity, 2.5 mm/s) to the home switch edge (10 mm on the negative side of the power-up
+  position), stops, sets the position to 0 and goes READY from HOMING (32). OR while HOMING
+  memorises E; in READY K, MOVING M, DISABLE J.
+- ST: MOVING decelerates at AC and ends READY from MOVING (33); HOMING stops and ends
+  NOT REFERENCED from HOMING (0B); elsewhere ST does nothing and memorises nothing.
+- MM0 (enter DISABLE): READY -> 3C, MOVING -> 3D (the motion stops at once, motor off);
+  MM1 (leave DISABLE): 3C..3E -> READY from DISABLE (34). MM in NOT REFERENCED is H, in
+  HOMING L, in CONFIGURATION I; MM1 in READY / MM0 in DISABLE do nothing. `MM?` answers
+  `1MM<state>`.
+- RS: the controller reboots; it hears nothing for 1.0 s, then powers up as at power-on
+  (NOT REFERENCED from reset, position 0 where it stands, VA/AC/SL/SR back to defaults, TE @).
+- VA (velocity, mm/s, > 1e-6 and < 1e12), AC (mm/s^2, same range), SL (-1e12..0), SR
+  (0..1e12): out of range C; in MOVING M, in HOMING L; `VA?` etc. answer `1VA2.5`.
+  Defaults VA 2.5, AC 10, SL -25, SR 25 (a 50 mm stage); the end-of-run switches sit 0.5 mm
+  beyond SL and SR from the home position.
+- TH (set-point position) answers like TP (no following error is modelled).
+- TB: `1TBC` answers `1TBC Parameter missing or out of range.` (letter, space, the table's
+  text); `1TB` alone answers the memorised error's text without clearing it; an unknown
+  letter memorises C. VE answers `1VE SMC_CC 2.0.0 (independent simulator)`.
+- A two-letter code this module does not know memorises A (including real ones not modelled
+  here, e.g. KP, ZT, PW).
+- No fault state can be provoked through the line (following error, current limits, ESP
+  stage errors come from the hardware); the refused target is the error this unit offers.
+- Bytes sent at another host baud rate than --baud are unreadable and dropped.
+
+Sources: manualslib.com/manual/1238858/Newport-Smc100cc.html (page 26, 6.3 Command Syntax and
+6.4 Command Execution Time); the state, positioner-error and command-error tables as
+transcribed (identically) by several public drivers citing "SMC100CC User Manual p.61/p.65";
+the NPC1USB manual's TS page (same Newport command family) for the `1TSabcdef` layout.
+"""
+import argparse
+import os
+import re
+import select
+import sys
+import termios
+import threading
+import time
+import tty
+
+import unit_common as uc
+
+SCALE = 100000.0  # axis counts per mm (uc.Axis works in counts)
+HOME_SWITCH_MM = -10.0  # physical, relative to the power-up position
+RESET_TIME = 1.0
+
+ERRORS = {
+    "@": "No error.",
+    "A": "Unknown message code or floating point controller address.",
+    "B": "Controller address not correct.",
+    "C": "Parameter missing or out of range.",
+    "D": "Command not allowed.",
+    "E": "Home sequence already started.",
+    "F": "ESP stage name unknown.",
+    "G": "Displacement out of limits.",
+    "H": "Command not allowed in NOT REFERENCED state.",
+    "I": "Command not allowed in CONFIGURATION state.",
+    "J": "Command not allowed in DISABLE state.",
+    "K": "Command not allowed in READY state.",
+    "L": "Command not allowed in HOMING state.",
+    "M": "Command not allowed in MOVING state.",
+    "N": "Current position out of software limit.",
+    "S": "Communication Time Out.",
+    "U": "Error during EEPROM access.",
+    "V": "Error during command execution.",
+    "W": "Command not allowed for PP version.",
+    "X": "Command not allowed for CC version.",
+}
+
+NOT_REFERENCED = {"0A", "0B", "0C", "0D", "0E", "0F", "10", "11"}
+READY = {"32", "33", "34", "35"}
+DISABLE = {"3C", "3D", "3E"}
+HOMING = {"1E", "1F"}
+MOVING = {"28"}
+CONFIGURATION = {"14"}
+
+_log_mode = "first"
+_seen = {}
+_t0 = time.monotonic()
+
+
+def rx(text):
+    """Logs a command line as received, on stdout (each distinct line 3 times unless --log all)."""
+    if _log_mode == "none":
+        return
+    key = text[:40]
+    _seen[key] = _seen.get(key, 0) + 1
+    if _log_mode == "all" or _seen[key] <= 3:
+        print("%.3f rx %s" % (time.monotonic() - _t0, text), flush=True)
+
+
+def state_letter(state):
+    """The error letter for a command refused in `state`."""
+    if state in NOT_REFERENCED:
+        return "H"
+    if state in CONFIGURATION:
+        return "I"
+    if state in DISABLE:
+        return "J"
+    if state in READY:
+        return "K"
+    if state in HOMING:
+        return "L"
+    return "M"
+
+
+class Controller:
+    def __init__(self, address, decimals, limit_error):
+        self.address = address
+        self.decimals = decimals
+        self.limit_error = limit_error
+        self.axis = uc.Axis(home_switch=HOME_SWITCH_MM * SCALE)
+        self.power_up()
+
+    def power_up(self):
+        self.va, self.ac, self.oh = 2.5, 10.0, 2.5
+        self.sl, self.sr = -25.0, 25.0
+        self.state = "0A"
+        self.error = "@"
+        self.stopping_to = None
+        self.home_dir = 0
+        self.last_pr = 0.0
+        self.axis.hard_stop()
+        self.axis.accel = self.axis.decel = self.ac * SCALE
+        self.axis.set_position(0.0)
+        self.target = 0.0
+        self.set_switches()
+        self.booting_until = None
+
+    def set_switches(self):
+        """End-of-run switches 0.5 mm beyond SL/SR, measured from the home switch."""
+        self.axis.limit_neg = (HOME_SWITCH_MM + self.sl - 0.5) * SCALE
+        self.axis.limit_pos = (HOME_SWITCH_MM + self.sr + 0.5) * SCALE
+
+    def fmt(self, v):
+        if self.decimals is not None:
+            return "%.*f" % (self.decimals, v)
+        s = ("%.6f" % v).rstrip("0").rstrip(".")
+        return "0" if s in ("-0", "", "-") else s
+
+    def position(self):
+        return self.axis.position() / SCALE
+
+    def positioner_errors(self):
+        bits = 0
+        if self.axis.limit_active(-1):
+            bits |= 0x0001
+        if self.axis.limit_active(1):
+            bits |= 0x0002
+        return bits
+
+    # One command (blanks removed, address stripped): returns the reply text or None.
+    def execute(self, code, param, now):
+        a = "%d" % self.address
+        if code == "TS":
+            return "%sTS%04X%s" % (a, self.positioner_errors(), self.state)
+        if code in ("TP", "TH"):
+            return "%s%s%s" % (a, code, self.fmt(self.position()))
+        if code == "TE":
+            e, self.error = self.error, "@"
+            return "%sTE%s" % (a, e)
+        if code == "TB":
+            letter = param[:1].upper() if param else self.error
+            if letter not in ERRORS:
+                self.error = "C"
+                return None
+            return "%sTB%s %s" % (a, letter, ERRORS[letter])
+        if code == "VE":
+            return "%sVE SMC_CC 2.0.0 (independent simulator)" % a
+        if code in ("PA", "PR"):
+            return self.move(code, param)
+        if code == "OR":
+            if self.state in NOT_REFERENCED:
+                self.state = "1E"
+                self.home_dir = 1 if self.axis.home_input_high() else -1
+                self.axis.accel = self.axis.decel = self.ac * SCALE
+                self.axis.run_at(self.home_dir * self.oh * SCALE)
+            elif self.state in HOMING:
+                self.error = "E"
+            else:
+                self.error = state_letter(self.state)
+            return None
+        if code == "ST":
+            if self.state in MOVING:
+                self.axis.stop(decel=self.ac * SCALE)
+                self.stopping_to = "33"
+            elif self.state in HOMING:
+                self.axis.stop(decel=self.ac * SCALE)
+                self.stopping_to = "0B"
+            return None
+        if code == "MM":
+            return self.motor(param)
+        if code == "RS":
+            self.axis.hard_stop()
+            self.booting_until = now + RESET_TIME
+            return None
+        if code in ("VA", "AC", "SL", "SR"):
+            return self.parameter(code, param)
+        if code == "JD":
+            return None  # leaves JOGGING, which the line cannot enter
+        self.error = "A"
+        return None
+
+    def parameter(self, code, param):
+        a = "%d" % self.address
+        if param.startswith("?"):
+            value = {"VA": self.va, "AC": self.ac, "SL": self.sl, "SR": self.sr}[code]
+            return "%s%s%s" % (a, code, self.fmt(value))
+        if self.state in MOVING | HOMING:
+            self.error = state_letter(self.state)
+            return None
+        try:
+            v = float(param)
+        except ValueError:
+            self.error = "C"
+            return None
+        ok = {"VA": 1e-6 < v < 1e12, "AC": 1e-6 < v < 1e12,
+              "SL": -1e12 <= v <= 0, "SR": 0 <= v <= 1e12}[code]
+        if not ok:
+            self.error = "C"
+            return None
+        if code == "VA":
+            self.va = v
+        elif code == "AC":
+            self.ac = v
+            self.axis.accel = self.axis.decel = v * SCALE
+        elif code == "SL":
+            self.sl = v
+        else:
+            self.sr = v
+        return None
+
+    def move(self, code, param):
+        a = "%d" % self.address
+        if param.startswith("?"):
+            return "%s%s%s" % (a, code, self.fmt(self.target if code == "PA" else self.last_pr))
+        if self.state not in READY:
+            self.error = state_letter(self.state)
+            return None
+        try:
+            v = float(param)
+        except ValueError:
+            self.error = "C"
+            return None
+        target = v if code == "PA" else self.target + v
+        if not self.sl <= target <= self.sr:
+            self.error = self.limit_error
+            return None
+        if code == "PR":
+            self.last_pr = v
+        self.target = target
+        self.state = "28"
+        self.stopping_to = None
+        self.axis.accel = self.axis.decel = self.ac * SCALE
+        self.axis.move_to(target * SCALE, self.va * SCALE)
+        return None
+
+    def motor(self, param):
+        a = "%d" % self.address
+        if param.startswith("?"):
+            return "%sMM%s" % (a, self.state)
+        if param not in ("0", "1"):
+            self.error = "C"
+            return None
+        if self.state in NOT_REFERENCED | HOMING | CONFIGURATION:
+            self.error = state_letter(self.state)
+        elif param == "0":
+            if self.state in READY:
+                self.state = "3C"
+            elif self.state in MOVING:
+                self.axis.hard_stop()
+                self.target = self.position()
+                self.state = "3D"
+        elif self.state in DISABLE:
+            self.target = self.position()
+            self.state = "34"
+        return None
+
+    def tick(self, now):
+        if self.booting_until is not None:
+            if now >= self.booting_until:
+                self.power_up()
+            return
+        self.axis.tick(now)
+        if self.state in HOMING:
+            if self.stopping_to is None and self.axis.home_input_high() != (self.home_dir > 0):
+                self.axis.hard_stop()
+                self.axis.set_position(0.0)
+                self.target = 0.0
+                self.state = "32"
+            elif self.stopping_to and not self.axis.moving():
+                self.state, self.stopping_to = self.stopping_to, None
+            elif not self.axis.moving():  # ran into an end of run without the switch
+                self.state = "0B"
+        elif self.state in MOVING and not self.axis.moving():
+            if self.stopping_to:
+                self.target = self.position()
+            self.state, self.stopping_to = "33", None
+
+
+class Line:
+    def __init__(self, pty, controllers):
+        self.pty = pty
+        self.controllers = {c.address: c for c in controllers}
+        self.buf = bytearray()
+
+    def on_bytes(self, data, now):
+        for b in data:
+            if b == 0x0A:
+                line = bytes(self.buf).rstrip(b"\r").decode("ascii", errors="replace")
+                self.buf.clear()
+                self.line(line, now)
+            else:
+                self.buf.append(b)
+                if len(self.buf) > 256:
+                    del self.buf[:-256]
+
+    def line(self, text, now):
+        body = text.replace(" ", "").replace("\t", "")
+        m = re.match(r"(\d+)([A-Za-z]{2})(.*)$", body)
+        if not m:
+            return
+        c = self.controllers.get(int(m.group(1)))
+        if c is None or c.booting_until is not None:
+            return
+        rx(text)
+        reply = c.execute(m.group(2).upper(), m.group(3), now)
+        if reply is not None:
+            self.pty.send((reply + "\r\n").encode())
+
+    def on_tick(self, now):
+        for c in self.controllers.values():
+            c.tick(now)
+
+
+def make_line(pty, args):
+    addresses = [int(a) for a in args.addresses.split(",") if a]
+    for a in addresses:
+        if not 1 <= a <= 31:
+            sys.exit("smc100: address %d outside 1..31" % a)
+    return Line(pty, [Controller(a, args.decimals, args.limit_error) for a in addresses])
+
+
+# ---------------------------------------------------------------------------------------------
+# Self-test: the unit on a PTY in a thread, a host on the other end.
+
+class Host:
+    def __init__(self, link, baud):
+        self.fd = os.open(link, os.O_RDWR | os.O_NOCTTY)
+        tty.setraw(self.fd)
+        attrs = termios.tcgetattr(self.fd)
+        attrs[4] = attrs[5] = getattr(termios, "B%d" % baud)
+        termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
+
+    def send(self, text):
+        os.write(self.fd, text.encode())
+
+    def read_for(self, seconds):
+        end = time.monotonic() + seconds
+        out = b""
+        while True:
+            left = end - time.monotonic()
+            if left <= 0:
+                return out
+            r, _, _ = select.select([self.fd], [], [], left)
+            if r:
+                out += os.read(self.fd, 4096)
+
+    def ask(self, text, wait=0.15):
+        self.send(text)
+        return self.read_for(wait)
+
+
+def self_test(args):
+    link = "/tmp/smc100_selftest_%d" % os.getpid()
+    args.addresses = "1,2"
+    pty = uc.Pty(link, args.baud)
+    line = make_line(pty, args)
+    on_bytes = uc.heard_only_at(pty, args.baud, "smc100", line.on_bytes)
+    threading.Thread(target=uc.run, args=(pty, on_bytes, line.on_tick), daemon=True).start()
+    host = Host(link, args.baud)
+    failures = []
+
+    def wait_for(query, want, seconds):
+        end = time.monotonic() + seconds
+        got = b""
+        while time.monotonic() < end:
+            got = host.ask(query, 0.1)
+            if got == want:
+                break
+        return got
+
+    def check(what, got, want):
+        ok = got == want
+        print("%s %-34s %r" % ("ok  " if ok else "FAIL", what, got))
+        if not ok:
+            failures.append((what, got, want))
+
+    check("power up state", host.ask("1TS\r\n"), b"1TS00000A\r\n")
+    check("CR alone waits for LF", host.ask("1TS\r"), b"")
+    check("... then executes", host.ask("\n"), b"1TS00000A\r\n")
+    check("leading zero address", host.ask("01TS\r\n"), b"1TS00000A\r\n")
+    check("address 2", host.ask("2TS\r\n"), b"2TS00000A\r\n")
+    check("unknown address silent", host.ask("5TS\r\n"), b"")
+    check("PA in NOT REFERENCED: no reply", host.ask("1PA5\r\n"), b"")
+    check("... error H", host.ask("1TE\r\n"), b"1TEH\r\n")
+    check("TE cleared by reading", host.ask("1TE\r\n"), b"1TE@\r\n")
+    check("TB text", host.ask("1TBH\r\n"), b"1TBH " + ERRORS["H"].encode() + b"\r\n")
+    check("unknown code -> A", host.ask("1QQ\r\n1TE\r\n"), b"1TEA\r\n")
+    check("VA read-back", host.ask("1VA?\r\n"), b"1VA2.5\r\n")
+    host.ask("1VA 5\r\n")  # blanks ignored
+    check("VA set with a blank", host.ask("1VA?\r\n"), b"1VA5\r\n")
+    check("OR -> HOMING", host.ask("1OR\r\n1TS\r\n", 0.1), b"1TS00001E\r\n")
+    check("OR again -> E", host.ask("1OR\r\n1TE\r\n"), b"1TEE\r\n")
+    check("homed: READY from HOMING", wait_for("1TS\r\n", b"1TS000032\r\n", 7.0),
+          b"1TS000032\r\n")
+    check("position 0", host.ask("1TP\r\n"), b"1TP0\r\n")
+    check("target out of SL..SR", host.ask("1PA30\r\n1TE\r\n"), b"1TEC\r\n")
+    host.ask("1PA2.5\r\n", 0.05)
+    check("moving", host.ask("1TS\r\n", 0.1), b"1TS000028\r\n")
+    check("PA while MOVING -> M", host.ask("1PA1\r\n1TE\r\n"), b"1TEM\r\n")
+    check("PA? target", host.ask("1PA?\r\n"), b"1PA2.5\r\n")
+    check("READY from MOVING", wait_for("1TS\r\n", b"1TS000033\r\n", 3.0), b"1TS000033\r\n")
+    check("at target", host.ask("1TP?\r\n"), b"1TP2.5\r\n")
+    host.ask("1PR-10\r\n", 0.3)
+    host.ask("1ST\r\n", 0.6)
+    r = host.ask("1TS\r\n1TP\r\n")
+    check("ST ends READY 33", r.split(b"\r\n")[0], b"1TS000033")
+    pos = float(r.split(b"\r\n")[1][3:])
+    check("stopped short of -7.5", -7.5 < pos < 2.5, True)
+    host.ask("1MM0\r\n")
+    check("MM0 -> DISABLE from READY", host.ask("1TS\r\n"), b"1TS00003C\r\n")
+    check("PA in DISABLE -> J", host.ask("1PA0\r\n1TE\r\n"), b"1TEJ\r\n")
+    host.ask("1MM1\r\n")
+    check("MM1 -> READY from DISABLE", host.ask("1TS\r\n"), b"1TS000034\r\n")
+    host.ask("1RS\r\n")
+    check("silent while rebooting", host.ask("1TS\r\n", 0.3), b"")
+    time.sleep(1.0)
+    check("after RS: NOT REFERENCED", host.ask("1TS\r\n"), b"1TS00000A\r\n")
+    check("2 untouched", host.ask("2TS\r\n2TP\r\n"), b"2TS00000A\r\n2TP0\r\n")
+    # Bytes at another host rate are unreadable.
+    attrs = termios.tcgetattr(host.fd)
+    attrs[4] = attrs[5] = termios.B9600
+    termios.tcsetattr(host.fd, termios.TCSANOW, attrs)
+    time.sleep(0.1)  # past the 50 ms during which the old rate still counts
+    check("host at 9600: unreadable", host.ask("1TS\r\n"), b"")
+    os.unlink(link)
+    print("self-test: %d failure(s)" % len(failures))
+    return 1 if failures else 0
+
+
+def main():
+    global _log_mode
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--link", help="symlink to the PTY slave the gateway opens")
+    ap.add_argument("--addresses", default="1", help="controller addresses, 1..31 (e.g. 1,2)")
+    ap.add_argument("--baud", type=int, default=57600)
+    ap.add_argument("--decimals", type=int, default=None,
+                    help="print positions with exactly N decimals (default: trimmed %%.6f)")
+    ap.add_argument("--limit-error", default="C", choices=["C", "G"],
+                    help="letter memorised for a target outside SL..SR")
+    ap.add_argument("--log", default="first", choices=["first", "all", "none"])
+    ap.add_argument("--self-test", action="store_true")
+    args = ap.parse_args()
+    _log_mode = args.log
+    if args.self_test:
+        sys.exit(self_test(args))
+    if not args.link:
+        ap.error("--link is required")
+    pty = uc.Pty(args.link, args.baud)
+    line = make_line(pty, args)
+    uc.log("smc100: addresses %s at %d baud on %s" % (args.addresses, args.baud, args.link))
+    uc.run(pty, uc.heard_only_at(pty, args.baud, "smc100", line.on_bytes), line.on_tick)
+
+
+if __name__ == "__main__":
+    main()
