@@ -89,6 +89,12 @@ case $family in
     axis_family_bus newport-smc100 "$dir/port" 200ms 20ms
     axis_args=(--distance 20000 --refused-target 300000 --expect-homed)
     ;;
+  esp301)
+    # Newport ESP301 axes 1 and 2, run by its protocol file (config/protocols/newport-esp301.yaml).
+    unit=(esp301_unit.py --axes 1,2)
+    axis_family_bus newport-esp301 "$dir/port" 200ms 20ms
+    axis_args=(--distance 20000 --refused-target 300000)
+    ;;
   *)
     echo "unknown family $family"
     exit 2

@@ -91,6 +91,16 @@ axis_family_bus() {
          limits: {target: {min: -245000, max: 245000}}}"
       units=51,52
       ;;
+    newport-esp301)
+      # One ESP301, axes 1 and 2 as nodes (config/protocols/newport-esp301.yaml).
+      protocol=newport-esp301 baud=19200
+      timing="reply_timeout: ${reply:-100ms}, byte_timeout: ${byte:-20ms}"
+      nodes="      - {name: esp_1, address: 1, model: newport-esp301, unit_id: 1, profile_unit: 61,
+         limits: {target: {min: -245000, max: 245000}}}
+      - {name: esp_2, address: 2, model: newport-esp301, unit_id: 2, profile_unit: 62,
+         limits: {target: {min: -245000, max: 245000}}}"
+      units=61,62
+      ;;
     canopen)
       # Needs a kernel SocketCAN interface: run under scripts/vcan-run (tests/vcan).
       bus="protocol: canopen
