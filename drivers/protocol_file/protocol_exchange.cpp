@@ -57,7 +57,13 @@ FrameSplitter reply_splitter(const ProtocolSpec& spec, std::string request) {
       return input.size() >= need ? need : 0;
     }
     const auto end = input.find(spec.reply_terminator, start);
-    return end == std::string_view::npos ? 0 : end + spec.reply_terminator.size();
+    std::size_t length = end == std::string_view::npos ? 0 : end + spec.reply_terminator.size();
+    if (!spec.error_terminator.empty()) {
+      const auto refused = input.find(spec.error_terminator, start);
+      if (refused != std::string_view::npos && (length == 0 || refused < end))
+        length = refused + spec.error_terminator.size();
+    }
+    return length;
   };
 }
 
@@ -81,6 +87,20 @@ ReplyReading interpret_reply(const ProtocolSpec& spec, const CommandSpec& comman
     return r;
   }
   line.remove_prefix(echo);
+  if (!spec.error_terminator.empty() && line.ends_with(spec.error_terminator)) {
+    line.remove_suffix(spec.error_terminator.size());
+    std::string_view text = line;
+    while (!text.empty() && (text.front() == '\r' || text.front() == '\n' || text.front() == ' '))
+      text.remove_prefix(1);
+    if (text.starts_with(spec.reply_prefix)) text.remove_prefix(spec.reply_prefix.size());
+    while (!text.empty() && (text.back() == '\r' || text.back() == '\n' || text.back() == ' '))
+      text.remove_suffix(1);
+    r.line = std::string(line);
+    r.reply = Reply::of(Reply::Status::device_error,
+                        fmt::format("{} refused: {}", command.name, printable_bytes(text)),
+                        kRefusedReply);
+    return r;
+  }
   if (!spec.reply_terminator.empty()) {
     if (!line.ends_with(spec.reply_terminator)) {
       r.reply =
@@ -114,7 +134,8 @@ ReplyReading interpret_reply(const ProtocolSpec& spec, const CommandSpec& comman
     line = body;
   }
   r.line = std::string(line);
-  if (!spec.reply_prefix.empty()) {
+  const bool has_text = !command.reply || !command.reply->pieces().empty();
+  if (!spec.reply_prefix.empty() && has_text) {
     if (!line.starts_with(spec.reply_prefix)) {
       r.reply = garbled(fmt::format("'{}' does not start with '{}'", printable_bytes(line),
                                     printable_bytes(spec.reply_prefix)));

@@ -15,6 +15,9 @@ namespace fieldgate::protocol_file {
 // The device code of a command whose confirmation shows that it did not take (a read-back that
 // differs, a state it does not lead to); the device's own codes are its error table's.
 inline constexpr int64_t kNotTaken = 0xFFFA;
+// The device code of a reply that ended in the protocol's error terminator (a refusal that
+// carries a message but no code).
+inline constexpr int64_t kRefusedReply = 1;
 
 // The I/O-free parts of one exchange with a protocol-file device (drivers/README.md, "The shape
 // of a stream family's exchange"): what goes on the wire, how a reply is framed, and what a

@@ -84,13 +84,15 @@ class ProtocolParser {
   void parse_framing(const YAML::Node& node, ProtocolSpec& spec) {
     if (!r_.expect_map(node, "framing")) return;
     r_.reject_unknown_keys(node,
-                           {"send_terminator", "reply_terminator", "reply_length", "echo",
-                            "reply_prefix", "max_reply"},
+                           {"send_terminator", "reply_terminator", "error_terminator",
+                            "reply_length", "echo", "reply_prefix", "max_reply"},
                            "framing");
     if (node["send_terminator"])
       spec.send_terminator = r_.string(node["send_terminator"], "send_terminator").value_or("");
     if (node["reply_terminator"])
       spec.reply_terminator = r_.string(node["reply_terminator"], "reply_terminator").value_or("");
+    if (node["error_terminator"])
+      spec.error_terminator = r_.string(node["error_terminator"], "error_terminator").value_or("");
     if (node["reply_length"]) {
       spec.reply_length = static_cast<std::size_t>(
           r_.integer(node["reply_length"], "reply_length", 1, 1024).value_or(0));

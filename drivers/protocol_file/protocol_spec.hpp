@@ -91,9 +91,12 @@ struct ProtocolSpec {
   // Framing.
   std::string send_terminator = "\r";
   std::string reply_terminator = "\r\n";
+  // A second way a reply may end that means "refused" (Parker's error prompt): the reply is then
+  // a device error whose text is the reply's (code kRefusedReply).
+  std::string error_terminator;
   std::size_t reply_length = 0;  // fixed-length replies (then no terminator is looked for)
   enum class Echo { none, always, optional } echo = Echo::none;
-  std::string reply_prefix;  // before every reply (Parker's '*')
+  std::string reply_prefix;  // before every reply with text (Parker's '*')
   std::size_t max_reply = 256;
 
   // Addressing.

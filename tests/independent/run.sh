@@ -95,6 +95,12 @@ case $family in
     axis_family_bus newport-esp301 "$dir/port" 200ms 20ms
     axis_args=(--distance 20000 --refused-target 300000)
     ;;
+  parker6k)
+    # Parker 6K2 axes 1 and 2, run by its protocol file (config/protocols/parker-6k.yaml).
+    unit=(parker6k_unit.py --axes 2)
+    axis_family_bus parker-6k "$dir/port" 200ms 20ms
+    axis_args=(--distance 20000 --refused-target 600000 --expect-homed)
+    ;;
   *)
     echo "unknown family $family"
     exit 2

@@ -101,6 +101,16 @@ axis_family_bus() {
          limits: {target: {min: -245000, max: 245000}}}"
       units=61,62
       ;;
+    parker-6k)
+      # One 6K2, axes 1 and 2 as nodes (config/protocols/parker-6k.yaml).
+      protocol=parker-6k baud=9600
+      timing="reply_timeout: ${reply:-100ms}, byte_timeout: ${byte:-20ms}"
+      nodes="      - {name: axis_1, address: 1, model: parker-6k, unit_id: 1, profile_unit: 71,
+         limits: {target: {min: -400000, max: 400000}}}
+      - {name: axis_2, address: 2, model: parker-6k, unit_id: 2, profile_unit: 72,
+         limits: {target: {min: -400000, max: 400000}}}"
+      units=71,72
+      ;;
     canopen)
       # Needs a kernel SocketCAN interface: run under scripts/vcan-run (tests/vcan).
       bus="protocol: canopen

@@ -168,6 +168,57 @@ TEST_F(Smc100Family, TheAlignmentProofAsksStateThenErrorOfTheNode) {
   EXPECT_TRUE(result.proved) << result.why;
 }
 
+// Parker 6K framing: a prompt acknowledges every command, the error prompt refuses one with the
+// controller's message, and the power-up echo is stripped where it comes.
+ProtocolSpecPtr parker6k() {
+  Diagnostics d;
+  auto spec = load_protocol_file(
+      std::string(FIELDGATE_SOURCE_DIR) + "/config/protocols/parker-6k.yaml", d);
+  EXPECT_TRUE(spec) << d.to_text();
+  return spec;
+}
+
+TEST(Parker6kReplies, PromptsAcknowledgeAndTheErrorPromptRefuses) {
+  const auto spec = parker6k();
+  const CommandSpec& go = *spec->find("go");
+  const CommandSpec& tas = *spec->find("read_status");
+  const auto ok = interpret_reply(*spec, go, "1GO\r", "\r\n> ", "1");
+  EXPECT_EQ(ok.reply.status, Status::ok) << ok.reply.text;
+  const auto refused =
+      interpret_reply(*spec, go, "1GO\r", "\r\n*DRIVE SHUTDOWN\r\r\n? ", "1");
+  EXPECT_EQ(refused.reply.status, Status::device_error);
+  EXPECT_EQ(refused.reply.device_code, kRefusedReply);
+  EXPECT_NE(refused.reply.text.find("go refused: DRIVE SHUTDOWN"), std::string::npos)
+      << refused.reply.text;
+  const auto status = interpret_reply(
+      *spec, tas, "1TAS\r", "*1TAS1000_0000_0000_1000_0000_0000_0000_0000\r\r\n> ", "1");
+  ASSERT_EQ(status.reply.status, Status::ok) << status.reply.text;
+  EXPECT_EQ(status.reply.values, std::vector<int64_t>{1 | (1 << 12)});
+  // With the power-up echo still on.
+  const auto echoed = interpret_reply(
+      *spec, tas, "1TAS\r", "1TAS\r*1TAS0000_0000_0000_0000_0000_0000_0000_0000\r\r\n> ", "1");
+  EXPECT_EQ(echoed.reply.status, Status::ok) << echoed.reply.text;
+  // A prompt alone is no answer to a query, and a value is no answer to a command.
+  EXPECT_EQ(interpret_reply(*spec, tas, "1TAS\r", "\r\n> ", "1").reply.status, Status::garbled);
+  EXPECT_EQ(interpret_reply(*spec, go, "1GO\r", "*1TPC+5\r\r\n> ", "1").reply.status,
+            Status::garbled);
+  // Another axis's answer is not this one's.
+  EXPECT_EQ(interpret_reply(*spec, tas, "1TAS\r",
+                            "*2TAS0000_0000_0000_0000_0000_0000_0000_0000\r\r\n> ", "1")
+                .reply.status,
+            Status::garbled);
+}
+
+TEST(Parker6kReplies, TheSplitterEndsAtWhicheverPromptComesFirst) {
+  const auto spec = parker6k();
+  const auto split = reply_splitter(*spec, "1GO\r");
+  EXPECT_EQ(split("\r\n> "), 4u);
+  EXPECT_EQ(split("\r\n*DRIVE SHUTDOWN\r\r\n? \r\n> "), 22u);
+  EXPECT_EQ(split("1GO\r\r\n> "), 8u);
+  EXPECT_EQ(split("1G"), 0u);  // the echo may still be arriving
+  EXPECT_EQ(split("\r\n>"), 0u);
+}
+
 TEST(ProtocolFileFamilyModels, ModelCommandsAreCheckedAgainstTheProtocolAtLoad) {
   ProtocolFileFamily family(smc100());
   Diagnostics d;

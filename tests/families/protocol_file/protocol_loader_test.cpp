@@ -103,6 +103,8 @@ TEST(ProtocolFiles, EveryShippedProtocolFileLoads) {
   library.load_directory(std::string(FIELDGATE_SOURCE_DIR) + "/config/protocols", d);
   EXPECT_TRUE(d.ok()) << d.to_text();
   EXPECT_TRUE(library.find("newport-smc100"));
+  EXPECT_TRUE(library.find("newport-esp301"));
+  EXPECT_TRUE(library.find("parker-6k"));
 }
 
 TEST(ProtocolFiles, TheGoodFileLoadsWithItsProof) {
