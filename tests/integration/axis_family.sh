@@ -183,6 +183,28 @@ axis_family_start() {
                  --refused-target 2000000 --fault-command
                  "case {unit} in $letters *) a=${axes: -1} ;; esac; echo \"fault 4 \$a 3\" >$dir/sim.in")
       ;;
+    newport-smc100 | newport-esp301 | parker-6k)
+      # Controllers described by protocol files, against the simulators written apart from those
+      # files (tests/independent/); Python, so their reply timeouts are those run.sh gives them.
+      axis_family_bus "$family" "$dir/port" 200ms 20ms
+      protocols=$(cd "$(dirname "${BASH_SOURCE[0]}")/../../config/protocols" && pwd)
+      local independent
+      independent=$(cd "$(dirname "${BASH_SOURCE[0]}")/../independent" && pwd)
+      case $family in
+        newport-smc100)
+          sim=(/usr/bin/python3 "$independent/smc100_unit.py" --addresses 1,2)
+          axis_args=(--distance 20000 --refused-target 300000 --expect-homed --no-device-error)
+          ;;
+        newport-esp301)
+          sim=(/usr/bin/python3 "$independent/esp301_unit.py" --axes 1,2)
+          axis_args=(--distance 20000 --refused-target 300000 --no-device-error)
+          ;;
+        parker-6k)
+          sim=(/usr/bin/python3 "$independent/parker6k_unit.py" --axes 2)
+          axis_args=(--distance 20000 --refused-target 600000 --expect-homed --no-device-error)
+          ;;
+      esac
+      ;;
     techno-*)
       sim=("$build/sim/techno/fieldgate-sim-techno" --variant "${family#techno-}" --baud 19200)
       # Beyond the simulator's travel (100000 steps from the home switch): the controller
@@ -190,6 +212,10 @@ axis_family_start() {
       axis_args=(--distance 2000 --refused-target 9000000 --beyond 200000)
       ;;
   esac
-  "${sim[0]}" --link "$dir/port" "${sim[@]:1}" <"$dir/sim.in" >"$dir/sim.log" 2>&1 &
+  if [ "${sim[0]}" = /usr/bin/python3 ]; then
+    PYTHONDONTWRITEBYTECODE=1 "${sim[@]}" --link "$dir/port" <"$dir/sim.in" >"$dir/sim.log" 2>&1 &
+  else
+    "${sim[0]}" --link "$dir/port" "${sim[@]:1}" <"$dir/sim.in" >"$dir/sim.log" 2>&1 &
+  fi
   wait_for_paths "$dir/port"
 }
