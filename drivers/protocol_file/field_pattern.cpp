@@ -445,8 +445,16 @@ std::optional<std::vector<Capture>> FieldPattern::match(std::string_view text,
                         pos + 1, printable_bytes(taken.empty() ? rest : taken));
       return std::nullopt;
     }
-    if (f.type == FieldType::character && static_cast<unsigned char>(taken[0]) < 0x20) {
-      why = fmt::format("{{{}:char}} at character {}: a control character", f.name, pos + 1);
+    if (f.type == FieldType::text)
+      for (const char c : taken)
+        if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) > 0x7e) {
+          why = fmt::format("{{{}:text}} at character {}: '{}' is not printable text", f.name,
+                            pos + 1, printable_bytes(taken));
+          return std::nullopt;
+        }
+    if (f.type == FieldType::character && (static_cast<unsigned char>(taken[0]) < 0x20 ||
+                                           static_cast<unsigned char>(taken[0]) > 0x7e)) {
+      why = fmt::format("{{{}:char}} at character {}: not a printable character", f.name, pos + 1);
       return std::nullopt;
     }
     if (f.name != "_") captures.push_back(Capture{f.name, std::string(taken), *value, f.type});

@@ -143,6 +143,24 @@ ReplyReading interpret_reply(const ProtocolSpec& spec, const CommandSpec& comman
     }
     line.remove_prefix(spec.reply_prefix.size());
   }
+  if (spec.error_reply) {
+    std::string ignored;
+    if (auto refusal = spec.error_reply->match(line, address, ignored)) {
+      Capture code{}, text{};
+      for (const auto& c : *refusal) {
+        if (c.name == spec.error_reply_code) code = c;
+        if (c.name == spec.error_reply_text) text = c;
+      }
+      std::string meaning = text.text.empty() ? error_text(spec, code) : text.text;
+      r.from_error_reply = true;
+      r.captures = *refusal;
+      r.reply = Reply::of(Reply::Status::device_error,
+                          fmt::format("{} refused: {}{}", command.name, printable_bytes(line),
+                                      meaning.empty() ? "" : " (" + meaning + ")"),
+                          spec.error_reply_code.empty() ? kRefusedReply : code.value);
+      return r;
+    }
+  }
   if (!command.reply) {
     r.reply = garbled(fmt::format("'{}' to {}, which the device does not answer",
                                   printable_bytes(line), command.name));

@@ -40,6 +40,7 @@ struct ReplyReading {
   Reply reply;                    // when kind is reply: ok (with values), device_error, garbled
   std::vector<Capture> captures;  // of an ok reply (and of a device error), for confirmations
   std::string line;               // the reply without echo, prefix, checksum and terminator
+  bool from_error_reply = false;  // the device error is the protocol's error_reply
 };
 
 ReplyReading interpret_reply(const ProtocolSpec& spec, const CommandSpec& command,

@@ -368,21 +368,30 @@ std::optional<AlignmentProof> ProtocolFileFamily::alignment_proof(NodeContext& n
                                                                   const LinkTiming&) {
   AlignmentProof proof;
   const std::string address = spec_->address_text(node.address().number);
-  for (const auto& name : spec_->alignment) {
-    const CommandSpec* command = spec_->find(name);
+  for (const auto& spec_step : spec_->alignment) {
+    const CommandSpec* command = spec_->find(spec_step.command);
     std::string why;
     const auto wire = encode_request(*spec_, *command, {}, address, why);
     if (!wire) return std::nullopt;
+    const std::string expected =
+        spec_step.error
+            ? fmt::format("{} (error {})", spec_->error_reply->source(), *spec_step.error)
+            : command->reply->source();
     if (!proof.name.empty()) proof.name += ", ";
-    proof.name += fmt::format("{} -> {}", name, command->reply->source());
+    proof.name += fmt::format("{} -> {}", command->name, expected);
     AlignmentStep step;
     step.request = *wire;
     step.splitter = reply_splitter(*spec_, *wire);
-    step.matches = [spec = spec_, command, request = *wire, address](std::string_view frame) {
+    step.matches = [spec = spec_, command, request = *wire, address,
+                    error = spec_step.error](std::string_view frame) {
       const auto r = interpret_reply(*spec, *command, request, frame, address);
-      return r.kind == ReplyReading::Kind::reply && r.reply.status == Reply::Status::ok;
+      if (r.kind != ReplyReading::Kind::reply) return false;
+      if (error)
+        return r.reply.status == Reply::Status::device_error && r.from_error_reply &&
+               r.reply.device_code == *error;
+      return r.reply.status == Reply::Status::ok;
     };
-    step.expected = command->reply->source();
+    step.expected = expected;
     proof.steps.push_back(std::move(step));
   }
   return proof;

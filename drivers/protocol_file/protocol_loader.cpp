@@ -31,10 +31,11 @@ class ProtocolParser {
     auto spec = std::make_shared<ProtocolSpec>();
     spec->file = r_.file();
     spec->mark = r_.mark(root);
-    r_.reject_unknown_keys(root,
-                           {"protocol", "description", "manual", "framing", "address", "checksum",
-                            "errors", "unsolicited", "startup", "alignment", "commands"},
-                           "protocol file");
+    r_.reject_unknown_keys(
+        root,
+        {"protocol", "description", "manual", "framing", "address", "checksum", "errors",
+         "error_reply", "unsolicited", "startup", "alignment", "commands"},
+        "protocol file");
     if (auto n = r_.require(root, "protocol", "protocol file"))
       if (auto s = r_.string(*n, "protocol")) {
         spec->name = *s;
@@ -53,6 +54,7 @@ class ProtocolParser {
     parse_address(root["address"], root, *spec);
     if (root["checksum"]) parse_checksum(root["checksum"], *spec);
     if (root["errors"]) parse_errors(root["errors"], *spec);
+    if (root["error_reply"]) parse_error_reply(root["error_reply"], *spec);
     if (auto c = r_.require(root, "commands", "protocol file"); c && r_.expect_map(*c, "commands"))
       for (const auto& item : *c) parse_command(item.first, item.second, *spec);
     // After the commands: these refer to them.
@@ -128,7 +130,7 @@ class ProtocolParser {
       return;
     }
     if (!r_.expect_map(node, "address")) return;
-    r_.reject_unknown_keys(node, {"range", "format", "broadcast"}, "address");
+    r_.reject_unknown_keys(node, {"range", "format", "formats", "broadcast"}, "address");
     if (auto range = r_.require(node, "range", "address")) {
       if (range->IsSequence() && range->size() == 2) {
         spec.address_min =
@@ -143,11 +145,26 @@ class ProtocolParser {
     }
     if (auto f = node["format"]) {
       if (auto p = pattern(f, "address format")) {
-        const auto& pieces = p->pieces();
-        if (pieces.size() != 1 || !pieces[0].field || pieces[0].field->name != "addr")
-          r_.error(f, "address format: one {addr} field, e.g. '{addr}' or '{addr:int(2)}'");
+        int fields = 0;
+        bool only_addr = true;
+        for (const auto& piece : p->pieces())
+          if (piece.field) {
+            ++fields;
+            only_addr = only_addr && piece.field->name == "addr";
+          }
+        if (fields != 1 || !only_addr)
+          r_.error(f,
+                   "address format: one {addr} field and any text around it, e.g. '{addr}', "
+                   "'{addr:int(2)}' or '{addr} '");
         else
           spec.address_format = *p;
+      }
+    }
+    if (auto f = node["formats"]; f && r_.expect_map(f, "address formats")) {
+      for (const auto& item : f) {
+        const auto n = r_.integer(item.first, "address", spec.address_min, spec.address_max);
+        const auto text = r_.string(item.second, "address text");
+        if (n && text) spec.address_overrides[static_cast<int>(*n)] = *text;
       }
     }
     if (node["broadcast"])
@@ -227,6 +244,27 @@ class ProtocolParser {
       const auto text = r_.string(item.second, "error text");
       if (code && text) spec.error_texts[*code] = *text;
     }
+  }
+
+  void parse_error_reply(const YAML::Node& node, ProtocolSpec& spec) {
+    if (!r_.expect_map(node, "error_reply")) return;
+    r_.reject_unknown_keys(node, {"pattern", "code", "text"}, "error_reply");
+    auto p = r_.require(node, "pattern", "error_reply");
+    if (!p) return;
+    spec.error_reply = pattern(*p, "error_reply pattern");
+    if (!spec.error_reply) return;
+    const auto named = [&](const char* key, std::string& out) {
+      if (!node[key]) return;
+      out = r_.string(node[key], std::string("error_reply ") + key).value_or("");
+      for (const Field* f : spec.error_reply->named_fields())
+        if (f->name == out) return;
+      r_.error(node[key], fmt::format("error_reply {}: '{}' is no capture of '{}'", key, out,
+                                      spec.error_reply->source()));
+    };
+    named("code", spec.error_reply_code);
+    named("text", spec.error_reply_text);
+    if (spec.error_reply_code.empty() && spec.error_reply_text.empty())
+      r_.error(node, "error_reply: name its code capture (code:) or its text capture (text:)");
   }
 
   CaptureValue capture_value(const YAML::Node& node, const std::string& what, bool text) {
@@ -503,7 +541,8 @@ class ProtocolParser {
       YAML::Node name_node = item;
       if (item.IsMap()) {
         r_.reject_unknown_keys(item, {"command", "arguments", "tolerate_errors"}, "startup step");
-        if (auto c = r_.require(item, "command", "startup step")) name_node = *c;
+        if (auto c = r_.require(item, "command", "startup step"))
+          name_node.reset(*c);  // reset: operator= would write into item
         if (item["arguments"]) step.arguments = numbers(item["arguments"], "startup arguments");
         if (item["tolerate_errors"])
           step.tolerate_errors =
@@ -531,26 +570,41 @@ class ProtocolParser {
       return;
     }
     if (!r_.expect_sequence(node, "alignment")) return;
-    const CommandSpec* previous = nullptr;
+    const FieldPattern* previous = nullptr;
     for (const auto& item : node) {
-      const auto name = r_.string(item, "alignment step").value_or("");
-      const CommandSpec* c = spec.find(name);
+      ProtocolSpec::AlignmentStepSpec step;
+      YAML::Node name_node = item;
+      if (item.IsMap()) {
+        r_.reject_unknown_keys(item, {"command", "error"}, "alignment step");
+        if (auto c = r_.require(item, "command", "alignment step"))
+          name_node.reset(*c);  // reset: operator= would write into item
+        if (auto e = r_.require(item, "error", "alignment step"))
+          step.error = r_.integer(*e, "alignment step error", INT64_MIN, INT64_MAX);
+        if (step.error && !spec.error_reply) {
+          r_.error(item, "alignment: a step that expects an error needs the file's error_reply");
+          continue;
+        }
+      }
+      step.command = r_.string(name_node, "alignment step").value_or("");
+      const CommandSpec* c = spec.find(step.command);
       if (!c) {
-        r_.error(item, fmt::format("alignment: no command '{}' in this file", name));
+        r_.error(name_node, fmt::format("alignment: no command '{}' in this file", step.command));
         continue;
       }
-      if (!c->reply || !c->parameters().empty() || !c->confirm.empty()) {
-        r_.error(item,
-                 fmt::format("alignment: {} must be a query with a reply and no parameters", name));
+      if (!c->parameters().empty() || !c->confirm.empty() || (!c->reply && !step.error)) {
+        r_.error(name_node,
+                 fmt::format("alignment: {} must be a query with a reply and no parameters",
+                             step.command));
         continue;
       }
-      if (previous && same_shape(*previous->reply, *c->reply))
-        r_.error(item,
-                 fmt::format("alignment: {}'s reply '{}' has the shape of {}'s '{}' before "
-                             "it, so a late answer to one would pass for the other",
-                             name, c->reply->source(), previous->name, previous->reply->source()));
-      previous = c;
-      spec.alignment.push_back(name);
+      const FieldPattern* shape = step.error ? &*spec.error_reply : &*c->reply;
+      if (previous && same_shape(*previous, *shape))
+        r_.error(name_node,
+                 fmt::format("alignment: {}'s reply '{}' has the shape of the reply before it, "
+                             "'{}', so a late answer to one would pass for the other",
+                             step.command, shape->source(), previous->source()));
+      previous = shape;
+      spec.alignment.push_back(std::move(step));
     }
     if (spec.alignment.size() < 2)
       r_.error(node, "alignment: at least two queries, each reply unlike the one before");

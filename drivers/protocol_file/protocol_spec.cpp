@@ -28,11 +28,18 @@ const CommandSpec* ProtocolSpec::find(std::string_view command) const {
 }
 
 std::string ProtocolSpec::address_text(int number) const {
-  std::string why;
-  const auto& pieces = address_format.pieces();
-  if (pieces.size() == 1 && pieces[0].field)
-    if (auto s = format_field(*pieces[0].field, number, why)) return *s;
-  return std::to_string(number);
+  if (const auto it = address_overrides.find(number); it != address_overrides.end())
+    return it->second;
+  std::string out;
+  for (const auto& piece : address_format.pieces()) {
+    if (!piece.field) {
+      out += piece.literal;
+      continue;
+    }
+    std::string why;
+    out += format_field(*piece.field, number, why).value_or(std::to_string(number));
+  }
+  return out;
 }
 
 }  // namespace fieldgate::protocol_file

@@ -102,20 +102,33 @@ struct ProtocolSpec {
   // Addressing.
   int address_min = 0;
   int address_max = 0;
-  FieldPattern address_format;                  // how {addr} is written: {addr}, {addr:int(2)}
-  std::optional<FieldPattern> request_prefix;   // what goes before every command, e.g. {addr}
-  std::optional<std::string> broadcast_prefix;  // the prefix of a bus-wide command, if any
+  FieldPattern address_format;  // how {addr} is written: {addr}, {addr:int(2)}, "{addr} "
+  std::map<int, std::string> address_overrides;  // addresses written otherwise (Copley's 0: "")
+  std::optional<FieldPattern> request_prefix;    // what goes before every command, e.g. {addr}
+  std::optional<std::string> broadcast_prefix;   // the prefix of a bus-wide command, if any
 
   std::optional<ChecksumSpec> checksum;
   bool checksum_on_replies = true;
 
   std::map<std::string, std::string, std::less<>> error_texts;  // device code -> its meaning
 
+  // A reply any command may get instead of its own that means "refused" (Copley's "e 32"):
+  // the pattern, the capture with the device's code, and optionally one with its text.
+  std::optional<FieldPattern> error_reply;
+  std::string error_reply_code;
+  std::string error_reply_text;
+
   std::optional<FieldPattern> unsolicited;  // lines the device sends on its own
   std::chrono::microseconds quiet_after_unsolicited{0};
 
   std::vector<StartupStep> startup;
-  std::vector<std::string> alignment;  // the proof: commands with replies, each unlike the last
+  // The proof: queries with replies, each unlike the last; a step may expect a known refusal
+  // (its error reply with that code) instead of an answer.
+  struct AlignmentStepSpec {
+    std::string command;
+    std::optional<int64_t> error;
+  };
+  std::vector<AlignmentStepSpec> alignment;
 
   std::vector<CommandSpec> commands;
 

@@ -122,8 +122,12 @@ int run_check_protocols(const std::vector<std::string>& files) {
       continue;
     }
     std::cout << fmt::format("{}: ok (protocol {}, {} command(s), alignment proof {})\n", file,
-                             spec->name, spec->commands.size(),
-                             fmt::join(spec->alignment, " then "));
+                             spec->name, spec->commands.size(), [&] {
+                               std::string steps;
+                               for (const auto& step : spec->alignment)
+                                 steps += (steps.empty() ? "" : " then ") + step.command;
+                               return steps;
+                             }());
   }
   return status;
 }

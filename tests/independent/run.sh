@@ -82,6 +82,13 @@ case $family in
     axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
                --refused-target 2000000)
     ;;
+  copley-file)
+    # The copley-ascii family out of the configuration: the same unit, behind the protocol file
+    # config/protocols/copley-ascii-file.yaml and its model copley-amplifier-file.
+    unit=(copley_unit.py --nodes 0,3)
+    axis_family_bus copley-ascii-file "$dir/port" 200ms
+    axis_args=(--distance 20000 --expect-homed)
+    ;;
   smc100)
     # Newport SMC100, run by its protocol file (config/protocols/newport-smc100.yaml): no C++
     # of its own. Positions in 0.0001 mm; the controllers' software limits are +-25 mm.

@@ -6,6 +6,7 @@ were not at hand (see "Sources"). Nothing here is taken from sim/, drivers/ or c
 
   smc100_unit.py --link PATH [--addresses 1,2] [--baud 57600] [--decimals N]
                  [--limit-error C|G] [--log first|all|none] [--self-test]
+                 [--chaos SEED [--chaos-paused]] [--journal PATH]
 
 Facts from the manual (6.3 Command Syntax, manualslib page 26 of EDH0206En2042):
 - Command format `nnAAxx`: optional/required controller address nn, a two-letter command
@@ -73,6 +74,19 @@ Readings chosen where the manual (as found) is silent or was not at hand:
   stage errors come from the hardware); the refused target is the error this unit offers.
 - Bytes sent at another host baud rate than --baud are unreadable and dropped.
 
+Test instruments (not the manual's; without these flags nothing changes):
+- --journal PATH: one line per command executed (`T exec 1PA2.5 ok state=28 target=2.5
+  pos=0`, or `refused=C` for one that memorised an error) and per reply queued for the wire
+  (`T sent 1TP1.5`, `T sent 1TP1.5 late=312ms`), and one per injected fault (`T fault drop
+  1TP1.5`, `T fault garble 1TP1.5 -> <hex>`, `T fault truncate 1TP1.5 -> <hex>`, `T fault
+  lost-command 1PA2.5`). T is time.monotonic() (seconds). Flushed per line.
+- --chaos SEED: a bad line, from random.Random(SEED): a reply is late (250-400 ms, and the
+  replies behind it wait too: the device answers its backlog), dropped, garbled (1-3 of its
+  characters get bit 7 set, so it cannot spell another valid reply) or truncated; an incoming
+  command line is lost (never heard: neither executed nor journaled as executed). Rates: the
+  --chaos-rates option. --chaos-paused starts with the chaos off; SIGUSR1 turns it on, SIGUSR2
+  off (journaled as `T chaos on|off`).
+
 Sources: manualslib.com/manual/1238858/Newport-Smc100cc.html (page 26, 6.3 Command Syntax and
 6.4 Command Execution Time); the state, positioner-error and command-error tables as
 transcribed (identically) by several public drivers citing "SMC100CC User Manual p.61/p.65";
@@ -80,8 +94,10 @@ the NPC1USB manual's TS page (same Newport command family) for the `1TSabcdef` l
 """
 import argparse
 import os
+import random
 import re
 import select
+import signal
 import sys
 import termios
 import threading
@@ -348,11 +364,39 @@ class Controller:
             self.state, self.stopping_to = "33", None
 
 
+class Chaos:
+    """A bad line (--chaos): decides each reply's and each command's fate from a seeded RNG."""
+
+    def __init__(self, seed, rates, active):
+        self.rng = random.Random(seed)
+        self.late, self.drop, self.garble, self.truncate, self.lost = rates
+        self.active = active
+
+
+class Journal:
+    """--journal: one line per executed command, per reply queued and per fault, flushed."""
+
+    def __init__(self, path):
+        self.f = open(path, "a", buffering=1) if path else None
+
+    def write(self, text):
+        if self.f is not None:
+            self.f.write("%.6f %s\n" % (time.monotonic(), text))
+            self.f.flush()
+
+
 class Line:
-    def __init__(self, pty, controllers):
+    def __init__(self, pty, controllers, chaos=None, journal=None):
         self.pty = pty
         self.controllers = {c.address: c for c in controllers}
         self.buf = bytearray()
+        self.chaos = chaos
+        self.journal = journal or Journal(None)
+
+    def set_chaos(self, on):
+        if self.chaos is not None and self.chaos.active != on:
+            self.chaos.active = on
+            self.journal.write("chaos %s" % ("on" if on else "off"))
 
     def on_bytes(self, data, now):
         for b in data:
@@ -373,10 +417,68 @@ class Line:
         c = self.controllers.get(int(m.group(1)))
         if c is None or c.booting_until is not None:
             return
+        chaos = self.chaos
+        if chaos is not None and chaos.active and chaos.rng.random() < chaos.lost:
+            self.journal.write("fault lost-command %s" % body)
+            return
         rx(text)
-        reply = c.execute(m.group(2).upper(), m.group(3), now)
+        code = m.group(2).upper()
+        if self.journal.f is None:
+            reply = c.execute(code, m.group(3), now)
+        else:
+            reply = self.execute_journaled(c, code, m.group(3), body, now)
         if reply is not None:
-            self.pty.send((reply + "\r\n").encode())
+            self.send_reply(reply, now)
+
+    def execute_journaled(self, c, code, param, body, now):
+        """execute(), journaled with what resulted. An error memorised by this very command is
+        told apart from one already memorised: the register is set aside for the command (not
+        for TE, which reads it) and restored if the command memorised nothing."""
+        if code == "TE":
+            memorised = c.error
+            reply = c.execute(code, param, now)
+            outcome = "ok error-read=%s" % memorised
+        else:
+            before, c.error = c.error, None
+            reply = c.execute(code, param, now)
+            if c.error is None:
+                c.error, outcome = before, "ok"
+            else:
+                outcome = "refused=%s" % c.error
+        self.journal.write("exec %s %s state=%s target=%s pos=%s" % (
+            body, outcome, c.state, c.fmt(c.target), c.fmt(c.position())))
+        return reply
+
+    def send_reply(self, reply, now):
+        data = (reply + "\r\n").encode()
+        chaos = self.chaos
+        late = ""
+        if chaos is not None and chaos.active:
+            r = chaos.rng.random()
+            if r < chaos.late:
+                delay = chaos.rng.uniform(0.25, 0.40)
+                # The device answers late, and what it answers after waits behind it.
+                self.pty.busy_until = max(self.pty.busy_until, now + delay)
+                late = " late=%dms" % round(delay * 1000)
+            elif r < chaos.late + chaos.drop:
+                self.journal.write("fault drop %s" % reply)
+                return
+            elif r < chaos.late + chaos.drop + chaos.garble:
+                data = bytearray(data)
+                body = len(data) - 2
+                for i in chaos.rng.sample(range(body), min(body, chaos.rng.randint(1, 3))):
+                    data[i] |= 0x80
+                data = bytes(data)
+                self.journal.write("fault garble %s -> %s" % (reply, data.hex()))
+                self.pty.send(data)
+                return
+            elif r < chaos.late + chaos.drop + chaos.garble + chaos.truncate:
+                data = data[:chaos.rng.randint(1, len(data) - 1)]
+                self.journal.write("fault truncate %s -> %s" % (reply, data.hex()))
+                self.pty.send(data)
+                return
+        self.journal.write("sent %s%s" % (reply, late))
+        self.pty.send(data)
 
     def on_tick(self, now):
         for c in self.controllers.values():
@@ -388,7 +490,14 @@ def make_line(pty, args):
     for a in addresses:
         if not 1 <= a <= 31:
             sys.exit("smc100: address %d outside 1..31" % a)
-    return Line(pty, [Controller(a, args.decimals, args.limit_error) for a in addresses])
+    chaos = None
+    if getattr(args, "chaos", None) is not None:
+        rates = [float(r) for r in args.chaos_rates.split(",")]
+        if len(rates) != 5:
+            sys.exit("smc100: --chaos-rates takes 5 numbers")
+        chaos = Chaos(args.chaos, rates, not args.chaos_paused)
+    return Line(pty, [Controller(a, args.decimals, args.limit_error) for a in addresses],
+                chaos, Journal(getattr(args, "journal", None)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -511,6 +620,15 @@ def main():
                     help="letter memorised for a target outside SL..SR")
     ap.add_argument("--log", default="first", choices=["first", "all", "none"])
     ap.add_argument("--self-test", action="store_true")
+    ap.add_argument("--chaos", type=int, default=None, metavar="SEED",
+                    help="a bad line: late, dropped, garbled, truncated replies, lost commands")
+    ap.add_argument("--chaos-rates", default="0.05,0.04,0.04,0.04,0.03",
+                    metavar="LATE,DROP,GARBLE,TRUNCATE,LOST",
+                    help="probability of each fault per reply (the last: per command line)")
+    ap.add_argument("--chaos-paused", action="store_true",
+                    help="start with the chaos off (SIGUSR1 on, SIGUSR2 off)")
+    ap.add_argument("--journal", default=None, metavar="PATH",
+                    help="journal of executed commands, replies sent and faults injected")
     args = ap.parse_args()
     _log_mode = args.log
     if args.self_test:
@@ -519,6 +637,11 @@ def main():
         ap.error("--link is required")
     pty = uc.Pty(args.link, args.baud)
     line = make_line(pty, args)
+    if line.chaos is not None:
+        signal.signal(signal.SIGUSR1, lambda *_: line.set_chaos(True))
+        signal.signal(signal.SIGUSR2, lambda *_: line.set_chaos(False))
+        line.journal.write("chaos seed %d %s" % (args.chaos, "paused" if args.chaos_paused
+                                                 else "on"))
     uc.log("smc100: addresses %s at %d baud on %s" % (args.addresses, args.baud, args.link))
     uc.run(pty, uc.heard_only_at(pty, args.baud, "smc100", line.on_bytes), line.on_tick)
 

@@ -81,6 +81,14 @@ axis_family_bus() {
       esac
       nodes="      - {name: techno, address: 0, model: $family, unit_id: 1, $units_yaml}"
       ;;
+    copley-ascii-file)
+      # The seed family copley-ascii re-expressed as a protocol file
+      # (config/protocols/copley-ascii-file.yaml), at the amplifiers' power-up 9600 baud.
+      protocol=copley-ascii-file baud=9600 timing="reply_timeout: ${reply:-150ms}"
+      nodes="      - {name: amp0, address: 0, model: copley-amplifier-file, unit_id: 1, profile_unit: 21}
+      - {name: amp3, address: 3, model: copley-amplifier-file, unit_id: 2, profile_unit: 22}"
+      units=21,22
+      ;;
     newport-smc100)
       # A controller described by a protocol file (config/protocols/newport-smc100.yaml).
       protocol=newport-smc100 baud=57600

@@ -71,6 +71,11 @@ TEST(FieldPattern, WhatTheFieldCannotBeIsNoValue) {
   refusal("{addr}TS{e:hex(4)}{s:hex(2)}", "1TS00G033");
   refusal("{n:int}", "99999999999999999999");  // beyond int64
   refusal("{c:char}", "\x01");
+  // A garbled byte is no character of the reply (an SMC100 error query's '@' hit by noise must
+  // not read as error 0xC0).
+  refusal("{addr}TE{c:char}", "1TE\xc0");
+  refusal("{c:char}", "\x7f");
+  refusal("{code:int}, {message:text}", "0, NO ERR\xc2R");
 }
 
 TEST(FieldPattern, BitStringsReadBitOneFirstAndSkipUnderscores) {

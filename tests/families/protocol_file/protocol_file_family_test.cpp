@@ -172,8 +172,8 @@ TEST_F(Smc100Family, TheAlignmentProofAsksStateThenErrorOfTheNode) {
 // controller's message, and the power-up echo is stripped where it comes.
 ProtocolSpecPtr parker6k() {
   Diagnostics d;
-  auto spec = load_protocol_file(
-      std::string(FIELDGATE_SOURCE_DIR) + "/config/protocols/parker-6k.yaml", d);
+  auto spec =
+      load_protocol_file(std::string(FIELDGATE_SOURCE_DIR) + "/config/protocols/parker-6k.yaml", d);
   EXPECT_TRUE(spec) << d.to_text();
   return spec;
 }
@@ -184,14 +184,13 @@ TEST(Parker6kReplies, PromptsAcknowledgeAndTheErrorPromptRefuses) {
   const CommandSpec& tas = *spec->find("read_status");
   const auto ok = interpret_reply(*spec, go, "1GO\r", "\r\n> ", "1");
   EXPECT_EQ(ok.reply.status, Status::ok) << ok.reply.text;
-  const auto refused =
-      interpret_reply(*spec, go, "1GO\r", "\r\n*DRIVE SHUTDOWN\r\r\n? ", "1");
+  const auto refused = interpret_reply(*spec, go, "1GO\r", "\r\n*DRIVE SHUTDOWN\r\r\n? ", "1");
   EXPECT_EQ(refused.reply.status, Status::device_error);
   EXPECT_EQ(refused.reply.device_code, kRefusedReply);
   EXPECT_NE(refused.reply.text.find("go refused: DRIVE SHUTDOWN"), std::string::npos)
       << refused.reply.text;
-  const auto status = interpret_reply(
-      *spec, tas, "1TAS\r", "*1TAS1000_0000_0000_1000_0000_0000_0000_0000\r\r\n> ", "1");
+  const auto status = interpret_reply(*spec, tas, "1TAS\r",
+                                      "*1TAS1000_0000_0000_1000_0000_0000_0000_0000\r\r\n> ", "1");
   ASSERT_EQ(status.reply.status, Status::ok) << status.reply.text;
   EXPECT_EQ(status.reply.values, std::vector<int64_t>{1 | (1 << 12)});
   // With the power-up echo still on.

@@ -112,8 +112,30 @@ TEST(ProtocolFiles, TheGoodFileLoadsWithItsProof) {
   const auto spec = load_protocol_text(kGood, "good.yaml", d);
   ASSERT_TRUE(spec) << d.to_text();
   EXPECT_EQ(spec->name, "test-line");
-  EXPECT_EQ(spec->alignment, (std::vector<std::string>{"state", "error"}));
+  ASSERT_EQ(spec->alignment.size(), 2u);
+  EXPECT_EQ(spec->alignment[0].command, "state");
+  EXPECT_EQ(spec->alignment[1].command, "error");
   EXPECT_EQ(spec->address_text(7), "7");
+}
+
+TEST(ProtocolFiles, StartupStepsAndAlignmentStepsInTheirLongForm) {
+  Diagnostics d;
+  const auto spec = load_protocol_text(
+      with(with(kGood, "alignment: [state, error]",
+                "  mode:\n    send: \"{addr}M{m:int}\"\n    reply: \"{addr}M{m:int}\"\n"
+                "error_reply: {pattern: \"E{n:int}\", code: n}\n"
+                "startup:\n  - {command: mode, arguments: [3], tolerate_errors: true}\n"
+                "alignment:\n  - {command: state, error: 7}\n  - error\n"),
+           "", ""),
+      "long.yaml", d);
+  ASSERT_TRUE(spec) << d.to_text();
+  ASSERT_EQ(spec->startup.size(), 1u);
+  EXPECT_EQ(spec->startup[0].command, "mode");
+  EXPECT_EQ(spec->startup[0].arguments, std::vector<int64_t>{3});
+  EXPECT_TRUE(spec->startup[0].tolerate_errors);
+  ASSERT_EQ(spec->alignment.size(), 2u);
+  EXPECT_EQ(spec->alignment[0].error, 7);
+  EXPECT_FALSE(spec->alignment[1].error);
 }
 
 TEST(ProtocolFiles, ANameTakenByABuiltInFamilyIsRefused) {
