@@ -442,32 +442,17 @@ class ModelParser {
 }  // namespace
 
 ModelPtr load_model_file(const std::string& path, Diagnostics& diagnostics) {
-  YamlReader reader(path, diagnostics);
-  ModelParser parser(reader);
-  return parser.parse(reader.load_file());
+  return parse_yaml_file<ModelParser>(path, diagnostics);
 }
 
 ModelPtr load_model_text(const std::string& text, const std::string& name_for_errors,
                          Diagnostics& diagnostics) {
-  YamlReader reader(name_for_errors, diagnostics);
-  ModelParser parser(reader);
-  return parser.parse(reader.load_string(text));
+  return parse_yaml_text<ModelParser>(text, name_for_errors, diagnostics);
 }
 
 void ModelLibrary::load_directory(const std::string& directory, Diagnostics& diagnostics) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (!fs::is_directory(directory, ec)) {
-    diagnostics.error({directory, 0, 0}, "model directory does not exist");
-    return;
-  }
-  std::vector<fs::path> files;
-  for (const auto& entry : fs::directory_iterator(directory, ec))
-    if (entry.is_regular_file() &&
-        (entry.path().extension() == ".yaml" || entry.path().extension() == ".yml"))
-      files.push_back(entry.path());
-  std::sort(files.begin(), files.end());
-  for (const auto& f : files) add(load_model_file(f.string(), diagnostics), diagnostics);
+  for (const auto& f : yaml_files_in(directory, "model", diagnostics))
+    add(load_model_file(f, diagnostics), diagnostics);
 }
 
 void ModelLibrary::add(ModelPtr model, Diagnostics& diagnostics) {

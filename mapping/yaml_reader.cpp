@@ -4,8 +4,10 @@
 
 #include <yaml-cpp/eventhandler.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -277,6 +279,23 @@ std::optional<std::chrono::microseconds> YamlReader::duration(const YAML::Node& 
   error(node, fmt::format("{}: expected a duration such as 250ms or 2s, found {}", what,
                           kind_name(node)));
   return std::nullopt;
+}
+
+std::vector<std::string> yaml_files_in(const std::string& directory, std::string_view what,
+                                       Diagnostics& diagnostics) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  std::vector<std::string> files;
+  if (!fs::is_directory(directory, ec)) {
+    diagnostics.error({directory, 0, 0}, fmt::format("{} directory does not exist", what));
+    return files;
+  }
+  for (const auto& entry : fs::directory_iterator(directory, ec))
+    if (entry.is_regular_file() &&
+        (entry.path().extension() == ".yaml" || entry.path().extension() == ".yml"))
+      files.push_back(entry.path().string());
+  std::sort(files.begin(), files.end());
+  return files;
 }
 
 }  // namespace fieldgate

@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "mapping/diagnostics.hpp"
 
@@ -54,6 +55,28 @@ class YamlReader {
   std::string file_;
   Diagnostics& diag_;
 };
+
+// A document of a file (or of a text, named for its errors) read by a Parser: a class built on a
+// YamlReader whose parse(root) returns what the document describes.
+template <class Parser>
+auto parse_yaml_file(const std::string& path, Diagnostics& diagnostics) {
+  YamlReader reader(path, diagnostics);
+  Parser parser(reader);
+  return parser.parse(reader.load_file());
+}
+
+template <class Parser>
+auto parse_yaml_text(const std::string& text, const std::string& name_for_errors,
+                     Diagnostics& diagnostics) {
+  YamlReader reader(name_for_errors, diagnostics);
+  Parser parser(reader);
+  return parser.parse(reader.load_string(text));
+}
+
+// The *.yaml and *.yml files of a directory, sorted; a directory that is not there is an error
+// ("WHAT directory does not exist") and no files.
+std::vector<std::string> yaml_files_in(const std::string& directory, std::string_view what,
+                                       Diagnostics& diagnostics);
 
 // Parses integer text as the reader does ("0x1A", "-12", "12"); nullopt on anything else.
 std::optional<int64_t> parse_integer_text(std::string_view text);

@@ -4,6 +4,7 @@
 
 #include <charconv>
 #include <cstdlib>
+#include <iterator>
 #include <limits>
 #include <set>
 #include <utility>
@@ -245,21 +246,10 @@ std::optional<int64_t> value_of(const Field& f, std::string_view text) {
 }  // namespace
 
 std::string_view to_string(FieldType type) {
-  switch (type) {
-    case FieldType::integer:
-      return "int";
-    case FieldType::decimal:
-      return "decimal";
-    case FieldType::hex:
-      return "hex";
-    case FieldType::character:
-      return "char";
-    case FieldType::bits:
-      return "bits";
-    case FieldType::text:
-      return "text";
-  }
-  return "?";
+  // In the order of FieldType.
+  static constexpr std::string_view kNames[] = {"int", "decimal", "hex", "char", "bits", "text"};
+  const auto i = static_cast<std::size_t>(type);
+  return i < std::size(kNames) ? kNames[i] : "?";
 }
 
 std::optional<FieldPattern> FieldPattern::compile(std::string_view text, PatternError& error) {

@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <initializer_list>
 #include <set>
+#include <utility>
 
 #include "drivers/printable_bytes.hpp"
 #include "drivers/protocol_family.hpp"
@@ -66,6 +68,20 @@ class ProtocolParser {
   }
 
  private:
+  // One of the named choices, or an error listing them.
+  template <typename E>
+  std::optional<E> choice(const YAML::Node& node, std::string_view what,
+                          std::initializer_list<std::pair<std::string_view, E>> choices) {
+    const auto s = r_.string(node, what).value_or("");
+    std::string names;
+    for (const auto& [name, value] : choices) {
+      if (s == name) return value;
+      names += (names.empty() ? "" : ", ") + std::string(name);
+    }
+    r_.error(node, fmt::format("{}: '{}' is one of {}", what, s, names));
+    return std::nullopt;
+  }
+
   // The mark of a template's character `offset` (a quoted scalar starts with its quote).
   SourceMark at(const YAML::Node& node, std::size_t offset) const {
     SourceMark m = r_.mark(node);
@@ -102,17 +118,12 @@ class ProtocolParser {
     }
     if (spec.reply_length == 0 && spec.reply_terminator.empty())
       r_.error(node, "framing: a reply needs a reply_terminator or a fixed reply_length");
-    if (auto e = node["echo"]) {
-      const auto s = r_.string(e, "echo").value_or("");
-      if (s == "none")
-        spec.echo = ProtocolSpec::Echo::none;
-      else if (s == "always")
-        spec.echo = ProtocolSpec::Echo::always;
-      else if (s == "optional")
-        spec.echo = ProtocolSpec::Echo::optional;
-      else
-        r_.error(e, fmt::format("echo: '{}' is none, always or optional", s));
-    }
+    if (auto e = node["echo"])
+      spec.echo = choice<ProtocolSpec::Echo>(e, "echo",
+                                             {{"none", ProtocolSpec::Echo::none},
+                                              {"always", ProtocolSpec::Echo::always},
+                                              {"optional", ProtocolSpec::Echo::optional}})
+                      .value_or(spec.echo);
     if (node["reply_prefix"])
       spec.reply_prefix = r_.string(node["reply_prefix"], "reply_prefix").value_or("");
     if (node["max_reply"])
@@ -186,17 +197,12 @@ class ProtocolParser {
         r_.error(p, fmt::format("checksum preset '{}' is not known (known: {})", name,
                                 checksum_preset_names()));
     } else if (auto a = r_.require(node, "algorithm", "checksum (or a preset)")) {
-      const auto s = r_.string(*a, "checksum algorithm").value_or("");
-      if (s == "crc")
-        c.algorithm = ChecksumSpec::Algorithm::crc;
-      else if (s == "sum")
-        c.algorithm = ChecksumSpec::Algorithm::sum;
-      else if (s == "xor")
-        c.algorithm = ChecksumSpec::Algorithm::xor_bytes;
-      else if (s == "lrc")
-        c.algorithm = ChecksumSpec::Algorithm::lrc;
-      else
-        r_.error(*a, fmt::format("checksum algorithm '{}' is crc, sum, xor or lrc", s));
+      c.algorithm = choice<ChecksumSpec::Algorithm>(*a, "checksum algorithm",
+                                                    {{"crc", ChecksumSpec::Algorithm::crc},
+                                                     {"sum", ChecksumSpec::Algorithm::sum},
+                                                     {"xor", ChecksumSpec::Algorithm::xor_bytes},
+                                                     {"lrc", ChecksumSpec::Algorithm::lrc}})
+                        .value_or(c.algorithm);
       if (c.algorithm == ChecksumSpec::Algorithm::crc && !node["poly"])
         r_.error(node, "checksum: a crc needs its poly (and init, xor_out, reflect if not 0)");
     }
@@ -214,21 +220,14 @@ class ProtocolParser {
       c.xor_out =
           static_cast<uint64_t>(r_.integer(node["xor_out"], "xor_out", 0, mask).value_or(0));
     if (node["reflect"]) c.reflect = r_.boolean(node["reflect"], "reflect").value_or(false);
-    if (auto e = node["encoding"]) {
-      const auto s = r_.string(e, "checksum encoding").value_or("");
-      if (s == "hex")
-        c.encoding = ChecksumSpec::Encoding::hex;
-      else if (s == "hex_lower")
-        c.encoding = ChecksumSpec::Encoding::hex_lower;
-      else if (s == "binary_big")
-        c.encoding = ChecksumSpec::Encoding::binary_big;
-      else if (s == "binary_little")
-        c.encoding = ChecksumSpec::Encoding::binary_little;
-      else
-        r_.error(e, fmt::format("checksum encoding '{}' is hex, hex_lower, binary_big or "
-                                "binary_little",
-                                s));
-    }
+    if (auto e = node["encoding"])
+      c.encoding =
+          choice<ChecksumSpec::Encoding>(e, "checksum encoding",
+                                         {{"hex", ChecksumSpec::Encoding::hex},
+                                          {"hex_lower", ChecksumSpec::Encoding::hex_lower},
+                                          {"binary_big", ChecksumSpec::Encoding::binary_big},
+                                          {"binary_little", ChecksumSpec::Encoding::binary_little}})
+              .value_or(c.encoding);
     if (node["skip"])
       c.skip =
           static_cast<std::size_t>(r_.integer(node["skip"], "checksum skip", 0, 16).value_or(0));
@@ -630,34 +629,13 @@ class ProtocolParser {
 }  // namespace
 
 ProtocolSpecPtr load_protocol_file(const std::string& path, Diagnostics& diagnostics) {
-  YamlReader reader(path, diagnostics);
-  ProtocolParser parser(reader);
-  return parser.parse(reader.load_file());
-}
-
-ProtocolSpecPtr load_protocol_text(const std::string& text, const std::string& name_for_errors,
-                                   Diagnostics& diagnostics) {
-  YamlReader reader(name_for_errors, diagnostics);
-  ProtocolParser parser(reader);
-  return parser.parse(reader.load_string(text));
+  return parse_yaml_file<ProtocolParser>(path, diagnostics);
 }
 
 void ProtocolLibrary::load_directory(const std::string& directory, Diagnostics& diagnostics) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (!fs::is_directory(directory, ec)) {
-    diagnostics.error({directory, 0, 0}, "protocol directory does not exist");
-    return;
-  }
-  std::vector<fs::path> files;
-  for (const auto& entry : fs::directory_iterator(directory, ec))
-    if (entry.is_regular_file() &&
-        (entry.path().extension() == ".yaml" || entry.path().extension() == ".yml"))
-      files.push_back(entry.path());
-  std::sort(files.begin(), files.end());
-  for (const auto& f : files) {
+  for (const auto& f : yaml_files_in(directory, "protocol", diagnostics)) {
     Diagnostics d;
-    auto spec = load_protocol_file(f.string(), d);
+    auto spec = load_protocol_file(f, d);
     diagnostics.append(d);
     if (spec) add(std::move(spec), diagnostics);
   }

@@ -12,8 +12,6 @@ namespace fieldgate::protocol_file {
 // Reads one protocol file (docs/protocol-files.md). Every error is reported at its
 // file:line:column, a field of a template at the column of its '{'; nullptr when any was found.
 ProtocolSpecPtr load_protocol_file(const std::string& path, Diagnostics& diagnostics);
-ProtocolSpecPtr load_protocol_text(const std::string& text, const std::string& name_for_errors,
-                                   Diagnostics& diagnostics);
 
 // Every *.yaml protocol file of the given directories, by protocol name.
 class ProtocolLibrary {

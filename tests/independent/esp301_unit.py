@@ -101,18 +101,7 @@ AXIS_ERRORS = {4: "POSITIVE HARDWARE LIMIT DETECTED", 5: "NEGATIVE HARDWARE LIMI
                13: "MOTOR NOT ENABLED", 20: "HOMING ABORTED",
                30: "COMMAND NOT ALLOWED DURING HOMING"}
 
-_log_mode = "first"
-_seen = {}
-_t0 = time.monotonic()
-
-
-def rx(text):
-    if _log_mode == "none":
-        return
-    key = text[:40]
-    _seen[key] = _seen.get(key, 0) + 1
-    if _log_mode == "all" or _seen[key] <= 3:
-        print("%.3f rx %s" % (time.monotonic() - _t0, text), flush=True)
+rx = uc.rx
 
 
 class Refused(Exception):
@@ -446,25 +435,8 @@ class Esp301:
 # ---------------------------------------------------------------------------------------------
 # Self-test
 
-class Host:
-    def __init__(self, link, baud):
-        self.fd = os.open(link, os.O_RDWR | os.O_NOCTTY)
-        tty.setraw(self.fd)
-        attrs = termios.tcgetattr(self.fd)
-        attrs[4] = attrs[5] = getattr(termios, "B%d" % baud)
-        termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
-
-    def ask(self, text, wait=0.15):
-        os.write(self.fd, text.encode())
-        end = time.monotonic() + wait
-        out = b""
-        while True:
-            left = end - time.monotonic()
-            if left <= 0:
-                return out
-            r, _, _ = select.select([self.fd], [], [], left)
-            if r:
-                out += os.read(self.fd, 4096)
+def Host(link, baud):
+    return uc.TestHost(link, baud, 0.15)
 
 
 def self_test(args):
@@ -474,22 +446,10 @@ def self_test(args):
     on_bytes = uc.heard_only_at(pty, args.baud, "esp301", unit.on_bytes)
     threading.Thread(target=uc.run, args=(pty, on_bytes, unit.on_tick), daemon=True).start()
     host = Host(link, args.baud)
-    failures = []
+    test = uc.SelfTest(host, 0.1)
+    check, wait_for = test.check, test.wait_for
 
-    def check(what, got, want):
-        ok = got == want if not callable(want) else want(got)
-        print("%s %-36s %r" % ("ok  " if ok else "FAIL", what, got))
-        if not ok:
-            failures.append(what)
 
-    def wait_for(query, want, seconds):
-        end = time.monotonic() + seconds
-        got = b""
-        while time.monotonic() < end:
-            got = host.ask(query, 0.1)
-            if got == want:
-                break
-        return got
 
     tb = lambda code, text: (lambda got: re.fullmatch(rb"%d, \d+, %s\r\n" % (code, text), got))
     check("power-up position", host.ask("1TP?\r"), b"0\r\n")
@@ -527,32 +487,15 @@ def self_test(args):
     check("ST stops the jog", host.ask("2MD?\r"), b"1\r\n")
     host.ask("MF\r")
     check("MF: all motors off", host.ask("1MO?\r2MO?\r"), b"0\r\n0\r\n")
-    attrs = termios.tcgetattr(host.fd)
-    attrs[4] = attrs[5] = termios.B9600
-    termios.tcsetattr(host.fd, termios.TCSANOW, attrs)
-    time.sleep(0.1)
-    check("host at 9600: unreadable", host.ask("1TP?\r"), b"")
-    os.unlink(link)
-    print("self-test: %d failure(s)" % len(failures))
-    return 1 if failures else 0
+    return test.finish(link, 9600, "1TP?\r")
 
 
 def main():
-    global _log_mode
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--link", help="symlink to the PTY slave the gateway opens")
+    ap = uc.unit_arguments(__doc__, 19200)
     ap.add_argument("--axes", default="1,2", help="axes with a stage, of 1..3")
-    ap.add_argument("--baud", type=int, default=19200)
     ap.add_argument("--decimals", type=int, default=None,
                     help="print TP? etc. with exactly N decimals (default: trimmed)")
-    ap.add_argument("--log", default="first", choices=["first", "all", "none"])
-    ap.add_argument("--self-test", action="store_true")
-    args = ap.parse_args()
-    _log_mode = args.log
-    if args.self_test:
-        sys.exit(self_test(args))
-    if not args.link:
-        ap.error("--link is required")
+    args = uc.parse_unit_arguments(ap, self_test)
     axes = [int(a) for a in args.axes.split(",") if a]
     if any(not 1 <= a <= 3 for a in axes):
         ap.error("axes are 1..3")

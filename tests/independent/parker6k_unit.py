@@ -101,18 +101,7 @@ OTHER = ["TAS", "TPC", "TPE", "TER", "TSS", "TREV", "TVELA", "GO", "S", "K", "HO
 NAMES = sorted(list(NUMERIC) + list(BINARY) + list(SYSTEM_INT) + list(SYSTEM_LIST) + OTHER,
                key=len, reverse=True)
 
-_log_mode = "first"
-_seen = {}
-_t0 = time.monotonic()
-
-
-def rx(text):
-    if _log_mode == "none":
-        return
-    key = text[:40]
-    _seen[key] = _seen.get(key, 0) + 1
-    if _log_mode == "all" or _seen[key] <= 3:
-        print("%.3f rx %s" % (time.monotonic() - _t0, text), flush=True)
+rx = uc.rx
 
 
 def bitstring(bits):
@@ -228,14 +217,9 @@ class Unit:
         for b in data:
             if self.echo:
                 self.pty.send(bytes([b]))
-            if b in (0x0D, 0x0A):
-                text = bytes(self.buf).decode("ascii", errors="replace")
-                self.buf.clear()
+            text = uc.feed_line(self.buf, b, (0x0D, 0x0A), 512)
+            if text is not None:
                 self.line(text, now)
-            else:
-                self.buf.append(b)
-                if len(self.buf) > 512:
-                    del self.buf[:-512]
 
     def line(self, text, now):
         body = text.split(";")[0].replace(" ", "").replace("\t", "").upper()
@@ -539,25 +523,8 @@ class Unit:
 # ---------------------------------------------------------------------------------------------
 # Self-test
 
-class Host:
-    def __init__(self, link, baud):
-        self.fd = os.open(link, os.O_RDWR | os.O_NOCTTY)
-        tty.setraw(self.fd)
-        attrs = termios.tcgetattr(self.fd)
-        attrs[4] = attrs[5] = getattr(termios, "B%d" % baud)
-        termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
-
-    def ask(self, text, wait=0.25):
-        os.write(self.fd, text.encode())
-        end = time.monotonic() + wait
-        out = b""
-        while True:
-            left = end - time.monotonic()
-            if left <= 0:
-                return out
-            r, _, _ = select.select([self.fd], [], [], left)
-            if r:
-                out += os.read(self.fd, 4096)
+def Host(link, baud):
+    return uc.TestHost(link, baud, 0.25)
 
 
 def self_test(args):
@@ -567,24 +534,12 @@ def self_test(args):
     on_bytes = uc.heard_only_at(pty, args.baud, "6k", unit.on_bytes)
     threading.Thread(target=uc.run, args=(pty, on_bytes, unit.on_tick), daemon=True).start()
     host = Host(link, args.baud)
-    failures = []
+    test = uc.SelfTest(host, 0.2)
+    check, wait_for = test.check, test.wait_for
     ok_p, bad_p = b"\r\n> ", b"\r\n? "
     z = bitstring(set())
 
-    def check(what, got, want):
-        ok = got == want
-        print("%s %-34s %r" % ("ok  " if ok else "FAIL", what, got))
-        if not ok:
-            failures.append(what)
 
-    def wait_for(query, want, seconds):
-        end = time.monotonic() + seconds
-        got = b""
-        while time.monotonic() < end:
-            got = host.ask(query, 0.2)
-            if got == want:
-                break
-        return got
 
     check("echo on at power-up", host.ask("1TPC\r"), b"1TPC\r*1TPC+0\r" + ok_p)
     check("ECHO0 is echoed, then off", host.ask("ECHO0\r"), b"ECHO0\r" + ok_p)
@@ -630,32 +585,15 @@ def self_test(args):
     host.ask("!K\r")
     check("!K stops", host.ask("2TAS\r")[:6], b"*2TAS0")
     check("ERRLVL0: no prompts", host.ask("ERRLVL0\r1TPC\rFOO\r"), b"*1TPC+0\r")
-    attrs = termios.tcgetattr(host.fd)
-    attrs[4] = attrs[5] = termios.B19200
-    termios.tcsetattr(host.fd, termios.TCSANOW, attrs)
-    time.sleep(0.1)
-    check("host at 19200: unreadable", host.ask("1TPC\r"), b"")
-    os.unlink(link)
-    print("self-test: %d failure(s)" % len(failures))
-    return 1 if failures else 0
+    return test.finish(link, 19200, "1TPC\r")
 
 
 def main():
-    global _log_mode
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--link", help="symlink to the PTY slave the gateway opens")
+    ap = uc.unit_arguments(__doc__, 9600)
     ap.add_argument("--axes", type=int, default=2, help="number of axes (6K2: 2, 6K4: 4)")
-    ap.add_argument("--baud", type=int, default=9600)
     ap.add_argument("--home-zeroes-encoder", action="store_true",
                     help="a successful HOM zeroes TPE as well as TPC")
-    ap.add_argument("--log", default="first", choices=["first", "all", "none"])
-    ap.add_argument("--self-test", action="store_true")
-    args = ap.parse_args()
-    _log_mode = args.log
-    if args.self_test:
-        sys.exit(self_test(args))
-    if not args.link:
-        ap.error("--link is required")
+    args = uc.parse_unit_arguments(ap, self_test)
     if not 1 <= args.axes <= 8:
         ap.error("--axes is 1..8")
     pty = uc.Pty(args.link, args.baud)

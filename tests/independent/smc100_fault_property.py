@@ -49,6 +49,12 @@ from pymodbus.pdu import ExceptionResponse
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+sys.path.insert(0, os.path.join(ROOT, "tests", "integration"))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+from axis import s32, words as axis_words  # noqa: E402
+from process_helpers import stop_processes  # noqa: E402
+
 UNITS = (1, 2)  # unit ID = controller address
 READY = {0x32, 0x33, 0x34, 0x35}
 NO_ANSWER = -1
@@ -70,14 +76,7 @@ def counts(text):
     return int(Decimal(text).scaleb(4).quantize(Decimal(1), rounding=ROUND_HALF_UP))
 
 
-def i32(hi, lo):
-    v = (hi << 16) | lo
-    return v - (1 << 32) if v & 0x80000000 else v
-
-
-def words(v):
-    v &= 0xFFFFFFFF
-    return [v >> 16, v & 0xFFFF]
+i32, words = s32, axis_words
 
 
 def status_word(errors, state):
@@ -282,14 +281,7 @@ buses:
         self.port = port[0]
 
     def stop(self):
-        for p in reversed(self.procs):
-            if p.poll() is None:
-                p.terminate()
-                try:
-                    p.wait(5)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait()
+        stop_processes(*reversed(self.procs))
 
     def home(self, client):
         ok = wait_until(lambda: all((client.inputs(u, 1000, 1) or [0])[0] == 1 for u in UNITS), 15)

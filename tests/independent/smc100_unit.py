@@ -140,19 +140,7 @@ HOMING = {"1E", "1F"}
 MOVING = {"28"}
 CONFIGURATION = {"14"}
 
-_log_mode = "first"
-_seen = {}
-_t0 = time.monotonic()
-
-
-def rx(text):
-    """Logs a command line as received, on stdout (each distinct line 3 times unless --log all)."""
-    if _log_mode == "none":
-        return
-    key = text[:40]
-    _seen[key] = _seen.get(key, 0) + 1
-    if _log_mode == "all" or _seen[key] <= 3:
-        print("%.3f rx %s" % (time.monotonic() - _t0, text), flush=True)
+rx = uc.rx
 
 
 def state_letter(state):
@@ -267,6 +255,14 @@ class Controller:
         self.error = "A"
         return None
 
+    def number(self, param):
+        """The parameter as a number, or None with error C (parameter missing or out of range)."""
+        try:
+            return float(param)
+        except ValueError:
+            self.error = "C"
+            return None
+
     def parameter(self, code, param):
         a = "%d" % self.address
         if param.startswith("?"):
@@ -275,10 +271,8 @@ class Controller:
         if self.state in MOVING | HOMING:
             self.error = state_letter(self.state)
             return None
-        try:
-            v = float(param)
-        except ValueError:
-            self.error = "C"
+        v = self.number(param)
+        if v is None:
             return None
         ok = {"VA": 1e-6 < v < 1e12, "AC": 1e-6 < v < 1e12,
               "SL": -1e12 <= v <= 0, "SR": 0 <= v <= 1e12}[code]
@@ -303,10 +297,8 @@ class Controller:
         if self.state not in READY:
             self.error = state_letter(self.state)
             return None
-        try:
-            v = float(param)
-        except ValueError:
-            self.error = "C"
+        v = self.number(param)
+        if v is None:
             return None
         target = v if code == "PA" else self.target + v
         if not self.sl <= target <= self.sr:
@@ -400,14 +392,9 @@ class Line:
 
     def on_bytes(self, data, now):
         for b in data:
-            if b == 0x0A:
-                line = bytes(self.buf).rstrip(b"\r").decode("ascii", errors="replace")
-                self.buf.clear()
+            line = uc.feed_line(self.buf, b, (0x0A,), 256)
+            if line is not None:
                 self.line(line, now)
-            else:
-                self.buf.append(b)
-                if len(self.buf) > 256:
-                    del self.buf[:-256]
 
     def line(self, text, now):
         body = text.replace(" ", "").replace("\t", "")
@@ -503,31 +490,8 @@ def make_line(pty, args):
 # ---------------------------------------------------------------------------------------------
 # Self-test: the unit on a PTY in a thread, a host on the other end.
 
-class Host:
-    def __init__(self, link, baud):
-        self.fd = os.open(link, os.O_RDWR | os.O_NOCTTY)
-        tty.setraw(self.fd)
-        attrs = termios.tcgetattr(self.fd)
-        attrs[4] = attrs[5] = getattr(termios, "B%d" % baud)
-        termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
-
-    def send(self, text):
-        os.write(self.fd, text.encode())
-
-    def read_for(self, seconds):
-        end = time.monotonic() + seconds
-        out = b""
-        while True:
-            left = end - time.monotonic()
-            if left <= 0:
-                return out
-            r, _, _ = select.select([self.fd], [], [], left)
-            if r:
-                out += os.read(self.fd, 4096)
-
-    def ask(self, text, wait=0.15):
-        self.send(text)
-        return self.read_for(wait)
+def Host(link, baud):
+    return uc.TestHost(link, baud, 0.15)
 
 
 def self_test(args):
@@ -538,22 +502,10 @@ def self_test(args):
     on_bytes = uc.heard_only_at(pty, args.baud, "smc100", line.on_bytes)
     threading.Thread(target=uc.run, args=(pty, on_bytes, line.on_tick), daemon=True).start()
     host = Host(link, args.baud)
-    failures = []
+    test = uc.SelfTest(host, 0.1)
+    check, wait_for = test.check, test.wait_for
 
-    def wait_for(query, want, seconds):
-        end = time.monotonic() + seconds
-        got = b""
-        while time.monotonic() < end:
-            got = host.ask(query, 0.1)
-            if got == want:
-                break
-        return got
 
-    def check(what, got, want):
-        ok = got == want
-        print("%s %-34s %r" % ("ok  " if ok else "FAIL", what, got))
-        if not ok:
-            failures.append((what, got, want))
 
     check("power up state", host.ask("1TS\r\n"), b"1TS00000A\r\n")
     check("CR alone waits for LF", host.ask("1TS\r"), b"")
@@ -598,28 +550,16 @@ def self_test(args):
     check("after RS: NOT REFERENCED", host.ask("1TS\r\n"), b"1TS00000A\r\n")
     check("2 untouched", host.ask("2TS\r\n2TP\r\n"), b"2TS00000A\r\n2TP0\r\n")
     # Bytes at another host rate are unreadable.
-    attrs = termios.tcgetattr(host.fd)
-    attrs[4] = attrs[5] = termios.B9600
-    termios.tcsetattr(host.fd, termios.TCSANOW, attrs)
-    time.sleep(0.1)  # past the 50 ms during which the old rate still counts
-    check("host at 9600: unreadable", host.ask("1TS\r\n"), b"")
-    os.unlink(link)
-    print("self-test: %d failure(s)" % len(failures))
-    return 1 if failures else 0
+    return test.finish(link, 9600, "1TS\r\n")
 
 
 def main():
-    global _log_mode
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--link", help="symlink to the PTY slave the gateway opens")
+    ap = uc.unit_arguments(__doc__, 57600)
     ap.add_argument("--addresses", default="1", help="controller addresses, 1..31 (e.g. 1,2)")
-    ap.add_argument("--baud", type=int, default=57600)
     ap.add_argument("--decimals", type=int, default=None,
                     help="print positions with exactly N decimals (default: trimmed %%.6f)")
     ap.add_argument("--limit-error", default="C", choices=["C", "G"],
                     help="letter memorised for a target outside SL..SR")
-    ap.add_argument("--log", default="first", choices=["first", "all", "none"])
-    ap.add_argument("--self-test", action="store_true")
     ap.add_argument("--chaos", type=int, default=None, metavar="SEED",
                     help="a bad line: late, dropped, garbled, truncated replies, lost commands")
     ap.add_argument("--chaos-rates", default="0.05,0.04,0.04,0.04,0.03",
@@ -629,12 +569,7 @@ def main():
                     help="start with the chaos off (SIGUSR1 on, SIGUSR2 off)")
     ap.add_argument("--journal", default=None, metavar="PATH",
                     help="journal of executed commands, replies sent and faults injected")
-    args = ap.parse_args()
-    _log_mode = args.log
-    if args.self_test:
-        sys.exit(self_test(args))
-    if not args.link:
-        ap.error("--link is required")
+    args = uc.parse_unit_arguments(ap, self_test)
     pty = uc.Pty(args.link, args.baud)
     line = make_line(pty, args)
     if line.chaos is not None:

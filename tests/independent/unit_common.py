@@ -3,6 +3,7 @@ an event loop with timed output (characters leave at the line's baud rate), and 
 
 Written from the manuals only; nothing here is taken from sim/ or drivers/.
 """
+import argparse
 import math
 import os
 import select
@@ -240,3 +241,123 @@ def wire(text):
 
 def log(text):
     print(text, file=sys.stderr, flush=True)
+
+
+def feed_line(buf, b, ends, limit):
+    """Adds byte b to the line being received in buf: at one of the `ends` bytes, returns the
+    line (without it or a CR before it) and starts the next; otherwise None. Keeps the last
+    `limit` bytes of a line that never ends."""
+    if b in ends:
+        text = bytes(buf).rstrip(b"\r").decode("ascii", errors="replace")
+        buf.clear()
+        return text
+    buf.append(b)
+    if len(buf) > limit:
+        del buf[:-limit]
+    return None
+
+
+# The received-line log of the units that print what they hear (--log first|all|none): each
+# distinct line at most three times unless "all".
+received_log = {"mode": "first", "seen": {}, "t0": time.monotonic()}
+
+
+def rx(text):
+    """Logs a command line as received, on stdout."""
+    mode = received_log["mode"]
+    if mode == "none":
+        return
+    seen = received_log["seen"]
+    key = text[:40]
+    seen[key] = seen.get(key, 0) + 1
+    if mode == "all" or seen[key] <= 3:
+        print("%.3f rx %s" % (time.monotonic() - received_log["t0"], text), flush=True)
+
+
+class TestHost:
+    """The host end of a unit's PTY for its --self-test: raw, at the unit's baud rate."""
+
+    def __init__(self, link, baud, wait=0.15):
+        self.fd = os.open(link, os.O_RDWR | os.O_NOCTTY)
+        self.wait = wait
+        tty.setraw(self.fd)
+        attrs = termios.tcgetattr(self.fd)
+        attrs[4] = attrs[5] = getattr(termios, "B%d" % baud)
+        termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
+
+    def send(self, text):
+        os.write(self.fd, text.encode())
+
+    def read_for(self, seconds):
+        end = time.monotonic() + seconds
+        out = b""
+        while True:
+            left = end - time.monotonic()
+            if left <= 0:
+                return out
+            r, _, _ = select.select([self.fd], [], [], left)
+            if r:
+                out += os.read(self.fd, 4096)
+
+    def ask(self, text, wait=None):
+        self.send(text)
+        return self.read_for(self.wait if wait is None else wait)
+
+    def set_rate(self, baud):
+        """Switches the host's end to another rate (the unit must then hear nothing)."""
+        attrs = termios.tcgetattr(self.fd)
+        attrs[4] = attrs[5] = getattr(termios, "B%d" % baud)
+        termios.tcsetattr(self.fd, termios.TCSANOW, attrs)
+
+
+class SelfTest:
+    """The checks of a unit's --self-test, through its TestHost."""
+
+    def __init__(self, host, poll=0.1):
+        self.host, self.poll, self.failures = host, poll, []
+
+    def check(self, what, got, want):
+        ok = want(got) if callable(want) else got == want
+        print("%s %-36s %r" % ("ok  " if ok else "FAIL", what, got))
+        if not ok:
+            self.failures.append(what)
+
+    def wait_for(self, query, want, seconds):
+        end = time.monotonic() + seconds
+        got = b""
+        while time.monotonic() < end:
+            got = self.host.ask(query, self.poll)
+            if got == want:
+                break
+        return got
+
+    def finish(self, link, other_rate, query):
+        """At another host rate the unit must hear nothing; then the count and exit status."""
+        self.host.set_rate(other_rate)
+        time.sleep(0.1)  # past the 50 ms during which the old rate still counts
+        self.check("host at %d: unreadable" % other_rate, self.host.ask(query), b"")
+        os.unlink(link)
+        print("self-test: %d failure(s)" % len(self.failures))
+        return 1 if self.failures else 0
+
+
+def parse_unit_arguments(ap, self_test):
+    """Parses a unit's options: --log takes effect, --self-test runs (and exits), --link is then
+    required."""
+    args = ap.parse_args()
+    received_log["mode"] = args.log
+    if args.self_test:
+        sys.exit(self_test(args))
+    if not args.link:
+        ap.error("--link is required")
+    return args
+
+
+def unit_arguments(doc, baud):
+    """The options every unit takes (--link, --baud, --log, --self-test); the unit adds its own."""
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
+    ap.add_argument("--link", help="symlink to the PTY slave the gateway opens")
+    ap.add_argument("--baud", type=int, default=baud)
+    ap.add_argument("--log", default="first", choices=["first", "all", "none"])
+    ap.add_argument("--self-test", action="store_true")
+    return ap

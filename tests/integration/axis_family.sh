@@ -89,35 +89,22 @@ axis_family_bus() {
       - {name: amp3, address: 3, model: copley-amplifier-file, unit_id: 2, profile_unit: 22}"
       units=21,22
       ;;
-    newport-smc100)
-      # A controller described by a protocol file (config/protocols/newport-smc100.yaml).
-      protocol=newport-smc100 baud=57600
+    newport-smc100 | newport-esp301 | parker-6k)
+      # Controllers described by protocol files (config/protocols/FAMILY.yaml), two axes at
+      # addresses 1 and 2 (SMC100 controllers, ESP301 axes, 6K axes).
+      local name first limit
+      case $family in
+        newport-smc100) baud=57600 name=smc first=51 limit=245000 ;;
+        newport-esp301) baud=19200 name=esp first=61 limit=245000 ;;
+        parker-6k) baud=9600 name=axis first=71 limit=400000 ;;
+      esac
+      protocol=$family
       timing="reply_timeout: ${reply:-100ms}, byte_timeout: ${byte:-20ms}"
-      nodes="      - {name: smc_1, address: 1, model: newport-smc100, unit_id: 1, profile_unit: 51,
-         limits: {target: {min: -245000, max: 245000}}}
-      - {name: smc_2, address: 2, model: newport-smc100, unit_id: 2, profile_unit: 52,
-         limits: {target: {min: -245000, max: 245000}}}"
-      units=51,52
-      ;;
-    newport-esp301)
-      # One ESP301, axes 1 and 2 as nodes (config/protocols/newport-esp301.yaml).
-      protocol=newport-esp301 baud=19200
-      timing="reply_timeout: ${reply:-100ms}, byte_timeout: ${byte:-20ms}"
-      nodes="      - {name: esp_1, address: 1, model: newport-esp301, unit_id: 1, profile_unit: 61,
-         limits: {target: {min: -245000, max: 245000}}}
-      - {name: esp_2, address: 2, model: newport-esp301, unit_id: 2, profile_unit: 62,
-         limits: {target: {min: -245000, max: 245000}}}"
-      units=61,62
-      ;;
-    parker-6k)
-      # One 6K2, axes 1 and 2 as nodes (config/protocols/parker-6k.yaml).
-      protocol=parker-6k baud=9600
-      timing="reply_timeout: ${reply:-100ms}, byte_timeout: ${byte:-20ms}"
-      nodes="      - {name: axis_1, address: 1, model: parker-6k, unit_id: 1, profile_unit: 71,
-         limits: {target: {min: -400000, max: 400000}}}
-      - {name: axis_2, address: 2, model: parker-6k, unit_id: 2, profile_unit: 72,
-         limits: {target: {min: -400000, max: 400000}}}"
-      units=71,72
+      nodes="      - {name: ${name}_1, address: 1, model: $family, unit_id: 1, profile_unit: $first,
+         limits: {target: {min: -$limit, max: $limit}}}
+      - {name: ${name}_2, address: 2, model: $family, unit_id: 2, profile_unit: $((first + 1)),
+         limits: {target: {min: -$limit, max: $limit}}}"
+      units=$first,$((first + 1))
       ;;
     canopen)
       # Needs a kernel SocketCAN interface: run under scripts/vcan-run (tests/vcan).

@@ -515,6 +515,24 @@ DEMO_MOVES = [("gw1", "axis_3", "axis", 20000, {}, 0),
               ("gw3", "table_0", "x", 1024000, {}, 4)]
 
 
+def start_edge_node(g, broker_port, buses, sections):
+    """Writes g's gateway.yaml (the sections, a Sparkplug edge node g.edge with commands on, the
+    buses) and starts the daemon on it."""
+    g.config = os.path.join(g.dir, "gateway.yaml")
+    with open(g.config, "w") as f:
+        yaml.safe_dump({
+            **sections,
+            "sparkplug": {"broker": f"mqtt://127.0.0.1:{broker_port}", "group_id": GROUP,
+                          "edge_node_id": g.edge, "keepalive": "5s",
+                          "reconnect": {"min": "200ms", "max": "1s"},
+                          "scan_interval": "50ms", "diagnostics_interval": "1s",
+                          "commands_enabled": True},
+            "buses": buses}, f, sort_keys=False)
+    g.log_path = os.path.join(g.dir, "daemon.log")
+    g.daemon = subprocess.Popen([FIELDGATE, "--config", g.config],
+                                stdout=open(g.log_path, "w"), stderr=subprocess.STDOUT)
+
+
 class DemoGateway:
     """One edge node of the demo fleet: some buses of config/demo.yaml, each behind its
     simulator (stdin is its control channel), and a daemon serving them."""
@@ -539,20 +557,8 @@ class DemoGateway:
         for link in self.sims:
             assert wait_for(lambda: os.path.exists(os.path.join(self.dir, link)), 10), \
                 f"the simulator behind {link} did not start"
-        self.config = os.path.join(self.dir, "gateway.yaml")
-        with open(self.config, "w") as f:
-            yaml.safe_dump({
-                "modbus": {"listen": modbus},
-                "models": MODELS,
-                "sparkplug": {"broker": f"mqtt://127.0.0.1:{broker_port}", "group_id": GROUP,
-                              "edge_node_id": edge, "keepalive": "5s",
-                              "reconnect": {"min": "200ms", "max": "1s"},
-                              "scan_interval": "50ms", "diagnostics_interval": "1s",
-                              "commands_enabled": True},
-                "buses": buses}, f, sort_keys=False)
-        self.log_path = os.path.join(self.dir, "daemon.log")
-        self.daemon = subprocess.Popen([FIELDGATE, "--config", self.config],
-                                       stdout=open(self.log_path, "w"), stderr=subprocess.STDOUT)
+        start_edge_node(self, broker_port, buses, {"modbus": {"listen": modbus},
+                                                   "models": MODELS})
 
     def control(self, line):
         for sim in self.sims.values():
@@ -1062,20 +1068,8 @@ class ProtocolFileGateway:
         for bus in self.sims:
             assert wait_for(lambda: os.path.exists(os.path.join(self.dir, bus)), 10), \
                 f"the unit behind {bus} did not start"
-        self.config = os.path.join(self.dir, "gateway.yaml")
-        with open(self.config, "w") as f:
-            yaml.safe_dump({
-                "modbus": {"listen": "127.0.0.1:0"},
-                "models": MODELS, "protocols": PROTOCOLS,
-                "sparkplug": {"broker": f"mqtt://127.0.0.1:{broker_port}", "group_id": GROUP,
-                              "edge_node_id": edge, "keepalive": "5s",
-                              "reconnect": {"min": "200ms", "max": "1s"},
-                              "scan_interval": "50ms", "diagnostics_interval": "1s",
-                              "commands_enabled": True},
-                "buses": buses}, f, sort_keys=False)
-        self.log_path = os.path.join(self.dir, "daemon.log")
-        self.daemon = subprocess.Popen([FIELDGATE, "--config", self.config],
-                                       stdout=open(self.log_path, "w"), stderr=subprocess.STDOUT)
+        start_edge_node(self, broker_port, buses, {"modbus": {"listen": "127.0.0.1:0"},
+                                                   "models": MODELS, "protocols": PROTOCOLS})
 
     def stop(self):
         stop_processes(self.daemon, *self.sims.values())

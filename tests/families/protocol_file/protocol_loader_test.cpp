@@ -2,7 +2,9 @@
 // refused at the file:line:column of what is wrong, with what is wrong.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
+#include <fstream>
 
 #include "drivers/protocol_file/protocol_loader.hpp"
 
@@ -22,6 +24,17 @@ commands:
     error: {capture: c, ok: "@"}
 alignment: [state, error]
 )";
+
+// The text as a protocol file named `name` (in a scratch folder of this process), loaded.
+ProtocolSpecPtr load_protocol_text(const std::string& text, const std::string& name,
+                                   Diagnostics& d) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("fieldgate-protocol-test-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const auto path = (dir / name).string();
+  std::ofstream(path) << text;
+  return load_protocol_file(path, d);
+}
 
 std::string with(std::string text, std::string_view from, std::string_view to) {
   const auto at = text.find(from);
@@ -50,7 +63,7 @@ TEST_P(BrokenProtocolFile, IsRefusedWhereItIsBroken) {
   EXPECT_FALSE(load_protocol_text(b.text, "broken.yaml", d));
   ASSERT_FALSE(d.ok());
   const auto& first = d.errors().front();
-  EXPECT_EQ(first.mark.file, "broken.yaml");
+  EXPECT_TRUE(first.mark.file.ends_with("/broken.yaml")) << first.mark.file;
   EXPECT_EQ(first.mark.line, b.line) << d.to_text();
   EXPECT_EQ(first.mark.column, b.column) << d.to_text();
   EXPECT_NE(first.message.find(b.says), std::string::npos) << d.to_text();
