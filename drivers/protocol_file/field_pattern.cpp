@@ -23,6 +23,11 @@ bool is_hex_digit(char c) {
   return is_digit(c) || (c >= 'A' && c <= 'F') || (c >= 'a' && c <= 'f');
 }
 
+// The characters a char or text field carries: printable ASCII.
+bool is_printable(int64_t c) {
+  return c >= 0x20 && c <= 0x7e;
+}
+
 bool is_name_start(char c) {
   return (c >= 'a' && c <= 'z') || c == '_';
 }
@@ -437,13 +442,12 @@ std::optional<std::vector<Capture>> FieldPattern::match(std::string_view text,
     }
     if (f.type == FieldType::text)
       for (const char c : taken)
-        if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) > 0x7e) {
+        if (!is_printable(static_cast<unsigned char>(c))) {
           why = fmt::format("{{{}:text}} at character {}: '{}' is not printable text", f.name,
                             pos + 1, printable_bytes(taken));
           return std::nullopt;
         }
-    if (f.type == FieldType::character && (static_cast<unsigned char>(taken[0]) < 0x20 ||
-                                           static_cast<unsigned char>(taken[0]) > 0x7e)) {
+    if (f.type == FieldType::character && !is_printable(static_cast<unsigned char>(taken[0]))) {
       why = fmt::format("{{{}:char}} at character {}: not a printable character", f.name, pos + 1);
       return std::nullopt;
     }
@@ -484,7 +488,7 @@ std::optional<std::string> format_field(const Field& f, int64_t value, std::stri
       s = f.width > 0 ? fmt::format("{:0{}X}", value, f.width) : fmt::format("{:X}", value);
       break;
     case FieldType::character:
-      if (value < 0x20 || value > 0x7e) {
+      if (!is_printable(value)) {
         why = fmt::format("{{{}:char}}: {} is not a printable character", f.name, value);
         return std::nullopt;
       }
