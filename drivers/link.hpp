@@ -97,6 +97,17 @@ class Link {
   // receives (rx), for the wire trace.
   using Tap = std::function<void(bool tx, std::string_view bytes)>;
   void set_tap(Tap tap) { tap_ = std::move(tap); }
+  // What a family knows of the frame it just sent or read, in the protocol's words (a protocol
+  // file's command name; a reply's captures), for the wire trace line of that frame. Building
+  // a label costs a format: families ask labels_wanted() first, which the bus sets while it
+  // traces.
+  using LabelTap = std::function<void(std::string_view label)>;
+  void set_label_tap(LabelTap tap) { label_tap_ = std::move(tap); }
+  void want_labels(bool on) { labels_wanted_ = on; }
+  bool labels_wanted() const { return labels_wanted_ && label_tap_; }
+  void label_last_frame(std::string_view label) {
+    if (labels_wanted()) label_tap_(label);
+  }
 
   ByteTransport& transport() { return transport_; }
   const LinkStats& stats() const { return stats_; }
@@ -113,6 +124,8 @@ class Link {
   LinkStats stats_;
   std::vector<Note> notes_;
   Tap tap_;
+  LabelTap label_tap_;
+  bool labels_wanted_ = false;
 };
 
 }  // namespace fieldgate

@@ -12,7 +12,7 @@ std::string printable_bytes(std::string_view bytes, std::size_t limit) {
       out += "\\r";
     else if (c == '\n')
       out += "\\n";
-    else if (u < 0x20 || u >= 0x7f)
+    else if (u < 0x20 || u >= 0x7f || c == '\\' || c == '\'')
       out += fmt::format("\\x{:02x}", u);
     else
       out += c;

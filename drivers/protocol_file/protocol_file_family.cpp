@@ -225,6 +225,7 @@ asio::awaitable<ReplyReading> ProtocolFileFamily::exchange(Link& link, const Com
     reading.reply = Reply::of(Reply::Status::link_down, ec.message());
     co_return reading;
   }
+  link.label_last_frame(command.name);
   LinkTiming t = timing;
   if (command.timeout.count() > 0) t.reply_timeout = command.timeout;
   if (!command.reply) {
@@ -233,6 +234,8 @@ asio::awaitable<ReplyReading> ProtocolFileFamily::exchange(Link& link, const Com
       const std::size_t n = wire->size();
       const auto read = co_await link.read_frame(
           [n](std::string_view in) -> std::size_t { return in.size() >= n ? n : 0; }, t);
+      if (read.status == LinkRead::Status::frame)
+        link.label_last_frame(fmt::format("{} echo", command.name));
       if (read.status != LinkRead::Status::frame || read.frame != *wire) {
         reading.reply =
             read.status == LinkRead::Status::timeout && read.partial.empty()
@@ -270,6 +273,12 @@ asio::awaitable<ReplyReading> ProtocolFileFamily::exchange(Link& link, const Com
         co_return reading;
     }
     reading = interpret_reply(*spec_, command, *wire, read.frame, address);
+    if (link.labels_wanted())
+      link.label_last_frame(
+          reading.kind == ReplyReading::Kind::unsolicited ? std::string("unsolicited")
+          : reading.captures.empty()
+              ? command.name
+              : fmt::format("{} {}", command.name, captures_text(reading.captures)));
     if (reading.kind == ReplyReading::Kind::reply) {
       if (reading.reply.status == Reply::Status::ok)
         link.note(fmt::format("{} {}", command.name, captures_text(reading.captures)), 7);
@@ -337,8 +346,65 @@ asio::awaitable<Reply> ProtocolFileFamily::transact(Link& link, const NodeAddres
   co_return co_await run(link, *command, arguments, address, timing);
 }
 
+asio::awaitable<void> ProtocolFileFamily::discover(Link& link, const StartupStep& step,
+                                                   const LinkTiming& timing) {
+  const auto& d = *step.discover;
+  const CommandSpec* command = spec_->find(step.command);
+  int64_t found = d.from - 1;  // the last count that answered
+  std::string ended;           // why the count stopped
+  bool as_expected = false;
+  const std::string no_address;  // the count is the parameter (checked at load)
+  const std::vector<int64_t> no_arguments;
+  for (int64_t n = d.from; n <= d.to; ++n) {
+    link.discard_input();
+    const std::vector<int64_t> count{n};
+    Reply reply = co_await run(link, *command, count, no_address, timing);
+    if (reply.status == Reply::Status::timeout && !d.error_query.empty()) {
+      // The device does not answer a count it does not have; its error query says why.
+      co_await link.resync(guard_time(timing, link.char_time_us()),
+                           10 * guard_time(timing, link.char_time_us()));
+      link.discard_input();
+      reply = co_await run(link, *spec_->find(d.error_query), no_arguments, no_address, timing);
+      if (reply.status == Reply::Status::ok)
+        reply = Reply::of(Reply::Status::timeout,
+                          fmt::format("no reply, and {} reports no error", d.error_query));
+    }
+    if (reply.status == Reply::Status::ok) {
+      found = n;
+      continue;
+    }
+    as_expected = reply.status == Reply::Status::device_error && reply.device_code == d.until_error;
+    ended = fmt::format("{} {}: {} ({})", command->name, n, to_string(reply.status), reply.text);
+    break;
+  }
+  const std::string counted =
+      found < d.from ? std::string("none") : fmt::format("{}..{}", d.from, found);
+  if (as_expected || ended.empty()) {
+    link.note(fmt::format("start-up: {} found {}{}", command->name, counted,
+                          ended.empty() ? fmt::format(" (all up to {})", d.to)
+                                        : fmt::format("; {}", ended)),
+              5);
+  } else {
+    link.note(fmt::format("start-up: {} found {}, then stopped on what is not the end of the "
+                          "count (error {}): {}",
+                          command->name, counted, d.until_error, ended),
+              4);
+  }
+  if (!d.nodes || (!as_expected && !ended.empty())) co_return;
+  for (const int node : nodes_)
+    if (node < d.from || node > found)
+      link.note(fmt::format("start-up: node address {} is configured, but the controller "
+                            "answered {} for {} only",
+                            node, command->name, counted),
+                4);
+}
+
 asio::awaitable<void> ProtocolFileFamily::on_link_open(Link& link, const LinkTiming& timing) {
   for (const auto& step : spec_->startup) {
+    if (step.discover) {
+      co_await discover(link, step, timing);
+      continue;
+    }
     const CommandSpec* command = spec_->find(step.command);
     std::vector<std::string> addresses;
     if (command->request.has_address()) {

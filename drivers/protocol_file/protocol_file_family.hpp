@@ -57,6 +57,8 @@ class ProtocolFileFamily final : public ProtocolFamily {
   asio::awaitable<Reply> run(Link& link, const CommandSpec& command,
                              const std::vector<int64_t>& arguments, std::string_view address,
                              const LinkTiming& timing);
+  // The start-up's bounded loop (StartupStep::discover), with what it found in the log.
+  asio::awaitable<void> discover(Link& link, const StartupStep& step, const LinkTiming& timing);
   // One request and its reply (none for a command the device does not answer).
   asio::awaitable<ReplyReading> exchange(Link& link, const CommandSpec& command,
                                          const std::vector<int64_t>& arguments,

@@ -538,6 +538,17 @@ class ProtocolParser {
       StartupStep step;
       step.mark = r_.mark(item);
       YAML::Node name_node = item;
+      if (item.IsMap() && item["discover"]) {
+        r_.reject_unknown_keys(item, {"discover"}, "startup step");
+        const bool second = std::any_of(spec.startup.begin(), spec.startup.end(),
+                                        [](const StartupStep& s) { return s.discover; });
+        if (second) {
+          r_.error(item, "startup: at most one discover loop (the start-up is no program)");
+          continue;
+        }
+        if (parse_discovery(item["discover"], spec, step)) spec.startup.push_back(std::move(step));
+        continue;
+      }
       if (item.IsMap()) {
         r_.reject_unknown_keys(item, {"command", "arguments", "tolerate_errors"}, "startup step");
         if (auto c = r_.require(item, "command", "startup step"))
@@ -558,6 +569,58 @@ class ProtocolParser {
       }
       spec.startup.push_back(std::move(step));
     }
+  }
+
+  // discover: {command, from, to, until_error, error_query, nodes}
+  bool parse_discovery(const YAML::Node& node, const ProtocolSpec& spec, StartupStep& step) {
+    if (!r_.expect_map(node, "discover")) return false;
+    r_.reject_unknown_keys(node, {"command", "from", "to", "until_error", "error_query", "nodes"},
+                           "discover");
+    StartupStep::Discovery d;
+    const auto name = r_.require(node, "command", "discover");
+    const auto to = r_.require(node, "to", "discover");
+    const auto until = r_.require(node, "until_error", "discover");
+    if (!name || !to || !until) return false;
+    step.command = r_.string(*name, "discover command").value_or("");
+    const CommandSpec* c = spec.find(step.command);
+    if (!c) {
+      r_.error(*name, fmt::format("discover: no command '{}' in this file", step.command));
+      return false;
+    }
+    if (c->parameters().size() != 1 || c->request.has_address()) {
+      r_.error(*name, fmt::format("discover: {} ('{}') must take the count as its one parameter "
+                                  "and no {{addr}}",
+                                  c->name, c->request.source()));
+      return false;
+    }
+    if (node["from"]) d.from = r_.integer(node["from"], "discover from", 0, 9999).value_or(1);
+    d.to = r_.integer(*to, "discover to", 0, 9999).value_or(d.from);
+    if (d.to < d.from || d.to - d.from >= 64) {
+      r_.error(*to, fmt::format("discover: 'to' ({}) must be from 'from' ({}) to 63 above it: the "
+                                "loop is bounded",
+                                d.to, d.from));
+      return false;
+    }
+    d.until_error = r_.integer(*until, "discover until_error", INT64_MIN, INT64_MAX).value_or(0);
+    if (node["error_query"]) {
+      d.error_query = r_.string(node["error_query"], "discover error_query").value_or("");
+      const CommandSpec* q = spec.find(d.error_query);
+      if (!q) {
+        r_.error(node["error_query"],
+                 fmt::format("discover: no command '{}' in this file", d.error_query));
+        return false;
+      }
+      if (!q->reply || !q->error || !q->parameters().empty() || q->request.has_address()) {
+        r_.error(node["error_query"],
+                 fmt::format("discover: error_query {} must be a query of the controller's error "
+                             "(a reply with an error capture, no parameters, no {{addr}})",
+                             q->name));
+        return false;
+      }
+    }
+    if (node["nodes"]) d.nodes = r_.boolean(node["nodes"], "discover nodes").value_or(false);
+    step.discover = d;
+    return true;
   }
 
   void parse_alignment(const YAML::Node& node, const YAML::Node& root, ProtocolSpec& spec) {

@@ -79,6 +79,17 @@ struct StartupStep {
   std::vector<int64_t> arguments;
   bool tolerate_errors = false;  // a unit that refuses it is still used (logged)
   SourceMark mark;
+  // The start-up's one bounded loop (`discover:`): the command, whose one parameter counts from
+  // `from` to at most `to`, until the device refuses with `until_error` (an ESP301 finding its
+  // axes until error 9). A count the device does not answer is explained by `error_query`.
+  struct Discovery {
+    int64_t from = 1;
+    int64_t to = 1;
+    int64_t until_error = 0;
+    std::string error_query;  // empty: a count without a reply ends the loop as a failure
+    bool nodes = false;  // the count is of node addresses: a configured node beyond it is named
+  };
+  std::optional<Discovery> discover;
 };
 
 struct ProtocolSpec {

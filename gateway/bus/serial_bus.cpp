@@ -64,12 +64,15 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
   link_.set_tap([this](bool tx, std::string_view bytes) {
     if (!trace_.active()) return;
     if (trace_collecting_) {
-      traced_.push_back({Clock::now(), tx, std::string(bytes)});
+      traced_.push_back({Clock::now(), tx, std::string(bytes), {}});
       return;
     }
     // Outside a transaction: link-open procedures, urgent commands, discarded input.
     trace_.emit(Clock::now(), {}, tx ? TraceDirection::tx : TraceDirection::rx, {},
                 printable_bytes(bytes));
+  });
+  link_.set_label_tap([this](std::string_view label) {
+    if (trace_collecting_ && !traced_.empty()) traced_.back().label = label;
   });
   int index = 0;  // local: position on this bus; the gateway's number is first_node_index_ + index
   for (const auto& n : config.nodes) nodes_.push_back(bind(n, index++));
@@ -333,9 +336,9 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     }
     const auto started = Clock::now();
     const auto received_before = link_.stats().bytes_received;
-    trace_collecting_ = trace_.active();
+    collect_trace(true);
     reply = co_await family_.transact_node(link_, *n.family_context, request, n.timing);
-    trace_collecting_ = false;
+    collect_trace(false);
     // The trace's outcome names (docs/wire-trace.md), as CAN buses give them.
     trace_transaction(n,
                       reply.status == Reply::Status::garbled ? "garbled" : to_string(reply.status));
@@ -385,19 +388,24 @@ void SerialBus::log_notes(bool quiet) {
   }
 }
 
+void SerialBus::collect_trace(bool on) {
+  trace_collecting_ = on && trace_.active();
+  link_.want_labels(trace_collecting_);
+}
+
 void SerialBus::trace_transaction(const NodeRuntime& n, std::string_view outcome) {
   for (const auto& t : traced_)
     trace_.emit(t.at, n.config->name, t.tx ? TraceDirection::tx : TraceDirection::rx, outcome,
-                printable_bytes(t.bytes));
+                printable_bytes(t.bytes), t.label);
   traced_.clear();
 }
 
 asio::awaitable<void> SerialBus::resync(NodeRuntime& n, const Reply& failed, bool heard) {
   if (!transport_->is_open()) co_return;
-  trace_collecting_ = trace_.active();
+  collect_trace(true);
   const auto found = co_await family_.resync_after_failure(link_, n.timing);
   drained_before_proof_ += found.drained;
-  trace_collecting_ = false;
+  collect_trace(false);
   trace_transaction(n, "resync");
   ++counters_.resyncs;
   counters_.resync_bytes += found.drained.size();
@@ -470,7 +478,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
     // Whole replies drained while the line went quiet were owed ones arriving.
     debt_.settle(drained_before_proof_, proof->steps.front().splitter);
     drained_before_proof_.clear();
-    trace_collecting_ = trace_.active();
+    collect_trace(true);
     const auto guard = guard_time(n->timing, link_.char_time_us());
     // A node that has not answered gets one attempt: it may be absent, and others may prove it.
     const int attempts = std::min(attempts_left, answering(n) ? 2 : 1);
@@ -481,9 +489,9 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
     patient.reply_timeout *= 2;
     const auto result = co_await prove_alignment(link_, *proof, patient, guard, attempts, debt_);
     log_notes(false);
-    trace_collecting_ = false;
+    collect_trace(false);
     attempts_left -= std::max(result.attempts, 1);
-    trace_transaction(*n, result.proved ? "proof" : "proof failed");
+    trace_transaction(*n, result.proved ? "proof" : "proof_failed");
     counters_.stray_replies += result.strays.size();
     if (!result.strays.empty()) {
       std::string strays;

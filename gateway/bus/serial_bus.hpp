@@ -146,10 +146,13 @@ class SerialBus final : public Bus {
     SteadyTime at;
     bool tx;
     std::string bytes;
+    std::string label;  // the family's words for the frame (Link::label_last_frame)
   };
   WireTrace trace_;
   bool trace_collecting_ = false;
   std::vector<TracedBytes> traced_;
+  // Collects the link's frames (and the family's labels) while the trace is wanted.
+  void collect_trace(bool on);
   void trace_transaction(const NodeRuntime& node, std::string_view outcome);
   // What the family noted on the link, at its levels, with the bus's name. `quiet`: the routine
   // reopen of a line where nothing answers, whose notices are logged at debug.

@@ -44,15 +44,16 @@ bool TokenBucket::take(Clock::time_point now) {
 
 std::string format_trace_line(std::string_view bus, std::chrono::steady_clock::time_point at,
                               std::string_view node, TraceDirection direction,
-                              std::string_view outcome, std::string_view bytes) {
+                              std::string_view outcome, std::string_view bytes,
+                              std::string_view label) {
   const auto us =
       std::chrono::duration_cast<std::chrono::microseconds>(at.time_since_epoch()).count();
   // One field each, so a script can split on spaces: "device error" -> device_error.
   std::string outcome_field = outcome.empty() ? "-" : std::string(outcome);
   std::replace(outcome_field.begin(), outcome_field.end(), ' ', '_');
-  return fmt::format("trace {} ({}.{:06}) {} {} {} '{}'", bus, us / 1000000, us % 1000000,
+  return fmt::format("trace {} ({}.{:06}) {} {} {} '{}'{}{}", bus, us / 1000000, us % 1000000,
                      node.empty() ? "-" : node, direction == TraceDirection::tx ? "tx" : "rx",
-                     outcome_field, bytes);
+                     outcome_field, bytes, label.empty() ? "" : " ", label);
 }
 
 WireTrace::WireTrace(std::string bus, bool enabled, double rate, double burst)
@@ -79,8 +80,9 @@ void WireTrace::write(std::string_view line) {
 }
 
 void WireTrace::emit(std::chrono::steady_clock::time_point at, std::string_view node,
-                     TraceDirection direction, std::string_view outcome, std::string_view bytes) {
-  if (observer()) observer()(TraceFrame{bus_, at, node, direction, outcome, bytes});
+                     TraceDirection direction, std::string_view outcome, std::string_view bytes,
+                     std::string_view label) {
+  if (observer()) observer()(TraceFrame{bus_, at, node, direction, outcome, bytes, label});
   if (!enabled_) return;
   if (!bucket_.take(at)) {
     ++dropped_;
@@ -93,7 +95,7 @@ void WireTrace::emit(std::chrono::steady_clock::time_point at, std::string_view 
     unreported_ = 0;
   }
   ++lines_;
-  write(format_trace_line(bus_, at, node, direction, outcome, bytes));
+  write(format_trace_line(bus_, at, node, direction, outcome, bytes, label));
 }
 
 void WireTrace::set_sink(Sink s) {

@@ -26,14 +26,16 @@ class TokenBucket {
   bool started_ = false;
 };
 
-// One trace line, candump-like and grep-able (the bytes last, so a script splits on the first
-// six spaces):
-//   trace BUS (SECONDS.MICROS) NODE tx|rx OUTCOME 'BYTES'
-// SECONDS is CLOCK_MONOTONIC (steady_clock); BYTES are already escaped (printable_bytes, or
-// candump's ID#DATA on CAN).
+// One trace line, candump-like and grep-able (six fields, then the quoted bytes, then what the
+// family said the frame was, if it said):
+//   trace BUS (SECONDS.MICROS) NODE tx|rx OUTCOME 'BYTES' [LABEL]
+// SECONDS is CLOCK_MONOTONIC (steady_clock); BYTES are already escaped (printable_bytes, which
+// escapes the quote, or candump's ID#DATA on CAN), so the bytes end at the next quote. LABEL
+// is a protocol file's command name, and on a reply its captures (`read_state e=0000 s=33`).
 std::string format_trace_line(std::string_view bus, std::chrono::steady_clock::time_point at,
                               std::string_view node, TraceDirection direction,
-                              std::string_view outcome, std::string_view bytes);
+                              std::string_view outcome, std::string_view bytes,
+                              std::string_view label = {});
 
 // The wire trace of one bus: off unless the config says `trace: true` or it is switched on at
 // run time (SIGUSR2, POST /trace on the metrics endpoint). Lines go to the log (stderr, so
@@ -55,6 +57,7 @@ struct TraceFrame {
   TraceDirection direction;
   std::string_view outcome;
   std::string_view bytes;
+  std::string_view label;
 };
 
 class WireTrace {
@@ -77,7 +80,8 @@ class WireTrace {
   static bool observed();
   void set_enabled(bool on);
   void emit(std::chrono::steady_clock::time_point at, std::string_view node,
-            TraceDirection direction, std::string_view outcome, std::string_view bytes);
+            TraceDirection direction, std::string_view outcome, std::string_view bytes,
+            std::string_view label = {});
   uint64_t lines() const { return lines_; }
   uint64_t dropped() const { return dropped_; }
 

@@ -80,6 +80,7 @@ struct ConsoleServer::State : std::enable_shared_from_this<ConsoleServer::State>
     o["dir"] = f.direction == TraceDirection::tx ? "tx" : "rx";
     o["outcome"] = f.outcome.empty() ? std::string_view("-") : f.outcome;
     o["bytes"] = f.bytes;
+    if (!f.label.empty()) o["label"] = f.label;
     TraceEntry e{next_seq++, json::serialize(o)};
     trace.push_back(std::move(e));
     while (trace.size() > trace_ring) trace.pop_front();

@@ -38,6 +38,14 @@ TEST(TraceLine, CandumpLikeFieldsWithEscapedBytesLast) {
   EXPECT_EQ(format_trace_line("chain", at_us(5), "table_1", TraceDirection::tx, "device error",
                               printable_bytes("X\r")),
             "trace chain (0.000005) table_1 tx device_error 'X\\r'");
+  // A protocol file's words for the frame follow the bytes, which end at the next quote: a quote
+  // or a backslash among them is escaped.
+  EXPECT_EQ(format_trace_line("smc", at_us(5), "smc_1", TraceDirection::rx, "ok",
+                              printable_bytes("1TS000033\r\n"), "read_state errors=0000 state=33"),
+            "trace smc (0.000005) smc_1 rx ok '1TS000033\\r\\n' read_state errors=0000 state=33");
+  EXPECT_EQ(format_trace_line("p", at_us(5), "axis_1", TraceDirection::rx, "ok",
+                              printable_bytes("*'a\\b"), "name"),
+            "trace p (0.000005) axis_1 rx ok '*\\x27a\\x5cb' name");
   // Outside a transaction neither node nor outcome is known; control bytes are escaped.
   EXPECT_EQ(format_trace_line("ims", at_us(1000000), "", TraceDirection::tx, "",
                               printable_bytes(std::string("\x1b\x03 x", 4))),

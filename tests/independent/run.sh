@@ -14,6 +14,7 @@ source "$here/../integration/axis_family.sh"
 scratch_dir
 
 axis_args=()
+log_check=()  # patterns (grep -E) the daemon log must match after the run
 case $family in
   ims)
     unit=(ims_unit.py --axes A,B)
@@ -92,14 +93,22 @@ case $family in
   smc100)
     # Newport SMC100, run by its protocol file (config/protocols/newport-smc100.yaml): no C++
     # of its own. Positions in 0.0001 mm; the controllers' software limits are +-25 mm.
+    # With the wire trace on: its lines name each command and the reply's captures.
     unit=(smc100_unit.py --addresses 1,2)
     axis_family_bus newport-smc100 "$dir/port" 200ms 20ms
+    bus="trace: true
+    $bus"
+    log_check=("trace smc100 \([0-9.]+\) smc_1 tx ok '1TS\\\\r\\\\n' read_state\$"
+      "trace smc100 \([0-9.]+\) smc_1 rx ok '1TS[0-9A-F]{6}\\\\r\\\\n' read_state errors=[0-9A-F]{4} state=[0-9A-F]{2}\$"
+      "trace smc100 \([0-9.]+\) smc_2 rx ok '2TP[-0-9.]+\\\\r\\\\n' read_position position=[-0-9.]+\$")
     axis_args=(--distance 20000 --refused-target 300000 --expect-homed)
     ;;
   esp301)
     # Newport ESP301 axes 1 and 2, run by its protocol file (config/protocols/newport-esp301.yaml).
+    # At start-up the file counts the axes: 1 and 2 answer MO?, 3 is error 9.
     unit=(esp301_unit.py --axes 1,2)
     axis_family_bus newport-esp301 "$dir/port" 200ms 20ms
+    log_check=("bus esp301: start-up: probe_axis found 1\.\.2; probe_axis 3: device error \(read_error error 9")
     axis_args=(--distance 20000 --refused-target 300000)
     ;;
   parker6k)
@@ -130,6 +139,9 @@ else
   /usr/bin/python3 "$axis_py" --port "$port" --unit "$units" "${axis_args[@]}" --no-device-error \
     -v || rc=$?
 fi
+for pattern in "${log_check[@]}"; do
+  grep -qE "$pattern" "$dir/daemon.log" || { echo "FAIL: no log line matches $pattern"; rc=1; }
+done
 echo "--- unit log (command lines as received, each shown at most 3 times) ---"
 cat "$dir/unit.log"
 if [ "$rc" -ne 0 ]; then

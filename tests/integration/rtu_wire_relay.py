@@ -1,6 +1,10 @@
 #!/usr/bin/python3
 """A serial line between two PTYs at a given baud: bytes written on one side come out of the
 other no sooner than a UART would shift them (bits per character / baud each), back to back.
+What one write put on the line comes out in one piece, when its last character would have
+arrived: released byte by byte, a relay not scheduled for longer than t3.5 (3.6 ms at 9600) in
+the middle of a frame would split it, and the gateway would rightly drop the pieces, a gap that
+a UART never makes.
 Usage: rtu_wire_relay.py GATEWAY_LINK MASTER_LINK BAUD BITS_PER_CHARACTER
 The gateway opens GATEWAY_LINK, the masters open MASTER_LINK. Runs until killed."""
 import os, select, sys, threading, time, tty, collections
@@ -21,7 +25,7 @@ def make_pty(link):
 
 
 def relay(src, dst):
-    pending = collections.deque()  # (due, byte)
+    pending = collections.deque()  # (due, bytes)
     line_free = 0.0
     while True:
         now = time.monotonic()
@@ -33,12 +37,12 @@ def relay(src, dst):
                 data = os.read(src, 4096)
             except OSError:
                 data = b""
-            for b in data:
-                line_free = max(line_free, now) + char_time
-                pending.append((line_free, b))
+            if data:
+                line_free = max(line_free, now) + len(data) * char_time
+                pending.append((line_free, data))
         out = bytearray()
         while pending and pending[0][0] <= now:
-            out.append(pending.popleft()[1])
+            out += pending.popleft()[1]
         if out:
             os.write(dst, bytes(out))
 

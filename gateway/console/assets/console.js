@@ -223,7 +223,8 @@ function traceLine(f) {
   const t = new Date(f.t);
   const stamp = t.toISOString().replace("T", " ").replace("Z", "") +
                 String(Math.floor((f.t % 1) * 1000)).padStart(3, "0");
-  return `${stamp} ${f.bus} ${f.node} ${f.dir} ${f.outcome} '${f.bytes}'`;
+  return `${stamp} ${f.bus} ${f.node} ${f.dir} ${f.outcome} '${f.bytes}'` +
+         (f.label ? " " + f.label : "");
 }
 
 function traceShown(f) {

@@ -24,7 +24,7 @@ constexpr int kOutputs = 0;  // holding, write-only
 constexpr int kCommand = 100, kActionStatus = 101, kActionError = 102;
 constexpr int kTarget = 110, kJogVelocity = 117;
 constexpr int kDiagOnline = 1000, kDiagLastGoodAge = 1001, kDiagTransactions = 1004,
-              kDiagErrors = 1008, kDiagNodeState = 1014;
+              kDiagTimeouts = 1006, kDiagErrors = 1008, kDiagNodeState = 1014;
 constexpr int kDiOut1 = 18;  // out1, out2 at 18, 19
 constexpr int kMoveAbsolute = 1, kJog = 3, kStopJog = 4, kHome = 5, kSetOrigin = 6, kSave = 7,
               kSoftStop = 20, kHardStop = 21;
@@ -60,6 +60,7 @@ class ImsEndToEnd : public PlantTest {
   int status(int unit) { return input(unit, kStatus); }
   uint32_t errors(int unit) { return input_u32(unit, kDiagErrors); }
   uint32_t transactions(int unit) { return input_u32(unit, kDiagTransactions); }
+  uint32_t timeouts(int unit) { return input_u32(unit, kDiagTimeouts); }
   bool command(int unit, int code) { return client_->write_single(unit, kCommand, code).ok(); }
   bool done(int unit) { return holding(unit, kActionStatus) == 2; }
   // The lines unit `name` lost to overruns, as the simulator counts them (`status NAME`).
@@ -118,12 +119,12 @@ TEST_F(ImsEndToEnd, MissingNameGoesOfflineWithoutSlowingTheOthers) {
   EXPECT_EQ(client_->write_single(4, kCommand, kMoveAbsolute).exception, kTargetFailed);
   EXPECT_EQ(client_->read_input(4, kDiagOnline, 1).values, std::vector<uint16_t>{0});
 
-  // While D is probed, the others keep their poll rate, less what each probe costs the line:
-  // its reply timeout, the guard, and a proof of alignment through another unit (two short
-  // exchanges, about 25 ms at 9600) before the line is trusted again.
+  // While D is probed, the others keep most of the line. What would slow them is counted, not
+  // timed, since a loaded machine makes every exchange late: D tried at the poll rate instead of
+  // once per probe interval (500 ms), or a probe that costs more than one reply timeout (a retry).
   std::this_thread::sleep_for(500ms);
   const auto start = std::chrono::steady_clock::now();
-  uint32_t before[5];
+  uint32_t before[5], timeouts_before = timeouts(4);
   for (int unit : {1, 2, 3, 4}) before[unit] = transactions(unit);
   uint32_t worst_age = 0;
   while (std::chrono::steady_clock::now() - start < 3s) {
@@ -132,16 +133,21 @@ TEST_F(ImsEndToEnd, MissingNameGoesOfflineWithoutSlowingTheOthers) {
   }
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  for (int unit : {1, 2, 3}) {
-    const double rate = (transactions(unit) - before[unit]) / seconds;
-    EXPECT_GE(rate, 0.8 * kPollsPerSecond)
-        << "unit " << unit << "; worst last-good age " << worst_age << " ms";
-  }
-  // What would slow the others: D tried at the poll rate instead of once per probe interval
-  // (500 ms). Counted, not timed: a loaded machine makes polls late, not probes more frequent.
   const uint32_t probes = transactions(4) - before[4];
   EXPECT_GT(probes, 0u) << "the missing unit is still probed";
   EXPECT_LE(probes, seconds / 0.5 + 1) << "the missing unit is probed at its probe interval only";
+  EXPECT_LE(timeouts(4) - timeouts_before, probes + 1) << "one reply timeout a probe, no retry";
+  // A probe costs the line its reply timeout, the guard and a proof of alignment through another
+  // unit (two short exchanges, about 25 ms at 9600): under a quarter of the line at one probe per
+  // 500 ms. The bound is half the nominal rate, which a loaded machine keeps (0.69 of it measured
+  // with a busy core under ctest -j8); a line held for D's late window after every probe (5 reply
+  // timeouts, 400 ms of each 500) would leave the others under a fifth of it.
+  for (int unit : {1, 2, 3}) {
+    const double rate = (transactions(unit) - before[unit]) / seconds;
+    EXPECT_GE(rate, 0.5 * kPollsPerSecond)
+        << "unit " << unit << "; worst last-good age " << worst_age << " ms";
+    EXPECT_GT(transactions(unit) - before[unit], 2 * probes) << "unit " << unit;
+  }
 }
 
 TEST_F(ImsEndToEnd, GarbageAndTruncatedEchoesAreCountedAndTheChainResynchronises) {

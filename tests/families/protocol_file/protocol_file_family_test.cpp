@@ -1,10 +1,12 @@
 // The family a protocol file describes, on an in-process line: the shipped SMC100 file's polls,
 // confirmed moves, refusals, read-backs that show a command did not take, replies that are not
 // this node's, unsolicited lines, the alignment proof and the model checks at load.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <deque>
 #include <map>
+#include <memory>
 
 #include "drivers/protocol_file/protocol_file_family.hpp"
 #include "drivers/protocol_file/protocol_loader.hpp"
@@ -29,14 +31,14 @@ ProtocolSpecPtr smc100() {
 // and recording what it was sent.
 class AnsweringLine final : public test::FakeLine {
  public:
-  explicit AnsweringLine(asio::io_context& io)
-      : FakeLine(io, "in-process SMC100 line", 1e6 * 10 / 57600) {
+  explicit AnsweringLine(asio::io_context& io, std::string terminator = "\r\n")
+      : FakeLine(io, "in-process line", 1e6 * 10 / 57600), terminator_(std::move(terminator)) {
     set_far_end([this](std::string_view written) {
       pending_ += written;
-      for (auto end = pending_.find("\r\n"); end != std::string::npos;
-           end = pending_.find("\r\n")) {
+      for (auto end = pending_.find(terminator_); end != std::string::npos;
+           end = pending_.find(terminator_)) {
         const std::string line = pending_.substr(0, end);
-        pending_.erase(0, end + 2);
+        pending_.erase(0, end + terminator_.size());
         lines.push_back(line);
         auto& queue = answers[line];
         if (queue.empty()) continue;
@@ -50,6 +52,7 @@ class AnsweringLine final : public test::FakeLine {
   std::vector<std::string> lines;
 
  private:
+  std::string terminator_;  // of the requests
   std::string pending_;
 };
 
@@ -87,6 +90,26 @@ TEST_F(Smc100Family, StatePollGivesErrorsStateAndFlags) {
   EXPECT_EQ(transact(poll("read_state")).values, (std::vector<int64_t>{2, 0x0A, 0b0100000}));
   line_.answers["1TS"] = {"1TS00203C"};  // DISABLE after a following error
   EXPECT_EQ(transact(poll("read_state")).values, (std::vector<int64_t>{0x20, 0x3C, 0b1001100}));
+}
+
+// The wire trace names each frame in the file's words: the command on the request, its
+// captures on the reply; nothing is formatted while no trace wants it.
+TEST_F(Smc100Family, TraceLabelsNameTheCommandAndItsCaptures) {
+  std::vector<std::string> frames, labels;
+  link_.set_tap([&](bool tx, std::string_view bytes) {
+    frames.push_back(std::string(tx ? "tx " : "rx ") + std::string(bytes));
+    labels.emplace_back();
+  });
+  link_.set_label_tap([&](std::string_view label) { labels.back() = label; });
+  line_.answers["1TS"] = {"1TS000028"};
+  ASSERT_EQ(transact(poll("read_state")).status, Status::ok);
+  EXPECT_EQ(labels, (std::vector<std::string>{"", ""})) << "labels not wanted: none made";
+  frames.clear();
+  labels.clear();
+  link_.want_labels(true);
+  ASSERT_EQ(transact(poll("read_state")).status, Status::ok);
+  ASSERT_EQ(frames, (std::vector<std::string>{"tx 1TS\r\n", "rx 1TS000028\r\n"}));
+  EXPECT_EQ(labels, (std::vector<std::string>{"read_state", "read_state errors=0000 state=28"}));
 }
 
 TEST_F(Smc100Family, PositionInUserUnitsBecomesCounts) {
@@ -216,6 +239,70 @@ TEST(Parker6kReplies, TheSplitterEndsAtWhicheverPromptComesFirst) {
   EXPECT_EQ(split("1GO\r\r\n> "), 8u);
   EXPECT_EQ(split("1G"), 0u);  // the echo may still be arriving
   EXPECT_EQ(split("\r\n>"), 0u);
+}
+
+// The start-up's bounded loop on the shipped ESP301 file: MO? of axes 1, 2, 3 until the
+// controller does not answer and its error buffer says 9 (axis number out of range).
+class Esp301StartUp : public ::testing::Test {
+ protected:
+  Esp301StartUp() : line_(io_, "\r"), link_(line_) {
+    Diagnostics d;
+    family_ = std::make_unique<ProtocolFileFamily>(load_protocol_file(
+        std::string(FIELDGATE_SOURCE_DIR) + "/config/protocols/newport-esp301.yaml", d));
+    model_ = load_model_file(
+        std::string(FIELDGATE_SOURCE_DIR) + "/config/models/newport-esp301.yaml", d);
+    EXPECT_TRUE(d.ok()) << d.to_text();
+    line_.answers["01MO?"] = {"0"};
+    line_.answers["02MO?"] = {"1"};
+    line_.answers["03MO?"] = {""};
+    line_.answers["TB?"] = {"9, 451339, AXIS NUMBER OUT OF RANGE"};
+  }
+  std::string start_up(std::vector<int> nodes) {
+    for (const int n : nodes) family_->bind_node(NodeAddress::numbered(n), *model_);
+    test::run(io_, family_->on_link_open(link_, kTiming));
+    std::string notes;
+    for (const auto& n : link_.take_notes())
+      if (n.level < 7) notes += fmt::format("<{}> {}\n", n.level, n.text);  // not debug lines
+    return notes;
+  }
+
+  asio::io_context io_;
+  AnsweringLine line_;
+  Link link_;
+  std::unique_ptr<ProtocolFileFamily> family_;
+  ModelPtr model_;
+};
+
+TEST_F(Esp301StartUp, CountsItsAxesUntilError9AndNamesAConfiguredAxisItLacks) {
+  const auto notes = start_up({1, 2, 3});
+  EXPECT_EQ(line_.lines, (std::vector<std::string>{"01MO?", "02MO?", "03MO?", "TB?"}));
+  EXPECT_NE(
+      notes.find(
+          "<5> start-up: probe_axis found 1..2; probe_axis 3: device error (read_error error 9: "
+          "AXIS NUMBER OUT OF RANGE)\n"),
+      std::string::npos)
+      << notes;
+  EXPECT_NE(notes.find("<4> start-up: node address 3 is configured, but the controller answered "
+                       "probe_axis for 1..2 only"),
+            std::string::npos)
+      << notes;
+}
+
+TEST_F(Esp301StartUp, StopsAtItsBoundWhenEveryCountAnswers) {
+  line_.answers["03MO?"] = {"0"};
+  const auto notes = start_up({1, 3});
+  EXPECT_EQ(line_.lines, (std::vector<std::string>{"01MO?", "02MO?", "03MO?"}));
+  EXPECT_EQ(notes, "<5> start-up: probe_axis found 1..3 (all up to 3)\n");
+}
+
+TEST_F(Esp301StartUp, AnEndThatIsNotTheExpectedErrorIsAWarningAndNamesNoNode) {
+  line_.answers["TB?"] = {"0, 451339, NO ERROR DETECTED"};
+  const auto notes = start_up({1, 2, 3});
+  EXPECT_NE(notes.find("<4> start-up: probe_axis found 1..2, then stopped on what is not the end "
+                       "of the count (error 9): probe_axis 3: timeout"),
+            std::string::npos)
+      << notes;
+  EXPECT_EQ(notes.find("node address 3"), std::string::npos) << notes;
 }
 
 TEST(ProtocolFileFamilyModels, ModelCommandsAreCheckedAgainstTheProtocolAtLoad) {

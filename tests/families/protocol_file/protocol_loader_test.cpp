@@ -3,8 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
+#include <vector>
 
 #include "drivers/protocol_file/protocol_loader.hpp"
 
@@ -43,72 +46,69 @@ std::string with(std::string text, std::string_view from, std::string_view to) {
   return text;
 }
 
+// tests/families/protocol_file/broken/: each file is broken in one way and says on its second
+// line where and how it must be refused, "# expect: LINE:COLUMN: TEXT" (the same files
+// check_broken_files.sh gives `fieldgate check --protocol`).
 struct Broken {
-  const char* what;
-  std::string text;
-  int line;
-  int column;
-  const char* says;
+  std::string path;
+  int line = 0;
+  int column = 0;
+  std::string says;
 };
 
 void PrintTo(const Broken& b, std::ostream* os) {
-  *os << b.what;
+  *os << std::filesystem::path(b.path).filename().string();
+}
+
+std::vector<Broken> broken_files() {
+  std::vector<Broken> files;
+  const auto dir =
+      std::filesystem::path(FIELDGATE_SOURCE_DIR) / "tests/families/protocol_file/broken";
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() != ".yaml") continue;
+    Broken b;
+    b.path = entry.path().string();
+    std::ifstream in(b.path);
+    std::string comment, expect;
+    std::getline(in, comment);
+    std::getline(in, expect);
+    char colon1 = 0, colon2 = 0;
+    std::istringstream fields(expect.substr(expect.find(':') + 1));
+    fields >> b.line >> colon1 >> b.column >> colon2;
+    std::getline(fields >> std::ws, b.says);
+    files.push_back(b);
+  }
+  std::sort(files.begin(), files.end(),
+            [](const Broken& a, const Broken& b) { return a.path < b.path; });
+  return files;
 }
 
 class BrokenProtocolFile : public ::testing::TestWithParam<Broken> {};
 
-TEST_P(BrokenProtocolFile, IsRefusedWhereItIsBroken) {
+TEST_P(BrokenProtocolFile, IsRefusedWhereItSaysItIsBroken) {
   const Broken& b = GetParam();
+  ASSERT_GT(b.line, 0) << b.path << ": no '# expect: LINE:COLUMN: TEXT' on its second line";
   Diagnostics d;
-  EXPECT_FALSE(load_protocol_text(b.text, "broken.yaml", d));
+  EXPECT_FALSE(load_protocol_file(b.path, d));
   ASSERT_FALSE(d.ok());
   const auto& first = d.errors().front();
-  EXPECT_TRUE(first.mark.file.ends_with("/broken.yaml")) << first.mark.file;
+  EXPECT_EQ(first.mark.file, b.path);
   EXPECT_EQ(first.mark.line, b.line) << d.to_text();
   EXPECT_EQ(first.mark.column, b.column) << d.to_text();
   EXPECT_NE(first.message.find(b.says), std::string::npos) << d.to_text();
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    TenWays, BrokenProtocolFile,
-    ::testing::Values(
-        Broken{"unknown_capture_type",
-               with(kGood, R"("{addr}TS{s:hex(2)}")", R"("{addr}TS{s:float}")"), 6, 21,
-               "unknown field type 'float'"},
-        Broken{"pattern_that_can_never_match",
-               with(kGood, R"("{addr}TS{s:hex(2)}")", R"("{addr}TS{a:int}{b:int}")"), 6, 21,
-               "could never match"},
-        Broken{"command_without_its_reply", with(kGood, "    reply: \"{addr}TS{s:hex(2)}\"\n", ""),
-               5, 5, "'reply' is missing"},
-        Broken{"silent_command_nothing_confirms",
-               with(kGood, R"(reply: "{addr}TS{s:hex(2)}")", "reply: none"), 5, 5,
-               "nothing would prove it took the command"},
-        Broken{"confirmation_by_an_unknown_command",
-               with(kGood, R"(reply: "{addr}TS{s:hex(2)}")", "reply: none\n    confirm: read_eror"),
-               7, 14, "no command 'read_eror'"},
-        Broken{"error_capture_the_reply_lacks", with(kGood, "capture: c,", "capture: code,"), 10,
-               22, "capture 'code'"},
-        Broken{
-            "flag_of_a_missing_capture",
-            with(kGood, "    reply: \"{addr}TS{s:hex(2)}\"\n",
-                 "    reply: \"{addr}TS{s:hex(2)}\"\n    flags: {moving: {capture: st, bit: 0}}\n"),
-            7, 31, "capture 'st'"},
-        Broken{"alignment_of_one_query", with(kGood, "[state, error]", "[state]"), 11, 12,
-               "at least two"},
-        Broken{"alignment_steps_alike",
-               with(kGood, R"(reply: "{addr}TS{s:hex(2)}")", R"(reply: "{addr}TE{s:char}")"), 11,
-               20, "a late answer to one would pass for the other"},
-        Broken{"read_back_in_another_scale",
-               with(kGood, "alignment:",
-                    "  move:\n    send: \"{addr}PA{target:decimal(4)}\"\n    reply: none\n"
-                    "    confirm: [{command: target, capture: t, equals: target}]\n"
-                    "  target:\n    send: \"{addr}PA?\"\n    reply: \"{addr}PA{t:decimal(2)}\"\n"
-                    "alignment:"),
-               14, 15, "would never compare equal"},
-        Broken{"unknown_key", with(kGood, "address:", "framing: {terminator: \"\\r\"}\naddress:"),
-               2, 11, "terminator"},
-        Broken{"address_range_upside_down", with(kGood, "[1, 9]", "[9, 1]"), 2, 18,
-               "lowest address"}));
+TEST(BrokenProtocolFiles, AtLeastTenWaysAreThere) {
+  EXPECT_GE(broken_files().size(), 10u);
+}
+
+INSTANTIATE_TEST_SUITE_P(Files, BrokenProtocolFile, ::testing::ValuesIn(broken_files()),
+                         [](const ::testing::TestParamInfo<Broken>& info) {
+                           std::string name =
+                               std::filesystem::path(info.param.path).stem().string();
+                           std::replace(name.begin(), name.end(), '-', '_');
+                           return "file_" + name;
+                         });
 
 TEST(ProtocolFiles, EveryShippedProtocolFileLoads) {
   Diagnostics d;
