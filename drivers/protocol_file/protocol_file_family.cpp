@@ -189,8 +189,10 @@ void ProtocolFileFamily::compile_commands(Model& model) const {
     std::string error;
     if (auto c = compile(t, error)) t.set_compiled(std::move(c));
   };
-  for (auto& p : model.points)
+  for (auto& p : model.points) {
+    if (p.read && !p.read->object) compile_into(p.read->request);  // polls: no lookup by name
     if (p.write && !p.write->object) compile_into(p.write->request);
+  }
   for (auto& a : model.actions)
     for (auto& s : a.steps)
       if (s.kind == ActionStep::Kind::send) compile_into(s.command);
@@ -203,7 +205,8 @@ NodeContextPtr ProtocolFileFamily::bind_node(const NodeAddress& node, const Mode
 
 std::size_t ProtocolFileFamily::estimate_wire_chars(const NodeAddress&,
                                                     const Request& request) const {
-  const CommandSpec* c = spec_->find(request.command);
+  const auto* compiled = dynamic_cast<const CompiledProtocolCommand*>(request.compiled.get());
+  const CommandSpec* c = compiled ? compiled->command : spec_->find(request.command);
   if (!c) return request.command.size() + spec_->send_terminator.size() + 16;
   const std::size_t reply = c->reply ? c->reply->source().size() + 4 : 0;
   return c->request.source().size() + spec_->send_terminator.size() + reply +

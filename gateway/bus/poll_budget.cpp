@@ -13,6 +13,7 @@ BusBudget compute_poll_budget(const BusConfig& bus) {
       if (!p.read || p.poll_class.empty() || p.read->object) continue;
       if (!seen.insert(p.read->request.source()).second) continue;
       Request r{p.read->request.source(), Request::Expect::values, p.read->format};
+      r.compiled = p.read->request.compiled();
       const double chars = static_cast<double>(bus.family->estimate_wire_chars(node.address, r));
       const double seconds =
           (chars * char_us + static_cast<double>(bus.timing.turnaround.count() +

@@ -107,6 +107,7 @@ void SerialBus::plan_polls() {
         PollItem item;
         item.node = rt->index;
         item.request = Request{command, Request::Expect::values, point.read->format};
+        item.request.compiled = point.read->request.compiled();  // where the family compiles reads
         item.period = period;
         items.push_back(std::move(item));
         existing = std::prev(items.end());

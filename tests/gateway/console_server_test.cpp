@@ -115,6 +115,11 @@ TEST_F(ConsoleServerTest, TokenAndAllowList) {
   EXPECT_NE(get("/api/plant?token=guess").find("wrong token"), std::string::npos);
   EXPECT_TRUE(get("/api/plant?token=s3cret").starts_with("HTTP/1.1 200"));
   EXPECT_TRUE(get("/", "Authorization: Bearer s3cret\r\n").starts_with("HTTP/1.1 200"));
+  // The page's style and script hold no plant data, and a browser asks for them without the
+  // token the page was opened with: they are served; the plant's data is not.
+  for (const char* asset : {"/console.css", "/console.js", "/"})
+    EXPECT_TRUE(get(asset).starts_with("HTTP/1.1 200")) << asset;
+  EXPECT_TRUE(get("/events").starts_with("HTTP/1.1 403"));
 }
 
 TEST_F(ConsoleServerTest, AnAddressOffTheAllowListIsRefused) {

@@ -3,13 +3,16 @@
 protocol, against the demo plant's serial buses (config/demo.yaml, each behind its family's
 simulator; the CANopen bus needs vcan and is left out). Asserts what a person sees: the node
 table's rows and states, a unit switched off at its simulator turning offline on the page, a
-move's position plot advancing, wire-trace lines arriving; and that Modbus keeps answering
-while 100 live views are open and one client has stopped reading. Screenshots of every tab go
-to OUT_DIR.
+move's position plot advancing, wire-trace lines arriving, the Fleet tab showing the gateway's
+own Sparkplug edge node and its devices born with their metrics (a real Mosquitto broker); and
+that Modbus keeps answering while 100 live views are open and one client has stopped reading.
+The console has a token, as scripts/demo gives it in QEMU: the page is opened with it, and its
+style and script load without it. Screenshots of every tab go to OUT_DIR.
 
 Usage: console_browser.py FIELDGATE BUILD_DIR MODELS_DIR DEMO_YAML OUT_DIR
 """
 import base64
+import hashlib
 import json
 import os
 import re
@@ -25,11 +28,14 @@ import websocket
 import yaml
 from pymodbus.client import ModbusTcpClient
 
-from process_helpers import DEMO_SIMULATORS, check, failures, free_port, stop_processes, wait_for
+from process_helpers import (DEMO_SIMULATORS, Broker, check, failures, free_port, stop_processes,
+                             wait_for)
 
 FIELDGATE, BUILD, MODELS, DEMO_YAML, OUT = sys.argv[1:6]
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 ABSENT = {"axis_7"}  # configured in the demo, on no simulated bus
+TOKEN = "0123456789abcdef-console-test"
+EDGE = "console-gw"  # the gateway's Sparkplug edge node ID
 class Plant:
     """The demo's serial buses behind their simulators, and the daemon with its console."""
 
@@ -51,11 +57,19 @@ class Plant:
         for link in self.sims:
             assert wait_for(lambda: os.path.exists(os.path.join(d, link)), 10), link
         self.modbus_port, self.console_port = free_port(), free_port()
+        self.broker = Broker(d, free_port())
+        self.broker.start()
+        token_file = os.path.join(d, "console-token.sha256")
+        with open(token_file, "w") as f:
+            f.write(hashlib.sha256(TOKEN.encode()).hexdigest() + "  -\n")
         config = dict(demo)
         config.update({"modbus": {**demo["modbus"], "listen": f"127.0.0.1:{self.modbus_port}",
                                   "max_clients": 64},
                        "models": MODELS, "buses": buses,
-                       "console": {"listen": f"127.0.0.1:{self.console_port}"}})
+                       "console": {"listen": f"127.0.0.1:{self.console_port}",
+                                   "token_file": token_file},
+                       "sparkplug": {"broker": f"mqtt://127.0.0.1:{self.broker.port}",
+                                     "group_id": "console-test", "edge_node_id": EDGE}})
         self.config = os.path.join(d, "gateway.yaml")
         with open(self.config, "w") as f:
             yaml.safe_dump(config, f, sort_keys=False)
@@ -63,6 +77,7 @@ class Plant:
         self.daemon = subprocess.Popen([FIELDGATE, "--config", self.config],
                                        stdout=open(self.log_path, "w"), stderr=subprocess.STDOUT)
         self.url = f"http://127.0.0.1:{self.console_port}/"
+        self.page = self.url + "?token=" + TOKEN
 
     def control(self, link, line):
         self.sims[link].stdin.write(line + "\n")
@@ -73,6 +88,7 @@ class Plant:
 
     def stop(self):
         stop_processes(self.daemon, *self.sims.values())
+        self.broker.stop()
 
 
 class Browser:
@@ -160,9 +176,12 @@ def main():
         check("the daemon prints the console's address",
               wait_for(lambda: plant.url in plant.log(), 15), plant.log()[-2000:])
         browser = Browser(d)
-        browser.open(plant.url)
+        browser.open(plant.page)
         check("the page goes live", wait_for(
             lambda: browser.eval("document.getElementById('link').textContent") == "live", 15))
+        display = browser.eval("getComputedStyle(document.getElementById('axes')).display")
+        check("its style applies (a tab not shown is hidden), loaded without the token",
+              display == "none", display)
 
         # Plant: one row per configured node, each with the state the gateway gives it.
         rows = wait_for(lambda: (lambda s: s if s and all(
@@ -242,15 +261,34 @@ def main():
               clients and any(requests >= 2 for _, requests in clients), clients)
         browser.screenshot("bus-trace")
 
+        # Fleet: the gateway's own edge node on the broker, born, with its devices and metrics.
+        browser.eval("document.querySelector('nav button[data-tab=fleet]').click()")
+        edge = f"document.querySelector('#fleet-nodes tr[data-edge=\"{EDGE}\"]')"
+        check("the Fleet tab shows the gateway's edge node born", wait_for(
+            lambda: browser.eval(f"{edge} && {edge}.dataset.state") == "born", 20),
+            browser.eval("document.getElementById('fleet-summary').textContent"))
+        online = [n for n in plant.nodes if n not in ABSENT]
+        born = wait_for(lambda: (lambda b: b if set(online) <= set(b) else None)(browser.eval(
+            "[...document.querySelectorAll('#fleet-devices details[data-state=born]')]"
+            ".map(d => d.dataset.device.split('/')[1])")), 20) or []
+        check("... and every node on a simulated bus as a device born", set(online) <= set(born),
+              f"born {sorted(born)}")
+        metrics = browser.eval(
+            f"document.querySelector('#fleet-devices details[data-device=\"{EDGE}/ims_a\"]')"
+            "?.querySelector('summary').textContent")
+        check("a device shows its metrics decoded", bool(metrics) and
+              re.search(r": born, [1-9]\d* metrics$", metrics), metrics)
+        browser.screenshot("fleet")
+
         # 100 live views and one client that stopped reading: Modbus keeps answering.
         views = []
         for _ in range(100):
             s = socket.create_connection(("127.0.0.1", plant.console_port))
-            s.sendall(b"GET /events?trace=1 HTTP/1.1\r\nHost: x\r\n\r\n")
+            s.sendall(f"GET /events?trace=1&token={TOKEN} HTTP/1.1\r\nHost: x\r\n\r\n".encode())
             views.append(s)
         stalled = socket.create_connection(("127.0.0.1", plant.console_port))
         stalled.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-        stalled.sendall(b"GET /events?trace=1 HTTP/1.1\r\nHost: x\r\n\r\n")
+        stalled.sendall(f"GET /events?trace=1&token={TOKEN} HTTP/1.1\r\nHost: x\r\n\r\n".encode())
         good = 0
         end = time.monotonic() + 5
         reads = 0

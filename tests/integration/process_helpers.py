@@ -1,8 +1,12 @@
 """Helpers of the Python integration tests that start real processes (sparkplug_host.py,
 console_browser.py)."""
+import os
+import shutil
 import socket
 import subprocess
 import time
+
+MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
 
 
 def free_port():
@@ -32,6 +36,35 @@ def stop_processes(*processes):
                 p.wait(10)
             except subprocess.TimeoutExpired:
                 p.kill()
+
+
+class Broker:
+    """A Mosquitto broker of the test's own on a loopback port (anonymous clients, no
+    persistence, unless `conf` says otherwise), its log in D/mosquitto.log."""
+
+    def __init__(self, d, port, conf=None):
+        self.port = port
+        self.conf = os.path.join(d, "mosquitto.conf")
+        with open(self.conf, "w") as f:
+            f.write(conf or f"listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n")
+        self.log = open(os.path.join(d, "mosquitto.log"), "a")
+        self.proc = None
+
+    def start(self):
+        self.proc = subprocess.Popen([MOSQUITTO, "-c", self.conf], stdout=self.log, stderr=self.log)
+
+        def up():
+            try:
+                socket.create_connection(("127.0.0.1", self.port), timeout=0.2).close()
+                return True
+            except OSError:
+                return False
+        assert wait_for(up, 10), "mosquitto did not start"
+
+    def stop(self):
+        if self.proc and self.proc.poll() is None:
+            self.proc.terminate()
+            self.proc.wait(10)
 
 
 # The checks that failed; a test exits non-zero if any did.

@@ -29,37 +29,12 @@ mode, FIELDGATE, SIM, MODELS, PB2 = sys.argv[1:6]
 BUILD, DEMO_YAML = (sys.argv[6:8] + [None, None])[:2]
 sys.path.insert(0, PB2)
 import paho.mqtt.client as mqtt  # noqa: E402
-from process_helpers import (DEMO_SIMULATORS, check, failures, free_port,  # noqa: E402
-                             stop_processes, wait_for)
+from process_helpers import (DEMO_SIMULATORS, Broker, check, failures,  # noqa: E402
+                             free_port, stop_processes, wait_for)
 import yaml  # noqa: E402
 import sparkplug_b_pb2  # noqa: E402
 
-MOSQUITTO = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
 GROUP = "plant"
-class Broker:
-    def __init__(self, d, port, conf=None):
-        self.port = port
-        self.conf = os.path.join(d, "mosquitto.conf")
-        with open(self.conf, "w") as f:
-            f.write(conf or f"listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n")
-        self.log = open(os.path.join(d, "mosquitto.log"), "a")
-        self.proc = None
-
-    def start(self):
-        self.proc = subprocess.Popen([MOSQUITTO, "-c", self.conf], stdout=self.log, stderr=self.log)
-
-        def up():
-            try:
-                socket.create_connection(("127.0.0.1", self.port), timeout=0.2).close()
-                return True
-            except OSError:
-                return False
-        assert wait_for(up, 10), "mosquitto did not start"
-
-    def stop(self):
-        if self.proc and self.proc.poll() is None:
-            self.proc.terminate()
-            self.proc.wait(10)
 
 
 class Host:

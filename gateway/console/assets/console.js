@@ -271,7 +271,16 @@ function connect(withTrace) {
   source = new EventSource(withToken("/events" + (withTrace ? "?trace=1" : "")));
   const link = document.getElementById("link");
   source.onopen = () => { link.textContent = "live"; link.className = "link up"; };
-  source.onerror = () => { link.textContent = "reconnecting"; link.className = "link down"; };
+  source.onerror = () => {
+    link.textContent = "reconnecting";
+    link.className = "link down";
+    // A refusal (no token, a wrong one) is said as the server words it, not retried for ever.
+    fetch(withToken("/api/plant")).then((r) => {
+      if (r.status !== 403) return;
+      source.close();
+      r.text().then((t) => { link.textContent = t.trim(); });
+    }).catch(() => {});
+  };
   source.addEventListener("plant", onPlant);
   source.addEventListener("trace", onTrace);
 }

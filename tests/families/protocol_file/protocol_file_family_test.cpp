@@ -4,6 +4,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <deque>
 #include <map>
 #include <memory>
@@ -110,6 +111,27 @@ TEST_F(Smc100Family, TraceLabelsNameTheCommandAndItsCaptures) {
   ASSERT_EQ(transact(poll("read_state")).status, Status::ok);
   ASSERT_EQ(frames, (std::vector<std::string>{"tx 1TS\r\n", "rx 1TS000028\r\n"}));
   EXPECT_EQ(labels, (std::vector<std::string>{"read_state", "read_state errors=0000 state=28"}));
+}
+
+// A model's reads are compiled at load like its writes: the poll runs the compiled command, and
+// its text is only what logs show.
+TEST_F(Smc100Family, APollCompiledAtLoadRunsItsCompiledCommand) {
+  Diagnostics d;
+  auto model =
+      load_model_file(std::string(FIELDGATE_SOURCE_DIR) + "/config/models/newport-smc100.yaml", d);
+  ASSERT_TRUE(model) << d.to_text();
+  Model compiled_model = *model;
+  family_.compile_commands(compiled_model);
+  const auto& read = *std::find_if(compiled_model.points.begin(), compiled_model.points.end(),
+                                   [](const PointDef& p) { return p.name == "position"; })
+                          ->read;
+  ASSERT_TRUE(read.request.compiled());
+  Request r{"(shown only)", Request::Expect::values, read.format};
+  r.compiled = read.request.compiled();
+  line_.answers["1TP"] = {"1TP1.5"};
+  const auto reply = transact(r);
+  ASSERT_EQ(reply.status, Status::ok) << reply.text;
+  EXPECT_EQ(reply.values, std::vector<int64_t>{15000});
 }
 
 TEST_F(Smc100Family, PositionInUserUnitsBecomesCounts) {
