@@ -68,6 +68,12 @@ Reply refused(std::string text) {
   return Reply::of(Reply::Status::device_error, "not sent: " + std::move(text), kNotSent);
 }
 
+// Lets whatever the line may still carry of a reply pass: a guard time of quiet, ten at most.
+asio::awaitable<void> let_the_line_settle(Link& link, const LinkTiming& timing) {
+  const auto guard = guard_time(timing, link.char_time_us());
+  co_await link.resync(guard, 10 * guard);
+}
+
 std::string captures_text(const std::vector<Capture>& captures) {
   std::string s;
   for (const auto& c : captures) s += fmt::format("{}{}={}", s.empty() ? "" : " ", c.name, c.text);
@@ -276,17 +282,19 @@ asio::awaitable<ReplyReading> ProtocolFileFamily::exchange(Link& link, const Com
         co_return reading;
     }
     reading = interpret_reply(*spec_, command, *wire, read.frame, address);
-    if (link.labels_wanted())
-      link.label_last_frame(
+    const bool answered =
+        reading.kind == ReplyReading::Kind::reply && reading.reply.status == Reply::Status::ok;
+    if (answered || link.labels_wanted()) {
+      // One description of the frame, for the trace's label and the debug log.
+      const std::string said =
           reading.kind == ReplyReading::Kind::unsolicited ? std::string("unsolicited")
           : reading.captures.empty()
               ? command.name
-              : fmt::format("{} {}", command.name, captures_text(reading.captures)));
-    if (reading.kind == ReplyReading::Kind::reply) {
-      if (reading.reply.status == Reply::Status::ok)
-        link.note(fmt::format("{} {}", command.name, captures_text(reading.captures)), 7);
-      co_return reading;
+              : fmt::format("{} {}", command.name, captures_text(reading.captures));
+      link.label_last_frame(said);
+      if (answered) link.note(said, 7);
     }
+    if (reading.kind == ReplyReading::Kind::reply) co_return reading;
     link.note(fmt::format("the device sent '{}' on its own (unsolicited), set aside while "
                           "waiting for the reply to {}",
                           printable_bytes(reading.line), command.name),
@@ -364,8 +372,7 @@ asio::awaitable<void> ProtocolFileFamily::discover(Link& link, const StartupStep
     Reply reply = co_await run(link, *command, count, no_address, timing);
     if (reply.status == Reply::Status::timeout && !d.error_query.empty()) {
       // The device does not answer a count it does not have; its error query says why.
-      co_await link.resync(guard_time(timing, link.char_time_us()),
-                           10 * guard_time(timing, link.char_time_us()));
+      co_await let_the_line_settle(link, timing);
       link.discard_input();
       reply = co_await run(link, *spec_->find(d.error_query), no_arguments, no_address, timing);
       if (reply.status == Reply::Status::ok)
@@ -426,8 +433,7 @@ asio::awaitable<void> ProtocolFileFamily::on_link_open(Link& link, const LinkTim
           step.tolerate_errors ? 5 : 4);
       if (reply.status != Reply::Status::device_error) {
         // The line may still carry the rest of that reply: let it pass before the next step.
-        co_await link.resync(guard_time(timing, link.char_time_us()),
-                             10 * guard_time(timing, link.char_time_us()));
+        co_await let_the_line_settle(link, timing);
       }
     }
   }
