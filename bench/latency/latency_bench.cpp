@@ -5,6 +5,7 @@
 // same log, the "one in-flight transaction" of the busy-bus bar.
 //
 //   latency_bench --port P --wire-log FILE [--unit 1] [--samples 200] [--label idle]
+//                 [--samples-file F]  (one line per write: its start and its first byte, in ns)
 #include <fmt/format.h>
 #include <modbus/modbus.h>
 #include <CLI/CLI.hpp>
@@ -66,12 +67,14 @@ double percentile(std::vector<double> v, double p) {
 int main(int argc, char** argv) {
   CLI::App app{"Modbus write to first command byte on the wire"};
   int port = 0, unit = 1, samples = 200;
-  std::string wire_log_path, label = "bus";
+  std::string wire_log_path, label = "bus", samples_path;
   app.add_option("--port", port, "fieldgate's Modbus port")->required();
   app.add_option("--wire-log", wire_log_path, "the simulator's --wire-log file")->required();
   app.add_option("--unit", unit, "unit ID of a Copley amplifier");
   app.add_option("--samples", samples, "writes to time");
   app.add_option("--label", label, "name printed with the figures");
+  app.add_option("--samples-file", samples_path,
+                 "where to write each write's start and first byte");
   CLI11_PARSE(app, argc, argv);
 
   modbus_t* ctx = modbus_new_tcp("127.0.0.1", port);
@@ -81,6 +84,8 @@ int main(int argc, char** argv) {
   }
   modbus_set_slave(ctx, unit);
   modbus_set_response_timeout(ctx, 2, 0);
+  std::ofstream samples_file;
+  if (!samples_path.empty()) samples_file.open(samples_path);
   WireLog log(wire_log_path);
   log.fresh();
   std::vector<double> latency_us, cycle_us;
@@ -105,6 +110,7 @@ int main(int argc, char** argv) {
           const long long t0_ns =
               std::chrono::duration_cast<std::chrono::nanoseconds>(t0.time_since_epoch()).count();
           latency_us.push_back(static_cast<double>(w.started_ns - t0_ns) / 1000.0);
+          if (samples_file) samples_file << t0_ns << ' ' << w.started_ns << '\n';
           found = true;
         }
       }

@@ -1,5 +1,7 @@
 #include "gateway/bus/bus_turn.hpp"
 
+#include <algorithm>
+
 namespace fieldgate {
 
 BusTurn next_bus_turn(const BusTurnInput& in) {
@@ -15,7 +17,7 @@ BusTurn next_bus_turn(const BusTurnInput& in) {
   if (command_first && poll_due) {
     const bool late = in.now - chosen->when > chosen->period / 10;
     command_first =
-        late ? in.polls_in_row >= kPollsPerCommand : in.commands_in_row < kCommandsPerPoll;
+        late ? in.command_credit >= kPollsPerCommand : in.commands_in_row < kCommandsPerPoll;
   }
   if (command_first) return {BusTurn::Kind::command, 0, in.now};
   if (poll_due) {
@@ -24,6 +26,19 @@ BusTurn next_bus_turn(const BusTurnInput& in) {
     return {BusTurn::Kind::poll, chosen->item, in.now};
   }
   return {BusTurn::Kind::sleep, 0, chosen ? chosen->when : SteadyTime::max()};
+}
+
+int command_credit_after(int credit, BusTurn::Kind turn) {
+  switch (turn) {
+    case BusTurn::Kind::command:
+      return std::max(0, credit - kPollsPerCommand);
+    case BusTurn::Kind::poll:
+    case BusTurn::Kind::reopen_link:
+      return std::min(kCommandCreditMax, credit + 1);
+    case BusTurn::Kind::sleep:
+      break;
+  }
+  return credit;
 }
 
 }  // namespace fieldgate

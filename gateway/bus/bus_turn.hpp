@@ -23,7 +23,8 @@ struct BusTurnInput {
   // The probe of the offline node due first.
   std::optional<Poll> probe;
   int commands_in_row = 0;  // commands since the last poll
-  int polls_in_row = 0;     // polls since the last command
+  // Polls earned toward commands that go ahead of late polls (see kPollsPerCommand).
+  int command_credit = 0;
   bool all_nodes_offline = false;
   SteadyTime link_opened{};
   std::chrono::microseconds probe_interval{0};
@@ -41,13 +42,20 @@ struct BusTurn {
   SteadyTime until = SteadyTime::max();
 };
 
-// Commands go first, but back-to-back commands leave every other transaction to a due poll, and
-// a poll running late (by a tenth of its period) gets up to kPollsPerCommand transactions per
-// command: clients flooding one unit cannot slow the polling of the others, and commands still
-// get through when polls overload the line.
+// Commands go first, but back-to-back commands leave every other transaction to a due poll. When
+// polls run late (by a tenth of their period, as on a saturated line) a command goes ahead of them
+// only on credit: each poll earns one, a command spends kPollsPerCommand, and the credit holds at
+// most kCommandBurst commands' worth. An occasional command (a PLC's move) waits for no more than
+// the transaction on the wire; clients flooding the line get one command per kPollsPerCommand
+// polls, so they cannot slow the polling of the others, and commands still get through.
 inline constexpr int kCommandsPerPoll = 1;
 inline constexpr int kPollsPerCommand = 3;
+inline constexpr int kCommandBurst = 3;
+inline constexpr int kCommandCreditMax = kPollsPerCommand * kCommandBurst;
 
 BusTurn next_bus_turn(const BusTurnInput& in);
+
+// The credit after a turn of the given kind.
+int command_credit_after(int credit, BusTurn::Kind turn);
 
 }  // namespace fieldgate

@@ -9,7 +9,6 @@
 #include "drivers/printable_bytes.hpp"
 #include "drivers/transport/serial_transport.hpp"
 #include "drivers/transport/tcp_transport.hpp"
-#include "gateway/bus/bus_turn.hpp"
 #include "gateway/bus/node_image_setup.hpp"
 #include "gateway/bus/pending_command.hpp"
 #include "gateway/bus/reply_accounting.hpp"
@@ -672,15 +671,15 @@ asio::awaitable<void> SerialBus::run() {
           in.probe = BusTurnInput::Poll{*item, n->next_probe, plan_.item(*item).period};
     }
     in.commands_in_row = commands_in_row_;
-    in.polls_in_row = polls_in_row_;
+    in.command_credit = command_credit_;
     in.all_nodes_offline = all_nodes_offline_now();
     in.link_opened = opened_at_;
     in.probe_interval = config_->timing.probe_interval;
     const BusTurn turn = next_bus_turn(in);
+    command_credit_ = command_credit_after(command_credit_, turn.kind);
     if (turn.kind == BusTurn::Kind::command) {
       auto cmd = take_command();
       ++commands_in_row_;
-      polls_in_row_ = 0;
       ++counters_.commands;
       const auto runtime = nodes_[static_cast<std::size_t>(cmd->node)];
       auto& n = *runtime;
@@ -706,12 +705,10 @@ asio::awaitable<void> SerialBus::run() {
     }
     commands_in_row_ = 0;
     if (turn.kind == BusTurn::Kind::reopen_link) {
-      ++polls_in_row_;
       transport_->close();
       continue;
     }
     if (turn.kind == BusTurn::Kind::poll) {
-      ++polls_in_row_;
       co_await run_poll(turn.item);
       continue;
     }

@@ -13,6 +13,7 @@
 #include "drivers/protocol_family.hpp"
 #include "drivers/transport/byte_transport.hpp"
 #include "gateway/bus/bus.hpp"
+#include "gateway/bus/bus_turn.hpp"
 #include "gateway/bus/pending_command.hpp"
 #include "gateway/bus/poll_plan.hpp"
 #include "gateway/bus/wire_trace.hpp"
@@ -127,7 +128,7 @@ class SerialBus final : public Bus {
   BusCounters counters_;
   bool stopping_ = false;
   int commands_in_row_ = 0;
-  int polls_in_row_ = 0;
+  int command_credit_ = kCommandCreditMax;  // see next_bus_turn
   int last_command_node_ = -1;
   bool link_error_logged_ = false;
   // Reopens of a link that stayed up only briefly (nothing answers, so it is reopened every

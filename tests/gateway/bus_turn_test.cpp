@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <optional>
+#include <string>
 
 #include "gateway/bus/bus_turn.hpp"
 
@@ -57,20 +58,43 @@ TEST(BusTurn, BackToBackCommandsLeaveTheNextTurnToADuePoll) {
   EXPECT_EQ(next_bus_turn(in).kind, BusTurn::Kind::poll);
 }
 
-TEST(BusTurn, APollRunningLateGetsSeveralTurnsPerCommand) {
+TEST(BusTurn, ACommandGoesAheadOfALatePollOnlyOnCredit) {
   // The poll: more than a tenth of its 100 ms period late.
   BusTurnInput in = at_t0(poll_at(1, t0 - 11ms), /*commands_queued=*/true);
-  for (int polls = 0; polls < kPollsPerCommand; ++polls) {
-    in.polls_in_row = polls;
-    EXPECT_EQ(next_bus_turn(in).kind, BusTurn::Kind::poll) << polls << " polls in a row";
-  }
-  in.polls_in_row = kPollsPerCommand;
+  in.command_credit = kPollsPerCommand - 1;
+  EXPECT_EQ(next_bus_turn(in).kind, BusTurn::Kind::poll);
+  in.command_credit = kPollsPerCommand;
   EXPECT_EQ(next_bus_turn(in).kind, BusTurn::Kind::command);
-  // Exactly a tenth late is not late yet.
+  // Exactly a tenth late is not late yet: the command goes first without credit.
   in.poll = poll_at(1, t0 - 10ms);
-  in.polls_in_row = 0;
+  in.command_credit = 0;
   in.commands_in_row = 0;
   EXPECT_EQ(next_bus_turn(in).kind, BusTurn::Kind::command);
+}
+
+TEST(BusTurn, OnASaturatedLineABurstOfCommandsGoesFirstThenOnePerPollsPerCommand) {
+  // Polls always late, commands always queued (a client flooding the line), credit full as after
+  // a quiet stretch.
+  BusTurnInput in = at_t0(poll_at(1, t0 - 50ms), /*commands_queued=*/true);
+  int credit = kCommandCreditMax;
+  std::string turns;
+  for (int i = 0; i < kCommandBurst + 3 * (kPollsPerCommand + 1); ++i) {
+    in.command_credit = credit;
+    const auto kind = next_bus_turn(in).kind;
+    in.commands_in_row = kind == BusTurn::Kind::command ? in.commands_in_row + 1 : 0;
+    credit = command_credit_after(credit, kind);
+    turns += kind == BusTurn::Kind::command ? 'C' : kind == BusTurn::Kind::poll ? 'P' : '?';
+  }
+  EXPECT_EQ(turns, std::string(kCommandBurst, 'C') + "PPPCPPPCPPPC");
+}
+
+TEST(BusTurn, TheCreditIsEarnedByPollsSpentByCommandsAndBounded) {
+  EXPECT_EQ(command_credit_after(0, BusTurn::Kind::poll), 1);
+  EXPECT_EQ(command_credit_after(kCommandCreditMax, BusTurn::Kind::poll), kCommandCreditMax);
+  EXPECT_EQ(command_credit_after(kPollsPerCommand + 1, BusTurn::Kind::command), 1);
+  EXPECT_EQ(command_credit_after(1, BusTurn::Kind::command), 0) << "never below nothing";
+  EXPECT_EQ(command_credit_after(2, BusTurn::Kind::sleep), 2);
+  EXPECT_EQ(command_credit_after(2, BusTurn::Kind::reopen_link), 3) << "a reopen is a poll's turn";
 }
 
 TEST(BusTurn, TheProbeOfAnOfflineNodeRunsWhenItIsDueBeforeThePoll) {

@@ -141,8 +141,8 @@ TEST_F(SerialBusSchedule, APollOnTimeWaitsForOneCommandALatePollGoesFirst) {
   EXPECT_EQ(journal_, (std::vector<std::string>{"g r0x32", "s r0xca 1", "3 g r0x32", "s r0xca 2",
                                                 "s r0xca 3", "s r0xca 4"}));
 
-  // Both polls late by more than a tenth of their period: they go ahead of the queued writes
-  // (up to kPollsPerCommand of them per command).
+  // Both polls late by more than a tenth of their period, and the four writes above spent the
+  // credit that lets a command go ahead of late polls: the polls go first.
   journal_.clear();
   answered_ = 0;
   queue_writes(3);
@@ -150,6 +150,19 @@ TEST_F(SerialBusSchedule, APollOnTimeWaitsForOneCommandALatePollGoesFirst) {
   ASSERT_TRUE(run_until([&] { return answered_ == 3; }));
   EXPECT_EQ(journal_, (std::vector<std::string>{"g r0x32", "3 g r0x32", "s r0xca 1", "s r0xca 2",
                                                 "s r0xca 3"}));
+}
+
+TEST_F(SerialBusSchedule, AnOccasionalWriteGoesAheadOfLatePolls) {
+  ASSERT_TRUE(run_until([&] { return count("g r0x32") == 1; }));
+  advance(kPeriod / 2);
+  ASSERT_TRUE(run_until([&] { return count("3 g r0x32") == 1; }));
+  // Both polls late, as on a saturated line; no command for a while, so the credit is whole: the
+  // write waits for nothing but the line.
+  journal_.clear();
+  queue_writes(1);
+  advance(kPeriod + 200ms);
+  ASSERT_TRUE(run_until([&] { return answered_ == 1 && journal_.size() == 3; })) << journal_text();
+  EXPECT_EQ(journal_, (std::vector<std::string>{"s r0xca 1", "g r0x32", "3 g r0x32"}));
 }
 
 TEST_F(SerialBusSchedule, ALineWhereNothingAnswersIsReopenedOneProbeIntervalAfterItFellSilent) {
