@@ -571,7 +571,7 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
     log::notice("bus {}: node {} ({}) online{}", config_->name, n.config->name, n.id,
                 old == NodeState::offline ? " again" : "");
     n.nmt.went_online(old == NodeState::offline);
-    resume_polls(n, now);
+    plan_.resume_node(n.index, now);
     n.tpdos.restart(now);
     refresh_local_points(n, now);
   } else if (state == NodeState::offline) {
@@ -581,17 +581,6 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
     n.nmt.went_offline();
   }
   n.wake.cancel();
-}
-
-void CanBus::resume_polls(NodeRuntime& n, SteadyTime now) {
-  // Not restaggered from now: a node that keeps coming back would run only the first item of
-  // each class. Each overdue item moves to the latest due time of its own phase not after now,
-  // so every one runs at once, in its order, without counting the offline time as overruns.
-  for (std::size_t i = 0; i < plan_.items().size(); ++i) {
-    auto& item = plan_.item(i);
-    if (item.node != n.index || item.next_due >= now || item.period.count() <= 0) continue;
-    item.next_due += item.period * ((now - item.next_due) / item.period);
-  }
 }
 
 void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {

@@ -120,6 +120,7 @@ void SerialBus::plan_polls() {
     for (const auto& it : items)
       for (const auto& t : it.targets) polled[static_cast<std::size_t>(t.point)] = true;
     for (auto& it : items) plan_.add(std::move(it));
+    plan_.set_eligible(rt->index, rt->image->state != NodeState::offline);
   }
 }
 
@@ -264,6 +265,7 @@ void SerialBus::set_state(NodeRuntime& n, NodeState state, std::string_view why)
   if (img.state == state) return;
   const auto old = img.state;
   img.state = state;
+  plan_.set_eligible(n.index, state != NodeState::offline);
   if (state == NodeState::online) {
     log::notice("bus {}: node {} ({}) online{}", config_->name, n.config->name,
                 n.config->address.text, old == NodeState::offline ? " again" : "");
@@ -657,9 +659,7 @@ asio::awaitable<void> SerialBus::run() {
     const auto now = now_();
     // The next poll: a due item of a node that is not offline (rate-monotonic, see PollPlan),
     // or the probe of an offline node, whichever is due first.
-    auto due = plan_.pick(now, [&](int local) {
-      return nodes_[static_cast<std::size_t>(local)]->image->state != NodeState::offline;
-    });
+    auto due = plan_.pick(now);
     BusTurnInput in;
     in.now = now;
     in.commands_queued = !commands_.empty();

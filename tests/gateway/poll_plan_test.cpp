@@ -2,6 +2,8 @@
 
 #include <initializer_list>
 #include <map>
+#include <optional>
+#include <random>
 #include <set>
 #include <string>
 #include <vector>
@@ -39,7 +41,8 @@ TEST(PollPlan, ItemsOfAPeriodAreSpreadEvenly) {
   const SteadyTime t0{};
   plan.start(t0);
   std::set<SteadyTime::duration::rep> offsets;
-  for (const auto& it : plan.items()) offsets.insert((it.next_due - t0) / 1ms);
+  for (std::size_t i = 0; i < plan.items().size(); ++i)
+    offsets.insert((plan.next_due(i) - t0) / 1ms);
   EXPECT_EQ(offsets, (std::set<SteadyTime::duration::rep>{0, 25, 50, 75}));
 }
 
@@ -61,12 +64,12 @@ TEST(PollPlan, AReloadsPlanKeepsTheScheduleOfEveryItemItDidNotChange) {
   const SteadyTime reload = t0 + 60ms;
   after.start_after(before, {1, 2}, reload);
 
-  EXPECT_EQ(after.items()[1].next_due, before.items()[0].next_due);
+  EXPECT_EQ(after.next_due(1), before.next_due(0));
   EXPECT_EQ(after.items()[1].last_run, before.items()[0].last_run);
-  EXPECT_EQ(after.items()[3].next_due, before.items()[2].next_due);
+  EXPECT_EQ(after.next_due(3), before.next_due(2));
   EXPECT_EQ(after.items()[3].slot, before.items()[2].slot);
-  EXPECT_EQ(after.items()[0].next_due, reload) << "the new node's first item, at once";
-  EXPECT_EQ(after.items()[2].next_due, reload) << "alone in its period: at once";
+  EXPECT_EQ(after.next_due(0), reload) << "the new node's first item, at once";
+  EXPECT_EQ(after.next_due(2), reload) << "alone in its period: at once";
   EXPECT_FALSE(after.items()[2].last_run);
 }
 
@@ -89,7 +92,7 @@ TEST(PollPlan, CompletedKeepsTheRhythm) {
   const SteadyTime t0{};
   plan.start(t0);
   plan.completed(0, t0 + 3ms);  // ran a little late
-  EXPECT_EQ(plan.item(0).next_due, t0 + 100ms);
+  EXPECT_EQ(plan.next_due(0), t0 + 100ms);
   EXPECT_EQ(plan.item(0).overruns, 0u);
 }
 
@@ -98,7 +101,7 @@ TEST(PollPlan, FallingBehindSkipsMissedTicks) {
   const SteadyTime t0{};
   plan.start(t0);
   plan.completed(0, t0 + 350ms);  // the bus was busy for three periods
-  EXPECT_EQ(plan.item(0).next_due, t0 + 400ms);
+  EXPECT_EQ(plan.next_due(0), t0 + 400ms);
   EXPECT_EQ(plan.item(0).overruns, 3u);
 }
 
@@ -126,9 +129,9 @@ TEST(PollPlan, RestartNodeReschedulesFromNow) {
   const SteadyTime t0{};
   plan.start(t0);
   plan.restart_node(0, t0 + 10s);
-  EXPECT_GE(plan.item(0).next_due, t0 + 10s);
-  EXPECT_GE(plan.item(1).next_due, t0 + 10s);
-  EXPECT_LT(plan.item(2).next_due, t0 + 10s);
+  EXPECT_GE(plan.next_due(0), t0 + 10s);
+  EXPECT_GE(plan.next_due(1), t0 + 10s);
+  EXPECT_LT(plan.next_due(2), t0 + 10s);
   EXPECT_EQ(plan.probe_item(1), 2u);
   EXPECT_FALSE(plan.probe_item(5));
 }
@@ -143,12 +146,12 @@ TEST(PollPlan, RestartKeepsTheOriginalSlot) {
   plan.completed(1, t0 + 51ms);
   // Offline for a moment, back before either item missed a period: their own ticks.
   plan.restart_node(0, t0 + 70ms);
-  EXPECT_EQ(plan.item(0).next_due, t0 + 100ms);
-  EXPECT_EQ(plan.item(1).next_due, t0 + 150ms);
+  EXPECT_EQ(plan.next_due(0), t0 + 100ms);
+  EXPECT_EQ(plan.next_due(1), t0 + 150ms);
   // Back after a longer absence: both missed a period and are due at once.
   plan.restart_node(0, t0 + 400ms);
-  EXPECT_EQ(plan.item(0).next_due, t0 + 400ms);
-  EXPECT_EQ(plan.item(1).next_due, t0 + 400ms);
+  EXPECT_EQ(plan.next_due(0), t0 + 400ms);
+  EXPECT_EQ(plan.next_due(1), t0 + 400ms);
 }
 
 // A node that goes offline and online every 500 ms (a heartbeat that flaps): its 5 s class
@@ -164,10 +167,11 @@ TEST(PollPlan, EveryClassRunsWithinItsPeriodWhileANodeFlaps) {
   while (now < SteadyTime{} + 30s) {
     if (now >= flip) {
       online = !online;
+      plan.set_eligible(0, online);
       if (online) plan.restart_node(0, now);
       flip += online ? 450ms : 50ms;  // mostly online
     }
-    auto due = plan.pick(now, [&](int) { return online; });
+    auto due = plan.pick(now);
     if (!due || due->when > now) {
       now += 1ms;
       continue;
@@ -197,7 +201,7 @@ TEST(PollPlan, UnderOverloadTheFastClassKeepsItsPriority) {
   plan.start(now);
   int fast = 0, slow = 0;
   while (now < SteadyTime{} + 10s) {
-    auto due = plan.pick(now, all);
+    auto due = plan.pick(now);
     ASSERT_TRUE(due);
     if (due->when > now) now = due->when;
     now += 10ms;
@@ -207,6 +211,64 @@ TEST(PollPlan, UnderOverloadTheFastClassKeepsItsPriority) {
   EXPECT_GE(fast, 4 * 100 * 95 / 100);  // 4 nodes x 10/s x 10 s, within 5 %
   EXPECT_GT(slow, 0);
   EXPECT_LT(slow, 40 * 50);  // the slow class cannot have its full rate
+}
+
+// pick() answers from an index kept across completions, restarts and eligibility changes; here it
+// is held against the rule itself, a scan of every item, through a long random run.
+TEST(PollPlan, PickAgreesWithAScanOfEveryItemThroughARandomRun) {
+  PollPlan plan;
+  const int nodes = 12;
+  const std::chrono::microseconds periods[] = {10ms, 10ms, 50ms, 200ms, 1s};
+  std::mt19937 random(7);
+  for (int node = 0; node < nodes; ++node)
+    for (int k = 0; k < 1 + node % 4; ++k)
+      plan.add(item(node, "r", periods[static_cast<std::size_t>(node + k) % 5]));
+  SteadyTime now{};
+  plan.start(now);
+  std::vector<bool> eligible(nodes, true);
+  unsigned completed = 0;
+  const auto scan = [&]() -> std::optional<PollPlan::Due> {
+    std::optional<std::size_t> urgent, oldest, earliest;
+    for (std::size_t i = 0; i < plan.items().size(); ++i) {
+      const auto& it = plan.item(i);
+      if (!eligible[static_cast<std::size_t>(it.node)]) continue;
+      const auto due = plan.next_due(i);
+      if (!earliest || due < plan.next_due(*earliest)) earliest = i;
+      if (due > now) continue;
+      if (!oldest || due < plan.next_due(*oldest)) oldest = i;
+      if (!urgent || it.period < plan.item(*urgent).period ||
+          (it.period == plan.item(*urgent).period && due < plan.next_due(*urgent)))
+        urgent = i;
+    }
+    if (!urgent) {
+      if (!earliest) return std::nullopt;
+      return PollPlan::Due{*earliest, plan.next_due(*earliest)};
+    }
+    const auto chosen = ((completed + 1) % PollPlan::kStarvationGuard == 0) ? *oldest : *urgent;
+    return PollPlan::Due{chosen, plan.next_due(chosen)};
+  };
+  for (int step = 0; step < 20000; ++step) {
+    const auto expected = scan();
+    const auto got = plan.pick(now);
+    ASSERT_EQ(got.has_value(), expected.has_value()) << "step " << step;
+    if (got) {
+      ASSERT_EQ(got->item, expected->item) << "step " << step;
+      ASSERT_EQ(got->when, expected->when) << "step " << step;
+    }
+    const auto roll = random() % 100;
+    if (roll < 3) {  // a node goes offline or comes back
+      const int node = static_cast<int>(random() % nodes);
+      eligible[static_cast<std::size_t>(node)] = !eligible[static_cast<std::size_t>(node)];
+      plan.set_eligible(node, eligible[static_cast<std::size_t>(node)]);
+      if (eligible[static_cast<std::size_t>(node)]) plan.restart_node(node, now);
+    } else if (got && got->when <= now) {
+      now += std::chrono::microseconds(500 + random() % 4000);  // the transaction
+      plan.completed(got->item, now);
+      ++completed;
+    } else {
+      now = got ? got->when : now + 10ms;
+    }
+  }
 }
 
 }  // namespace
