@@ -58,11 +58,12 @@ class WhedcoEndToEnd : public PlantFixture<::testing::TestWithParam<Format>> {
         "', model: whedco-cmc-xy, unit_id: 1, poll: {slow: 300ms, variables: 500ms}}\n"
         "      - {name: cmc5, address: '5" +
         suffix + "', model: whedco-cmc-xy, unit_id: 2, poll: {slow: 300ms, variables: 500ms}}\n";
-    SimulatedBus bus{"cmc-line",
-                     "whedco-cmc",
-                     argv,
-                     std::string("baud: ") + f.baud,
-                     "reply_timeout: 50ms, byte_timeout: 10ms, retries: 1, offline_after: 3, "
+    SimulatedBus bus{"cmc-line", "whedco-cmc", argv, std::string("baud: ") + f.baud,
+                     // byte_timeout: the simulator paces a 9600-baud reply itself, and on a
+                     // loaded host it can stall longer than 10 ms between two characters (a
+                     // device's UART does not; the gateway's own stalls are covered by what the
+                     // OS buffers), and a stall past the byte timeout is a garbled reply.
+                     "reply_timeout: 50ms, byte_timeout: 40ms, retries: 1, offline_after: 3, "
                      "probe_interval: 300ms",
                      nodes};
     start({bus});
