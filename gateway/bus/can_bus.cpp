@@ -546,13 +546,23 @@ void CanBus::refresh_local_points(NodeRuntime& n, SteadyTime now) {
 }
 
 asio::awaitable<void> CanBus::heartbeat_supervisor() {
+  // Woken well after its deadline, the process itself was held up (a loaded host): heartbeats
+  // that came meanwhile wait in the socket, and are read before a missing one is concluded.
+  constexpr auto kStalled = std::chrono::milliseconds(20);
+  SteadyTime intended = SteadyTime::max();
   while (!stopping_) {
     const auto now = BusClock::now();
+    if (intended != SteadyTime::max() && now - intended > kStalled) {
+      intended = SteadyTime::max();
+      co_await sleep_until(supervisor_wake_, now + std::chrono::milliseconds(1));
+      continue;
+    }
     SteadyTime next = SteadyTime::max();
     for (auto& n : nodes_) {
       if (!link_up_ || n->image->state == NodeState::offline) continue;
       next = std::min(next, n->nmt.check_heartbeat(now));
     }
+    intended = next;
     co_await sleep_until(supervisor_wake_, next);
   }
   --workers_running_;

@@ -33,7 +33,9 @@ class SerialBusSchedule : public ::testing::Test {
   void SetUp() override {
     files_.write_model("1s");
     config_ = files_.load(
-        "    timing: {reply_timeout: 20ms, retries: 0, offline_after: 1, probe_interval: 5s}\n",
+        // reply_timeout runs on the real clock (the far end answers at once): 200 ms, so a loaded
+        // host cannot time out a reply and take a node offline under the test.
+        "    timing: {reply_timeout: 200ms, retries: 0, offline_after: 1, probe_interval: 5s}\n",
         "      - {name: gw, address: 0, model: position, unit_id: 1}\n"
         "      - {name: n3, address: 3, model: position, unit_id: 2}\n");
     ASSERT_TRUE(config_);

@@ -33,4 +33,6 @@ r = c.write_register(110, 7, slave=2)           # half of the 32-bit target
 ok("pymodbus: half a 32-bit value gives 0x03", isinstance(r, ExceptionResponse) and r.exception_code == 3)
 c.close()
 PY
+# What the daemon saw, where a step failed (a refused write says why in it).
+[ "${fail:-0}" = 0 ] || { echo "--- daemon log ---"; tail -n 60 "$dir/daemon.log"; }
 exit $fail

@@ -7,11 +7,11 @@ def move_to_2500(client, ok, label):
     """Enables unit 2 (a Copley amplifier of the demo map), moves it to 2500 and checks that it
     got there; ok(name, condition) reports each step."""
     r = client.write_register(100, 1, slave=2)           # enable
-    ok(label + ": enable confirmed", not r.isError())
+    ok(label + ": enable confirmed (%s)" % r, not r.isError())
     r = client.write_registers(110, [0, 2500], slave=2)  # target 2500
-    ok(label + ": target written", not r.isError())
+    ok(label + ": target written (%s)" % r, not r.isError())
     r = client.write_register(100, 3, slave=2)           # move_absolute
-    ok(label + ": move confirmed", not r.isError())
+    ok(label + ": move confirmed (%s)" % r, not r.isError())
     for _ in range(200):
         r = client.read_holding_registers(101, 1, slave=2)
         if not r.isError() and r.registers[0] == 2:
