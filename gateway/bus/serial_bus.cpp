@@ -269,7 +269,10 @@ void SerialBus::set_state(NodeRuntime& n, NodeState state, std::string_view why)
   if (state == NodeState::online) {
     log::notice("bus {}: node {} ({}) online{}", config_->name, n.config->name,
                 n.config->address.text, old == NodeState::offline ? " again" : "");
-    plan_.restart_node(n.index, now_());
+    // Back from offline, its items resume in their slots. A node starting (or faulted) was
+    // polled on its schedule all along, and the poll answering now completes its own item: a
+    // restart before that completion would move the item a period on twice.
+    if (old == NodeState::offline) plan_.restart_node(n.index, now_());
   } else if (state == NodeState::offline) {
     log::warning("bus {}: node {} ({}) offline: {}", config_->name, n.config->name,
                  n.config->address.text, why);
