@@ -110,7 +110,7 @@ int main(int argc, char** argv) {
           const long long t0_ns =
               std::chrono::duration_cast<std::chrono::nanoseconds>(t0.time_since_epoch()).count();
           latency_us.push_back(static_cast<double>(w.started_ns - t0_ns) / 1000.0);
-          if (samples_file) samples_file << t0_ns << ' ' << w.started_ns << '\n';
+          if (samples_file.is_open()) samples_file << t0_ns << ' ' << w.started_ns << '\n';
           found = true;
         }
       }

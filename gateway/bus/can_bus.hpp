@@ -93,7 +93,6 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   void on_error_frame(const CanFrame& frame, SteadyTime now);
   void on_tpdo(NodeRuntime& n, const CanFrame& frame, SteadyTime now);
   void refresh_local_points(NodeRuntime& n, SteadyTime now);
-  // Overdue polls of a node back online run at once, each on its own phase.
 
   void record(NodeRuntime& n, const Reply& reply, SteadyTime at);
   void set_state(NodeRuntime& n, NodeState state, std::string_view why);

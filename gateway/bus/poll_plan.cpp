@@ -46,7 +46,7 @@ void PollPlan::set_eligible(int node, bool eligible) {
   eligible_[n] = eligible;
   if (queues_stale_) return;
   for (const std::size_t i : items_of_node_[n]) {
-    auto& queue = queues_[queue_of_[i]].items;
+    auto& queue = queues_[queue_of_[i]];
     if (eligible)
       queue.insert({schedule_[i].next_due, i});
     else
@@ -58,23 +58,22 @@ void PollPlan::rebuild_queues() {
   std::map<std::chrono::microseconds::rep, std::size_t> by_period;
   for (const auto& s : schedule_) by_period.emplace(s.period.count(), 0);
   queues_.clear();
-  for (auto& [period, index] : by_period) {
-    index = queues_.size();
-    queues_.push_back({std::chrono::microseconds(period), {}});
+  for (auto& entry : by_period) {
+    entry.second = queues_.size();
+    queues_.emplace_back();
   }
   queue_of_.resize(schedule_.size());
   for (std::size_t i = 0; i < schedule_.size(); ++i) {
     const auto& s = schedule_[i];
     queue_of_[i] = by_period[s.period.count()];
-    if (eligible_[static_cast<std::size_t>(s.node)])
-      queues_[queue_of_[i]].items.insert({s.next_due, i});
+    if (eligible_[static_cast<std::size_t>(s.node)]) queues_[queue_of_[i]].insert({s.next_due, i});
   }
   queues_stale_ = false;
 }
 
 void PollPlan::requeue(std::size_t item, SteadyTime old_due) {
   if (queues_stale_ || !eligible_[static_cast<std::size_t>(schedule_[item].node)]) return;
-  auto& queue = queues_[queue_of_[item]].items;
+  auto& queue = queues_[queue_of_[item]];
   queue.erase({old_due, item});
   queue.insert({schedule_[item].next_due, item});
 }
@@ -131,8 +130,8 @@ std::optional<PollPlan::Due> PollPlan::pick(SteadyTime now) {
   const QueueEntry* oldest = nullptr;
   const QueueEntry* earliest = nullptr;
   for (const auto& queue : queues_) {
-    if (queue.items.empty()) continue;
-    const QueueEntry& front = *queue.items.begin();
+    if (queue.empty()) continue;
+    const QueueEntry& front = *queue.begin();
     if (!earliest || front < *earliest) earliest = &front;
     if (front.first > now) continue;
     if (!urgent) urgent = &front;  // queues run from the shortest period

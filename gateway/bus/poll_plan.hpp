@@ -98,13 +98,9 @@ class PollPlan {
   void rebuild_queues();
   void requeue(std::size_t item, SteadyTime old_due);
   using QueueEntry = std::pair<SteadyTime, std::size_t>;
-  struct PeriodQueue {
-    std::chrono::microseconds period{0};
-    std::set<QueueEntry> items;
-  };
-  std::vector<PeriodQueue> queues_;
-  std::vector<std::size_t> queue_of_;  // per item
-  std::vector<bool> eligible_;         // per node
+  std::vector<std::set<QueueEntry>> queues_;  // one per period, shortest first
+  std::vector<std::size_t> queue_of_;         // per item
+  std::vector<bool> eligible_;                // per node
   bool queues_stale_ = true;
   unsigned picks_ = 0;  // completed polls
   SteadyTime start_{};
