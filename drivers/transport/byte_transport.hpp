@@ -3,6 +3,7 @@
 #include <boost/asio/awaitable.hpp>
 #include <boost/asio/buffer.hpp>
 
+#include <chrono>
 #include <cstddef>
 #include <string>
 #include <string_view>
@@ -26,6 +27,12 @@ class ByteTransport {
   // cancellation slot, so `read_some(...) || timer` works.
   virtual asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) = 0;
+  // Completes when at least one byte arrived, or at `deadline` with std::errc::timed_out and no
+  // byte taken (what arrives later stays for the next read). This default races read_some()
+  // against a timer; a stream transport needs no second coroutine for it, which shortens the
+  // path from a reply's last byte to the next request.
+  virtual asio::awaitable<std::pair<std::error_code, std::size_t>> read_some_until(
+      asio::mutable_buffer buffer, std::chrono::steady_clock::time_point deadline);
   // Changes the line rate at once (a controller that switches rate mid-session); transports
   // without a rate refuse.
   virtual std::error_code set_baud(unsigned baud) {

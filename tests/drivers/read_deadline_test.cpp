@@ -1,0 +1,207 @@
+// ByteTransport::read_some_until: a read that ends at a deadline takes no byte, and what arrives
+// later is read next. Run on a stream transport (TcpTransport over loopback, the override with
+// one timer) and on the default that races read_some() against a timer.
+#include <gtest/gtest.h>
+
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/this_coro.hpp>
+#include <boost/asio/use_awaitable.hpp>
+#include <boost/asio/use_future.hpp>
+#include <boost/asio/write.hpp>
+
+#include <cstring>
+#include <string>
+
+#include "drivers/transport/tcp_transport.hpp"
+
+namespace fieldgate {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+using tcp = asio::ip::tcp;
+
+// A loopback peer: the transport under test connects to it, the test writes through `peer`.
+struct LoopbackPair {
+  asio::io_context io;
+  tcp::acceptor acceptor{io, tcp::endpoint(asio::ip::address_v4::loopback(), 0)};
+  tcp::socket peer{io};
+  TcpTransport transport{io.get_executor(), "127.0.0.1", acceptor.local_endpoint().port(), 0};
+
+  LoopbackPair() {
+    acceptor.async_accept(peer, [](const boost::system::error_code& ec) { ASSERT_FALSE(ec); });
+    auto opened = asio::co_spawn(io, transport.open(), asio::use_future);
+    io.run();
+    io.restart();
+    EXPECT_FALSE(opened.get());
+  }
+
+  template <typename Body>
+  auto run(Body body) {
+    auto done = asio::co_spawn(io, body(), asio::use_future);
+    io.run();
+    io.restart();
+    return done.get();
+  }
+
+  void send(const std::string& text) { asio::write(peer, asio::buffer(text)); }
+};
+
+std::string text_of(const char* chunk, std::size_t n) {
+  return std::string(chunk, n);
+}
+
+TEST(ReadDeadline, BytesThatArriveBeforeTheDeadlineAreReturned) {
+  LoopbackPair pair;
+  pair.send("1TS000033\r\n");
+  const auto [ec,
+              text] = pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
+    char chunk[64];
+    auto [e, n] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 5s);
+    co_return std::pair{e, text_of(chunk, n)};
+  });
+  EXPECT_FALSE(ec);
+  EXPECT_EQ(text, "1TS000033\r\n");
+}
+
+TEST(ReadDeadline, SilenceEndsTheReadAtTheDeadlineAndALaterByteIsReadNext) {
+  LoopbackPair pair;
+  const auto [first,
+              second] = pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
+    char chunk[64];
+    auto [e, n] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 20ms);
+    EXPECT_EQ(n, 0u);
+    pair.send("late\r");
+    auto [e2, n2] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 5s);
+    EXPECT_FALSE(e2);
+    co_return std::pair{e, text_of(chunk, n2)};
+  });
+  EXPECT_EQ(first, std::errc::timed_out);
+  EXPECT_EQ(second, "late\r");
+}
+
+TEST(ReadDeadline, AfterATimeoutTheBufferedBytesAreStillAvailable) {
+  LoopbackPair pair;
+  const auto [ec,
+              late] = pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
+    char chunk[64];
+    auto [e, n] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 10ms);
+    (void)n;
+    pair.send("backlog\r");
+    asio::steady_timer settle(co_await asio::this_coro::executor, 20ms);
+    co_await settle.async_wait(asio::use_awaitable);
+    const auto got = pair.transport.read_available(asio::buffer(chunk));
+    co_return std::pair{e, text_of(chunk, got)};
+  });
+  EXPECT_EQ(ec, std::errc::timed_out);
+  EXPECT_EQ(late, "backlog\r");
+}
+
+TEST(ReadDeadline, DataAlreadyWaitingWinsOverADeadlineAlreadyPassed) {
+  LoopbackPair pair;
+  pair.send("ready\r");
+  const auto [ec,
+              text] = pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
+    asio::steady_timer settle(co_await asio::this_coro::executor, 20ms);
+    co_await settle.async_wait(asio::use_awaitable);
+    char chunk[64];
+    auto [e, n] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() - 1s);
+    co_return std::pair{e, text_of(chunk, n)};
+  });
+  EXPECT_FALSE(ec);
+  EXPECT_EQ(text, "ready\r");
+}
+
+TEST(ReadDeadline, ADeadlineOfAnEarlierReadDoesNotCancelTheNextOne) {
+  LoopbackPair pair;
+  const auto [ec,
+              text] = pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
+    char chunk[64];
+    pair.send("a");
+    // This read completes with data long before its deadline; its timer must not end the next.
+    auto [e1, n1] =
+        co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 30ms);
+    EXPECT_FALSE(e1);
+    EXPECT_EQ(n1, 1u);
+    asio::steady_timer later(co_await asio::this_coro::executor, 60ms);
+    later.async_wait([&](const boost::system::error_code&) { pair.send("b"); });
+    auto [e3, n3] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 5s);
+    co_return std::pair{e3, text_of(chunk, n3)};
+  });
+  EXPECT_FALSE(ec);
+  EXPECT_EQ(text, "b");
+}
+
+TEST(ReadDeadline, AClosedPeerIsAnErrorNotATimeout) {
+  LoopbackPair pair;
+  pair.peer.close();
+  const auto ec = pair.run([&]() -> asio::awaitable<std::error_code> {
+    char chunk[64];
+    auto [e, n] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 5s);
+    EXPECT_EQ(n, 0u);
+    co_return e;
+  });
+  EXPECT_TRUE(ec);
+  EXPECT_NE(ec, std::errc::timed_out);
+}
+
+// The default read_some_until, for transports that only have read_some (test fakes).
+class QuietTransport final : public ByteTransport {
+ public:
+  asio::awaitable<std::error_code> open() override { co_return std::error_code{}; }
+  void close() override {}
+  bool is_open() const override { return true; }
+  asio::awaitable<std::error_code> write(std::string_view text) override {
+    pending_ = std::string(text);
+    co_return std::error_code{};
+  }
+  asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
+      asio::mutable_buffer buffer) override {
+    asio::steady_timer poll(co_await asio::this_coro::executor);
+    for (;;) {
+      if (const auto n = read_available(buffer); n > 0) co_return std::pair{std::error_code{}, n};
+      poll.expires_after(1ms);
+      auto [ec] = co_await poll.async_wait(asio::as_tuple(asio::use_awaitable));
+      if (ec) co_return std::pair{std::error_code(ec), std::size_t{0}};
+    }
+  }
+  std::size_t read_available(asio::mutable_buffer buffer) override {
+    const auto n = std::min(buffer.size(), pending_.size());
+    std::memcpy(buffer.data(), pending_.data(), n);
+    pending_.erase(0, n);
+    return n;
+  }
+  void discard_input() override { pending_.clear(); }
+  std::string describe() const override { return "quiet"; }
+  double char_time_us() const override { return 0; }
+
+ private:
+  std::string pending_;
+};
+
+TEST(ReadDeadline, TheDefaultRaceTimesOutAndThenReadsWhatCameLater) {
+  asio::io_context io;
+  QuietTransport transport;
+  auto done = asio::co_spawn(
+      io,
+      [&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
+        char chunk[64];
+        auto [e, n] = co_await transport.read_some_until(asio::buffer(chunk), Clock::now() + 10ms);
+        EXPECT_EQ(n, 0u);
+        co_await transport.write("echo\r");
+        auto [e2, n2] = co_await transport.read_some_until(asio::buffer(chunk), Clock::now() + 5s);
+        EXPECT_FALSE(e2);
+        co_return std::pair{e, text_of(chunk, n2)};
+      },
+      asio::use_future);
+  io.run();
+  const auto [first, second] = done.get();
+  EXPECT_EQ(first, std::errc::timed_out);
+  EXPECT_EQ(second, "echo\r");
+}
+
+}  // namespace
+}  // namespace fieldgate
