@@ -135,6 +135,43 @@ TEST(ReadDeadline, ADeadlineOfAnEarlierReadDoesNotCancelTheNextOne) {
   EXPECT_EQ(text, "b");
 }
 
+TEST(ReadDeadline, AReadWithAnEarlierDeadlineThanTheLastEndsAtItsOwn) {
+  LoopbackPair pair;
+  const auto ec = pair.run([&]() -> asio::awaitable<std::error_code> {
+    char chunk[64];
+    pair.send("a");
+    // The timer stays set for this read's 10 s after it completes with data ...
+    auto [e1, n1] =
+        co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 10s);
+    EXPECT_FALSE(e1);
+    EXPECT_EQ(n1, 1u);
+    // ... so this read must set it earlier, or it would wait 10 s for silence.
+    auto [e2, n2] =
+        co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 20ms);
+    EXPECT_EQ(n2, 0u);
+    co_return e2;
+  });
+  EXPECT_EQ(ec, std::errc::timed_out);
+}
+
+TEST(ReadDeadline, ATransportGoneWithItsTimerSetLeavesTheLoopRunning) {
+  asio::io_context io;
+  {
+    LoopbackPair pair;
+    pair.send("x");
+    pair.run([&]() -> asio::awaitable<void> {
+      char chunk[8];
+      co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 10ms);
+    });
+    // The pair (its io_context, transport and timer) goes while the timer is still set.
+  }
+  asio::steady_timer after(io, 30ms);
+  bool ran = false;
+  after.async_wait([&](const boost::system::error_code&) { ran = true; });
+  io.run();
+  EXPECT_TRUE(ran);
+}
+
 TEST(ReadDeadline, AClosedPeerIsAnErrorNotATimeout) {
   LoopbackPair pair;
   pair.peer.close();
