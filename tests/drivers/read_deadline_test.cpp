@@ -14,6 +14,7 @@
 
 #include <cstring>
 #include <string>
+#include <thread>
 
 #include "drivers/transport/tcp_transport.hpp"
 
@@ -48,110 +49,79 @@ struct LoopbackPair {
   }
 
   void send(const std::string& text) { asio::write(peer, asio::buffer(text)); }
-};
 
-std::string text_of(const char* chunk, std::size_t n) {
-  return std::string(chunk, n);
-}
+  // One read_some_until: its error and the bytes it took.
+  asio::awaitable<std::pair<std::error_code, std::string>> read(Clock::time_point deadline) {
+    char chunk[64];
+    auto [ec, n] = co_await transport.read_some_until(asio::buffer(chunk), deadline);
+    co_return std::pair{ec, std::string(chunk, n)};
+  }
+};
 
 TEST(ReadDeadline, BytesThatArriveBeforeTheDeadlineAreReturned) {
   LoopbackPair pair;
   pair.send("1TS000033\r\n");
-  const auto [ec,
-              text] = pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
-    char chunk[64];
-    auto [e, n] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 5s);
-    co_return std::pair{e, text_of(chunk, n)};
-  });
-  EXPECT_FALSE(ec);
-  EXPECT_EQ(text, "1TS000033\r\n");
+  const std::pair<std::error_code, std::string> whole_reply{std::error_code{}, "1TS000033\r\n"};
+  EXPECT_EQ(pair.run([&] { return pair.read(Clock::now() + 5s); }), whole_reply);
 }
 
 TEST(ReadDeadline, SilenceEndsTheReadAtTheDeadlineAndALaterByteIsReadNext) {
   LoopbackPair pair;
-  const auto [first,
-              second] = pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
-    char chunk[64];
-    auto [e, n] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 20ms);
-    EXPECT_EQ(n, 0u);
-    pair.send("late\r");
-    auto [e2, n2] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 5s);
-    EXPECT_FALSE(e2);
-    co_return std::pair{e, text_of(chunk, n2)};
-  });
-  EXPECT_EQ(first, std::errc::timed_out);
-  EXPECT_EQ(second, "late\r");
+  const auto [silent, taken] = pair.run([&] { return pair.read(Clock::now() + 20ms); });
+  EXPECT_EQ(silent, std::errc::timed_out);
+  EXPECT_EQ(taken, "");
+  pair.send("late\r");
+  const auto [ec, text] = pair.run([&] { return pair.read(Clock::now() + 5s); });
+  EXPECT_FALSE(ec);
+  EXPECT_EQ(text, "late\r");
 }
 
 TEST(ReadDeadline, AfterATimeoutTheBufferedBytesAreStillAvailable) {
   LoopbackPair pair;
-  const auto [ec,
-              late] = pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
-    char chunk[64];
-    auto [e, n] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 10ms);
-    (void)n;
-    pair.send("backlog\r");
-    asio::steady_timer settle(co_await asio::this_coro::executor, 20ms);
-    co_await settle.async_wait(asio::use_awaitable);
-    const auto got = pair.transport.read_available(asio::buffer(chunk));
-    co_return std::pair{e, text_of(chunk, got)};
-  });
+  const auto [ec, taken] = pair.run([&] { return pair.read(Clock::now() + 10ms); });
   EXPECT_EQ(ec, std::errc::timed_out);
-  EXPECT_EQ(late, "backlog\r");
+  pair.send("backlog\r");
+  std::this_thread::sleep_for(20ms);
+  char chunk[64];
+  const auto got = pair.transport.read_available(asio::buffer(chunk));
+  EXPECT_EQ(std::string(chunk, got), "backlog\r");
 }
 
 TEST(ReadDeadline, DataAlreadyWaitingWinsOverADeadlineAlreadyPassed) {
   LoopbackPair pair;
   pair.send("ready\r");
-  const auto [ec,
-              text] = pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
-    asio::steady_timer settle(co_await asio::this_coro::executor, 20ms);
-    co_await settle.async_wait(asio::use_awaitable);
-    char chunk[64];
-    auto [e, n] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() - 1s);
-    co_return std::pair{e, text_of(chunk, n)};
-  });
+  std::this_thread::sleep_for(20ms);
+  const auto [ec, text] = pair.run([&] { return pair.read(Clock::now() - 1s); });
   EXPECT_FALSE(ec);
   EXPECT_EQ(text, "ready\r");
 }
 
 TEST(ReadDeadline, ADeadlineOfAnEarlierReadDoesNotCancelTheNextOne) {
   LoopbackPair pair;
-  const auto [ec,
-              text] = pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
-    char chunk[64];
-    pair.send("a");
-    // This read completes with data long before its deadline; its timer must not end the next.
-    auto [e1, n1] =
-        co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 30ms);
-    EXPECT_FALSE(e1);
-    EXPECT_EQ(n1, 1u);
-    asio::steady_timer later(co_await asio::this_coro::executor, 60ms);
-    later.async_wait([&](const boost::system::error_code&) { pair.send("b"); });
-    auto [e3, n3] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 5s);
-    co_return std::pair{e3, text_of(chunk, n3)};
-  });
+  pair.send("a");
+  // This read completes with data long before its deadline; its timer must not end the next.
+  const auto [first, a] = pair.run([&] { return pair.read(Clock::now() + 30ms); });
+  EXPECT_FALSE(first);
+  EXPECT_EQ(a, "a");
+  asio::steady_timer later(pair.io, 60ms);
+  later.async_wait([&](const boost::system::error_code&) { pair.send("b"); });
+  const auto [ec, text] = pair.run([&] { return pair.read(Clock::now() + 5s); });
   EXPECT_FALSE(ec);
   EXPECT_EQ(text, "b");
 }
 
 TEST(ReadDeadline, AReadWithAnEarlierDeadlineThanTheLastEndsAtItsOwn) {
   LoopbackPair pair;
-  const auto ec = pair.run([&]() -> asio::awaitable<std::error_code> {
-    char chunk[64];
-    pair.send("a");
-    // The timer stays set for this read's 10 s after it completes with data ...
-    auto [e1, n1] =
-        co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 10s);
-    EXPECT_FALSE(e1);
-    EXPECT_EQ(n1, 1u);
-    // ... so this read must set it earlier, or it would wait 10 s for silence.
-    auto [e2, n2] =
-        co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 20ms);
-    EXPECT_EQ(n2, 0u);
-    co_return e2;
-  });
+  pair.send("a");
+  // A read that ends with data long before its 10 s, then one that must end at its own 20 ms.
+  const auto [ec, text] =
+      pair.run([&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
+        const auto first = co_await pair.read(Clock::now() + 10s);
+        EXPECT_EQ(first.second, "a");
+        co_return co_await pair.read(Clock::now() + 20ms);
+      });
   EXPECT_EQ(ec, std::errc::timed_out);
+  EXPECT_EQ(text, "");
 }
 
 TEST(ReadDeadline, ATransportGoneWithItsTimerSetLeavesTheLoopRunning) {
@@ -175,35 +145,33 @@ TEST(ReadDeadline, ATransportGoneWithItsTimerSetLeavesTheLoopRunning) {
 TEST(ReadDeadline, AClosedPeerIsAnErrorNotATimeout) {
   LoopbackPair pair;
   pair.peer.close();
-  const auto ec = pair.run([&]() -> asio::awaitable<std::error_code> {
-    char chunk[64];
-    auto [e, n] = co_await pair.transport.read_some_until(asio::buffer(chunk), Clock::now() + 5s);
-    EXPECT_EQ(n, 0u);
-    co_return e;
-  });
+  const auto [ec, text] = pair.run([&] { return pair.read(Clock::now() + 5s); });
   EXPECT_TRUE(ec);
   EXPECT_NE(ec, std::errc::timed_out);
+  EXPECT_EQ(text, "");
 }
 
-// The default read_some_until, for transports that only have read_some (test fakes).
+// The default read_some_until, for transports that only have read_some (test fakes): a read
+// waits until write() hands it bytes, or until it is cancelled.
 class QuietTransport final : public ByteTransport {
  public:
+  explicit QuietTransport(asio::io_context& io) : wake_(io) {}
   asio::awaitable<std::error_code> open() override { co_return std::error_code{}; }
   void close() override {}
   bool is_open() const override { return true; }
   asio::awaitable<std::error_code> write(std::string_view text) override {
     pending_ = std::string(text);
+    wake_.cancel();
     co_return std::error_code{};
   }
   asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) override {
-    asio::steady_timer poll(co_await asio::this_coro::executor);
-    for (;;) {
-      if (const auto n = read_available(buffer); n > 0) co_return std::pair{std::error_code{}, n};
-      poll.expires_after(1ms);
-      auto [ec] = co_await poll.async_wait(asio::as_tuple(asio::use_awaitable));
-      if (ec) co_return std::pair{std::error_code(ec), std::size_t{0}};
+    if (pending_.empty()) {
+      wake_.expires_at(asio::steady_timer::time_point::max());
+      auto [ec] = co_await wake_.async_wait(asio::as_tuple(asio::use_awaitable));
+      if (pending_.empty()) co_return std::pair{std::error_code(ec), std::size_t{0}};
     }
+    co_return std::pair{std::error_code{}, read_available(buffer)};
   }
   std::size_t read_available(asio::mutable_buffer buffer) override {
     const auto n = std::min(buffer.size(), pending_.size());
@@ -216,12 +184,13 @@ class QuietTransport final : public ByteTransport {
   double char_time_us() const override { return 0; }
 
  private:
+  asio::steady_timer wake_;
   std::string pending_;
 };
 
 TEST(ReadDeadline, TheDefaultRaceTimesOutAndThenReadsWhatCameLater) {
   asio::io_context io;
-  QuietTransport transport;
+  QuietTransport transport(io);
   auto done = asio::co_spawn(
       io,
       [&]() -> asio::awaitable<std::pair<std::error_code, std::string>> {
@@ -231,7 +200,7 @@ TEST(ReadDeadline, TheDefaultRaceTimesOutAndThenReadsWhatCameLater) {
         co_await transport.write("echo\r");
         auto [e2, n2] = co_await transport.read_some_until(asio::buffer(chunk), Clock::now() + 5s);
         EXPECT_FALSE(e2);
-        co_return std::pair{e, text_of(chunk, n2)};
+        co_return std::pair{e, std::string(chunk, n2)};
       },
       asio::use_future);
   io.run();
