@@ -28,10 +28,10 @@ class ByteTransport {
   virtual asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) = 0;
   // Completes when at least one byte arrived, or at `deadline` with std::errc::timed_out and no
-  // byte taken (what arrives later stays for the next read). This default races read_some()
-  // against a timer; a stream transport needs no second coroutine for it, which shortens the
-  // path from a reply's last byte to the next request.
-  virtual asio::awaitable<std::pair<std::error_code, std::size_t>> read_some_until(
+  // byte taken (what arrives later stays for the next read): read_some() raced against a timer.
+  // A stream transport's own version, cancelling its read from one timer, was tried and dropped
+  // (docs/performance.md): no faster, and the one busy-core pass with it failed.
+  asio::awaitable<std::pair<std::error_code, std::size_t>> read_some_until(
       asio::mutable_buffer buffer, std::chrono::steady_clock::time_point deadline);
   // Changes the line rate at once (a controller that switches rate mid-session); transports
   // without a rate refuse.
