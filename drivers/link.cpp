@@ -1,13 +1,15 @@
 #include "drivers/link.hpp"
 
 #include <boost/asio/as_tuple.hpp>
-#include <boost/asio/steady_timer.hpp>
+#include <boost/asio/experimental/awaitable_operators.hpp>
 #include <boost/asio/this_coro.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
 #include <algorithm>
 
 namespace fieldgate {
+
+using namespace boost::asio::experimental::awaitable_operators;
 
 using Clock = std::chrono::steady_clock;
 
@@ -45,6 +47,7 @@ asio::awaitable<LinkResync> Link::resync(std::chrono::microseconds guard,
   const auto started = Clock::now();
   const auto give_up = wire_free_at() + limit;
   result.drained = std::exchange(buffer_, {});
+  asio::steady_timer timer(co_await asio::this_coro::executor);
   char chunk[512];
   auto quiet_from = wire_free_at();
   for (;;) {
@@ -60,10 +63,12 @@ asio::awaitable<LinkResync> Link::resync(std::chrono::microseconds guard,
       result.quiet = false;
       break;
     }
-    auto [ec, n] = co_await transport_.read_some_until(asio::buffer(chunk),
-                                                       std::min(quiet_from + guard, give_up));
-    if (ec == std::errc::timed_out) continue;  // read_available() above decides
-    if (ec) break;                             // the next transaction will see the failure
+    timer.expires_at(std::min(quiet_from + guard, give_up));
+    auto outcome = co_await (transport_.read_some(asio::buffer(chunk)) ||
+                             timer.async_wait(asio::as_tuple(asio::use_awaitable)));
+    if (outcome.index() == 1) continue;  // read_available() above decides
+    auto [ec, n] = std::get<0>(outcome);
+    if (ec) break;  // the next transaction will see the failure
     stats_.bytes_received += n;
     result.drained.append(chunk, n);
     quiet_from = Clock::now();
@@ -91,6 +96,7 @@ asio::awaitable<void> Link::pause(std::chrono::microseconds duration) {
 asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
                                            const LinkTiming& timing) {
   LinkRead result;
+  asio::steady_timer timer(co_await asio::this_coro::executor);
   bool first = buffer_.empty();
   char chunk[512];
   for (;;) {
@@ -108,11 +114,14 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
       if (tap_) tap_(false, result.partial);
       co_return result;
     }
-    const auto deadline =
-        first ? wire_free_at() + timing.reply_timeout : Clock::now() + timing.byte_timeout;
-    auto [ec, n] = co_await transport_.read_some_until(asio::buffer(chunk), deadline);
-    if (ec == std::errc::timed_out) {
-      // The deadline and the data can become ready together (a stalled process): bytes already
+    if (first)
+      timer.expires_at(wire_free_at() + timing.reply_timeout);
+    else
+      timer.expires_after(timing.byte_timeout);
+    auto outcome = co_await (transport_.read_some(asio::buffer(chunk)) ||
+                             timer.async_wait(asio::as_tuple(asio::use_awaitable)));
+    if (outcome.index() == 1) {
+      // The timer and the data can become ready together (a stalled process): bytes already
       // buffered by the OS are not a timeout.
       if (const auto late = transport_.read_available(asio::buffer(chunk)); late > 0) {
         stats_.bytes_received += late;
@@ -126,6 +135,7 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
       if (tap_ && !result.partial.empty()) tap_(false, result.partial);
       co_return result;
     }
+    auto [ec, n] = std::get<0>(outcome);
     if (ec) {
       result.status = LinkRead::Status::error;
       result.error = ec;

@@ -3,7 +3,6 @@
 #include <boost/asio/awaitable.hpp>
 #include <boost/asio/buffer.hpp>
 
-#include <chrono>
 #include <cstddef>
 #include <string>
 #include <string_view>
@@ -27,12 +26,6 @@ class ByteTransport {
   // cancellation slot, so `read_some(...) || timer` works.
   virtual asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) = 0;
-  // Completes when at least one byte arrived, or at `deadline` with std::errc::timed_out and no
-  // byte taken (what arrives later stays for the next read): read_some() raced against a timer.
-  // A stream transport's own version, cancelling its read from one timer, was tried and dropped
-  // (docs/performance.md): no faster, and the one busy-core pass with it failed.
-  asio::awaitable<std::pair<std::error_code, std::size_t>> read_some_until(
-      asio::mutable_buffer buffer, std::chrono::steady_clock::time_point deadline);
   // Changes the line rate at once (a controller that switches rate mid-session); transports
   // without a rate refuse.
   virtual std::error_code set_baud(unsigned baud) {
