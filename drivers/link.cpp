@@ -93,12 +93,27 @@ asio::awaitable<void> Link::pause(std::chrono::microseconds duration) {
   co_await timer.async_wait(asio::as_tuple(asio::use_awaitable));
 }
 
+LinkRead Link::end_read(LinkRead::Status status) {
+  LinkRead result;
+  result.status = status;
+  result.partial = std::exchange(buffer_, {});
+  if (tap_ && !result.partial.empty()) tap_(false, result.partial);
+  return result;
+}
+
 asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
                                            const LinkTiming& timing) {
   LinkRead result;
   asio::steady_timer timer(co_await asio::this_coro::executor);
   bool first = buffer_.empty();
   char chunk[512];
+  const auto take_waiting = [&] {
+    const auto n = transport_.read_available(asio::buffer(chunk));
+    stats_.bytes_received += n;
+    buffer_.append(chunk, n);
+    if (n > 0) first = false;
+    return n > 0;
+  };
   for (;;) {
     if (const auto n = splitter(buffer_); n > 0) {
       result.status = LinkRead::Status::frame;
@@ -107,42 +122,29 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
       if (tap_) tap_(false, result.frame);
       co_return result;
     }
-    if (buffer_.size() > max_frame_) {
-      result.status = LinkRead::Status::overflow;
-      result.partial = std::move(buffer_);
-      buffer_.clear();
-      if (tap_) tap_(false, result.partial);
-      co_return result;
+    if (buffer_.size() > max_frame_) co_return end_read(LinkRead::Status::overflow);
+    const auto deadline =
+        first ? wire_free_at() + timing.reply_timeout : Clock::now() + timing.byte_timeout;
+    if (deadline <= Clock::now()) {
+      // A read that may not wait (a flush before a request) takes what the OS holds: racing a
+      // timer that has already expired costs the loop a timer and a turn for nothing.
+      if (take_waiting()) continue;
+      co_return end_read(LinkRead::Status::timeout);
     }
-    if (first)
-      timer.expires_at(wire_free_at() + timing.reply_timeout);
-    else
-      timer.expires_after(timing.byte_timeout);
+    timer.expires_at(deadline);
     auto outcome = co_await (transport_.read_some(asio::buffer(chunk)) ||
                              timer.async_wait(asio::as_tuple(asio::use_awaitable)));
     if (outcome.index() == 1) {
       // The timer and the data can become ready together (a stalled process): bytes already
       // buffered by the OS are not a timeout.
-      if (const auto late = transport_.read_available(asio::buffer(chunk)); late > 0) {
-        stats_.bytes_received += late;
-        buffer_.append(chunk, late);
-        first = false;
-        continue;
-      }
-      result.status = LinkRead::Status::timeout;
-      result.partial = std::move(buffer_);
-      buffer_.clear();
-      if (tap_ && !result.partial.empty()) tap_(false, result.partial);
-      co_return result;
+      if (take_waiting()) continue;
+      co_return end_read(LinkRead::Status::timeout);
     }
     auto [ec, n] = std::get<0>(outcome);
     if (ec) {
-      result.status = LinkRead::Status::error;
-      result.error = ec;
-      result.partial = std::move(buffer_);
-      buffer_.clear();
-      if (tap_ && !result.partial.empty()) tap_(false, result.partial);
-      co_return result;
+      auto failed = end_read(LinkRead::Status::error);
+      failed.error = ec;
+      co_return failed;
     }
     stats_.bytes_received += n;
     buffer_.append(chunk, n);

@@ -116,6 +116,8 @@ class Link {
  private:
   // When the bytes sent so far will have left the wire, estimated from the character time.
   std::chrono::steady_clock::time_point wire_free_at() const;
+  // A read that ended without a frame: what had arrived goes with it (and to the trace).
+  LinkRead end_read(LinkRead::Status status);
 
   ByteTransport& transport_;
   std::size_t max_frame_;

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 
 namespace fieldgate {
 
@@ -23,6 +24,20 @@ std::error_code SerialTransport::set_baud(unsigned baud) {
   if (ec) return to_std_error(ec);
   current_baud_ = baud;
   return {};
+}
+
+asio::awaitable<std::error_code> SerialTransport::write(std::string_view bytes) {
+  // A request fits the OS's output queue: written here (asio opens the port O_NONBLOCK), the
+  // exchange goes on to its reply without a turn of the event loop in between.
+  if (stream_.is_open()) {
+    const auto n = ::write(stream_.native_handle(), bytes.data(), bytes.size());
+    if (n == static_cast<ssize_t>(bytes.size())) co_return std::error_code{};
+    if (n > 0)
+      bytes.remove_prefix(static_cast<std::size_t>(n));
+    else if (n < 0 && errno != EAGAIN && errno != EINTR)
+      co_return std::error_code(errno, std::generic_category());
+  }
+  co_return co_await StreamTransport::write(bytes);
 }
 
 void SerialTransport::drain() {
