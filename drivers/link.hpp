@@ -69,7 +69,9 @@ class Link {
 
   asio::awaitable<std::error_code> send(std::string_view bytes);
   asio::awaitable<LinkRead> read_frame(const FrameSplitter& splitter, const LinkTiming& timing);
-  // Clears our buffer and the OS input queue; counts what was thrown away.
+  // Clears our buffer and the OS input queue before a request; counts and traces what was
+  // thrown away. What the OS holds is read off (so strays show in the trace); the transport's
+  // flush follows unless the last read ended in a whole frame and nothing was left over.
   void discard_input();
   // Replies carry no tag, so after a timeout, a garbled or a partial reply the link may not
   // carry another request until it has been quiet for `guard` (from when our last byte left
@@ -128,6 +130,10 @@ class Link {
   Tap tap_;
   LabelTap label_tap_;
   bool labels_wanted_ = false;
+  // The last read ended in a whole frame and no resync came after it. Then a flush before the
+  // next request can only drop bytes that arrive while it runs, which a flush a moment earlier
+  // would have missed as well: reading off the OS queue is enough.
+  bool in_step_ = false;
 };
 
 }  // namespace fieldgate

@@ -35,12 +35,9 @@ class ByteTransport {
   virtual unsigned baud() const { return 0; }
   // Waits until everything written has left the UART (so a rate change cannot cut it).
   virtual void drain() {}
-  // Reads what the OS has already buffered without waiting (0 if nothing; the default for
-  // transports that cannot tell).
-  virtual std::size_t read_available(asio::mutable_buffer buffer) {
-    (void)buffer;
-    return 0;
-  }
+  // Reads what the OS has already buffered without waiting (0 if nothing). Link relies on it
+  // to see strays before a request, so every transport must be able to tell.
+  virtual std::size_t read_available(asio::mutable_buffer buffer) = 0;
   // Drops whatever the OS has buffered but nobody read yet.
   virtual void discard_input() = 0;
   virtual std::string describe() const = 0;

@@ -1,11 +1,9 @@
 #include "drivers/transport/serial_transport.hpp"
 
 #include <fmt/format.h>
-#include <sys/ioctl.h>
 #include <termios.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <cerrno>
 
 namespace fieldgate {
@@ -70,10 +68,9 @@ asio::awaitable<std::error_code> SerialTransport::open() {
 
 std::size_t SerialTransport::read_available(asio::mutable_buffer buffer) {
   if (!stream_.is_open()) return 0;
-  int pending = 0;
-  if (::ioctl(stream_.native_handle(), FIONREAD, &pending) != 0 || pending <= 0) return 0;
-  const auto n = ::read(stream_.native_handle(), buffer.data(),
-                        std::min<std::size_t>(buffer.size(), static_cast<std::size_t>(pending)));
+  // The port is O_NONBLOCK, so an empty queue is EAGAIN. Asking FIONREAD first would take the
+  // line discipline's termios lock for writing, which waits out the receive work in progress.
+  const auto n = ::read(stream_.native_handle(), buffer.data(), buffer.size());
   return n > 0 ? static_cast<std::size_t>(n) : 0;
 }
 
