@@ -59,11 +59,12 @@ class WhedcoEndToEnd : public PlantFixture<::testing::TestWithParam<Format>> {
         "      - {name: cmc5, address: '5" +
         suffix + "', model: whedco-cmc-xy, unit_id: 2, poll: {slow: 300ms, variables: 500ms}}\n";
     SimulatedBus bus{"cmc-line", "whedco-cmc", argv, std::string("baud: ") + f.baud,
-                     // byte_timeout: the simulator paces a 9600-baud reply itself, and on a
-                     // loaded host it can stall longer than 10 ms between two characters (a
-                     // device's UART does not; the gateway's own stalls are covered by what the
-                     // OS buffers), and a stall past the byte timeout is a garbled reply.
-                     "reply_timeout: 50ms, byte_timeout: 40ms, retries: 1, offline_after: 3, "
+                     // The simulator paces a 9600-baud reply itself, and on a loaded host it
+                     // can stall longer than 10 ms between two characters and answer 100-220 ms
+                     // late (a device's UART does not; the gateway's own stalls are covered by
+                     // what the OS buffers): a stall past the byte timeout is a garbled reply,
+                     // one past the reply timeout a timeout, hence 200 and 40 ms, not 50 and 10.
+                     "reply_timeout: 200ms, byte_timeout: 40ms, retries: 1, offline_after: 3, "
                      "probe_interval: 300ms",
                      nodes};
     start({bus});
@@ -211,7 +212,7 @@ TEST_P(WhedcoEndToEnd, RefusalsAndAnAbsentUnit) {
 TEST_P(WhedcoEndToEnd, SlowerThanTheReplyTimeoutNothingWrongIsServed) {
   ASSERT_TRUE(client_->write_i32(1, hold::kV9, 1234).ok());
   ASSERT_TRUE(wait_until([&] { return holding_i32(1, hold::kV9) == 1234; }));
-  plant_->sim().send_line("delay 70");  // reply_timeout is 50 ms
+  plant_->sim().send_line("delay 250");  // reply_timeout is 200 ms
   int wrong = 0;
   int confirmed = 0;
   const auto until = std::chrono::steady_clock::now() + 3s;
