@@ -52,9 +52,7 @@ asio::awaitable<LinkResync> Link::resync(std::chrono::microseconds guard,
   char chunk[512];
   auto quiet_from = wire_free_at();
   for (;;) {
-    if (const auto n = transport_.read_available(asio::buffer(chunk)); n > 0) {
-      stats_.bytes_received += n;
-      result.drained.append(chunk, n);
+    if (take_available(result.drained) > 0) {
       quiet_from = Clock::now();
       continue;
     }
@@ -85,16 +83,12 @@ void Link::discard_input() {
   // A device that keeps talking is cut short by the transport's flush after this much.
   constexpr std::size_t kReadOffLimit = 4096;
   std::string stray = std::exchange(buffer_, {});
-  char chunk[512];
   bool emptied = false;
   while (stray.size() < kReadOffLimit) {
-    const auto n = transport_.read_available(asio::buffer(chunk));
-    if (n == 0) {
+    if (take_available(stray) == 0) {
       emptied = true;
       break;
     }
-    stats_.bytes_received += n;
-    stray.append(chunk, n);
   }
   if (!stray.empty()) {
     stats_.bytes_discarded += stray.size();
@@ -110,6 +104,14 @@ asio::awaitable<void> Link::pause(std::chrono::microseconds duration) {
   if (duration.count() <= 0) co_return;
   asio::steady_timer timer(co_await asio::this_coro::executor, duration);
   co_await timer.async_wait(asio::as_tuple(asio::use_awaitable));
+}
+
+std::size_t Link::take_available(std::string& into) {
+  char chunk[512];
+  const auto n = transport_.read_available(asio::buffer(chunk));
+  stats_.bytes_received += n;
+  into.append(chunk, n);
+  return n;
 }
 
 LinkRead Link::end_read(LinkRead::Status status) {
@@ -131,11 +133,9 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
   const bool no_wait = timing.reply_timeout.count() <= 0 && timing.byte_timeout.count() <= 0;
   char chunk[512];
   const auto take_waiting = [&] {
-    const auto n = transport_.read_available(asio::buffer(chunk));
-    stats_.bytes_received += n;
-    buffer_.append(chunk, n);
-    if (n > 0) first = false;
-    return n > 0;
+    if (take_available(buffer_) == 0) return false;
+    first = false;
+    return true;
   };
   for (;;) {
     if (const auto n = splitter(buffer_); n > 0) {

@@ -120,6 +120,9 @@ class Link {
   std::chrono::steady_clock::time_point wire_free_at() const;
   // A read that ended without a frame: what had arrived goes with it (and to the trace).
   LinkRead end_read(LinkRead::Status status);
+  // Appends what the OS already holds to `into` without waiting (one read), counted as
+  // received; returns how many bytes came.
+  std::size_t take_available(std::string& into);
 
   ByteTransport& transport_;
   std::size_t max_frame_;

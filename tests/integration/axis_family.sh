@@ -45,8 +45,8 @@ axis_family_bus() {
       units=21,22
       ;;
     whedco)
-      # 150 ms, not the 50 a CMC needs: on a loaded test host the simulator answered up to 110 ms
-      # late, and the profile's home then failed with 0x0b (CI, eight tests on two cores).
+      # 150 ms, not the 50 a CMC needs: on a loaded test host (eight tests on two cores) the
+      # simulator answered after 50 ms, and the profile's home then failed with 0x0b.
       protocol=whedco-cmc baud=38400
       timing="reply_timeout: ${reply:-150ms}, byte_timeout: ${byte:-30ms}"
       nodes="      - {name: cmc_4, address: 4, model: whedco-cmc-xy, unit_id: 1, axis_units: {x: 41, y: 42},
@@ -73,7 +73,8 @@ axis_family_bus() {
       units=41,42,43,44
       ;;
     techno-c10 | techno-c116 | techno-c142 | techno-it116g)
-      # 200 ms: on a loaded test host (CI, eight tests on two cores) the simulator answered late.
+      # 200 ms: a CI run on a loaded host (eight tests on two cores) failed techno-c142 (its
+      # output was not kept); the same load made the Whedco and Copley simulators answer late.
       protocol=techno-c baud=19200
       timing="reply_timeout: ${reply:-200ms}, byte_timeout: ${byte:-30ms}"
       local units_yaml
