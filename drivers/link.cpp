@@ -1,15 +1,12 @@
 #include "drivers/link.hpp"
 
 #include <boost/asio/as_tuple.hpp>
-#include <boost/asio/experimental/awaitable_operators.hpp>
 #include <boost/asio/this_coro.hpp>
 #include <boost/asio/use_awaitable.hpp>
 
 #include <algorithm>
 
 namespace fieldgate {
-
-using namespace boost::asio::experimental::awaitable_operators;
 
 using Clock = std::chrono::steady_clock;
 
@@ -48,7 +45,6 @@ asio::awaitable<LinkResync> Link::resync(std::chrono::microseconds guard,
   const auto started = Clock::now();
   const auto give_up = wire_free_at() + limit;
   result.drained = std::exchange(buffer_, {});
-  asio::steady_timer timer(co_await asio::this_coro::executor);
   char chunk[512];
   auto quiet_from = wire_free_at();
   for (;;) {
@@ -62,14 +58,12 @@ asio::awaitable<LinkResync> Link::resync(std::chrono::microseconds guard,
       result.quiet = false;
       break;
     }
-    timer.expires_at(std::min(quiet_from + guard, give_up));
-    auto outcome = co_await (transport_.read_some(asio::buffer(chunk)) ||
-                             timer.async_wait(asio::as_tuple(asio::use_awaitable)));
-    if (outcome.index() == 1) continue;  // read_available() above decides
-    auto [ec, n] = std::get<0>(outcome);
-    if (ec) break;  // the next transaction will see the failure
-    stats_.bytes_received += n;
-    result.drained.append(chunk, n);
+    const auto got = co_await transport_.read_some_until(asio::buffer(chunk),
+                                                         std::min(quiet_from + guard, give_up));
+    if (got.timed_out) continue;  // read_available() above decides
+    if (got.error) break;         // the next transaction will see the failure
+    stats_.bytes_received += got.size;
+    result.drained.append(chunk, got.size);
     quiet_from = Clock::now();
   }
   stats_.resync_bytes += result.drained.size();
@@ -126,7 +120,6 @@ LinkRead Link::end_read(LinkRead::Status status) {
 asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
                                            const LinkTiming& timing) {
   LinkRead result;
-  asio::steady_timer timer(co_await asio::this_coro::executor);
   bool first = buffer_.empty();
   // A read that may not wait is a flush: a frame it finds came out of turn, and finding none
   // says nothing about the line.
@@ -159,23 +152,20 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
       }
       co_return end_read(LinkRead::Status::timeout);
     }
-    timer.expires_at(deadline);
-    auto outcome = co_await (transport_.read_some(asio::buffer(chunk)) ||
-                             timer.async_wait(asio::as_tuple(asio::use_awaitable)));
-    if (outcome.index() == 1) {
+    const auto got = co_await transport_.read_some_until(asio::buffer(chunk), deadline);
+    if (got.timed_out) {
       // The timer and the data can become ready together (a stalled process): bytes already
       // buffered by the OS are not a timeout.
       if (take_waiting()) continue;
       co_return end_read(LinkRead::Status::timeout);
     }
-    auto [ec, n] = std::get<0>(outcome);
-    if (ec) {
+    if (got.error) {
       auto failed = end_read(LinkRead::Status::error);
-      failed.error = ec;
+      failed.error = got.error;
       co_return failed;
     }
-    stats_.bytes_received += n;
-    buffer_.append(chunk, n);
+    stats_.bytes_received += got.size;
+    buffer_.append(chunk, got.size);
     first = false;
   }
 }

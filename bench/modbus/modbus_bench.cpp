@@ -3,6 +3,7 @@
 // clients. Prints both, the throughput ratio and the latency percentiles.
 //
 //   modbus_bench --fieldgate-port P [--clients 16] [--seconds 5] [--unit 1] [--registers 10]
+//                [--rounds 8]
 //
 // The caller starts fieldgate (see bench/modbus/run); the bare server runs in this process.
 #include <arpa/inet.h>
@@ -168,30 +169,42 @@ int main(int argc, char** argv) {
   CLI::App app{"Modbus TCP read benchmark: fieldgate against a bare libmodbus server"};
   int fieldgate_port = 0, clients = 16, unit = 1, registers = 10;
   double seconds = 5;
+  int rounds = 8;
   app.add_option("--fieldgate-port", fieldgate_port, "port fieldgate listens on")->required();
   app.add_option("--clients", clients, "concurrent clients");
-  app.add_option("--seconds", seconds, "duration of each measurement");
+  app.add_option("--seconds", seconds, "time each server is measured, over all rounds");
+  app.add_option("--rounds", rounds, "slices each server's time is measured in, alternating")
+      ->check(CLI::Range(2, 100));
   app.add_option("--unit", unit, "unit ID to read on fieldgate");
   app.add_option("--registers", registers, "input registers per read (from address 0)");
   CLI11_PARSE(app, argc, argv);
 
   BareServer bare(registers);
-  // Alternate, so drift in machine load affects both the same way.
-  const Result bare1 = run_clients(bare.port(), clients, seconds / 2, 1, registers);
-  const Result gate1 = run_clients(fieldgate_port, clients, seconds / 2, unit, registers);
-  const Result bare2 = run_clients(bare.port(), clients, seconds / 2, 1, registers);
-  const Result gate2 = run_clients(fieldgate_port, clients, seconds / 2, unit, registers);
+  // Alternate in short slices, in the order ABBA within each pair of rounds, so drift in
+  // machine load (a busy core, another benchmark's leftovers) falls on both servers alike.
   auto merge = [](Result a, const Result& b) {
     a.requests += b.requests;
     a.failures += b.failures;
     if (a.first_error.empty()) a.first_error = b.first_error;
     a.seconds += b.seconds;
     a.latencies_us.insert(a.latencies_us.end(), b.latencies_us.begin(), b.latencies_us.end());
-    std::sort(a.latencies_us.begin(), a.latencies_us.end());
     return a;
   };
-  const Result b = merge(bare1, bare2), g = merge(gate1, gate2);
-  fmt::print("{} clients, {} registers per read, {:.1f} s each\n", clients, registers, seconds);
+  Result b, g;
+  const double slice = seconds / rounds;
+  for (int round = 0; round < rounds; ++round) {
+    if (round % 2 == 0) {
+      b = merge(std::move(b), run_clients(bare.port(), clients, slice, 1, registers));
+      g = merge(std::move(g), run_clients(fieldgate_port, clients, slice, unit, registers));
+    } else {
+      g = merge(std::move(g), run_clients(fieldgate_port, clients, slice, unit, registers));
+      b = merge(std::move(b), run_clients(bare.port(), clients, slice, 1, registers));
+    }
+  }
+  std::sort(b.latencies_us.begin(), b.latencies_us.end());
+  std::sort(g.latencies_us.begin(), g.latencies_us.end());
+  fmt::print("{} clients, {} registers per read, {:.1f} s each in {} alternating slices\n", clients,
+             registers, seconds, rounds);
   print("libmodbus", b);
   print("fieldgate", g);
   const double ratio = (static_cast<double>(g.requests) / g.seconds) /

@@ -3,6 +3,7 @@
 #include <boost/asio/awaitable.hpp>
 #include <boost/asio/buffer.hpp>
 
+#include <chrono>
 #include <cstddef>
 #include <string>
 #include <string_view>
@@ -12,6 +13,14 @@
 namespace fieldgate {
 
 namespace asio = boost::asio;
+
+// What a read with a deadline brought: bytes, an error, or the deadline (bytes may still be
+// on their way in the OS; Link looks before it calls it a timeout).
+struct TransportRead {
+  std::error_code error;
+  std::size_t size = 0;
+  bool timed_out = false;
+};
 
 // A byte stream to one field link: a serial port or a serial device server's TCP socket.
 // Only the bus that owns it calls it, one operation at a time.
@@ -26,6 +35,11 @@ class ByteTransport {
   // cancellation slot, so `read_some(...) || timer` works.
   virtual asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) = 0;
+  // read_some, given up at `deadline`. This one races read_some against a timer (two
+  // coroutines and a parallel group per read); the stream transports override it with their
+  // own timer, as it is on every exchange's path.
+  virtual asio::awaitable<TransportRead> read_some_until(
+      asio::mutable_buffer buffer, std::chrono::steady_clock::time_point deadline);
   // Changes the line rate at once (a controller that switches rate mid-session); transports
   // without a rate refuse.
   virtual std::error_code set_baud(unsigned baud) {
