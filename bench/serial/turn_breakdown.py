@@ -1,0 +1,61 @@
+#!/usr/bin/python3
+"""Where the gateway's turn goes on a serial bus: from `perf script` output of the syscall
+tracepoints of one gateway process, the time from the wake-up that brought a reply to the
+read that took it, from that read to the next syscall (the gateway's own code: the reply's
+parsing and bookkeeping, the next poll's choice and its request), and from the reply's read to
+the next request's write. Only turns that end in a write count (a reply followed by the next
+request); reads of the reply's earlier chunks are left out.
+
+  perf record -e raw_syscalls:sys_enter,raw_syscalls:sys_exit -p GATEWAY_PID -o F -- sleep 3
+  perf script -i F -F time,event,trace | bench/serial/turn_breakdown.py
+
+Run it beside bench/serial/run's setup (a simulator with --emulate-wire and a gateway polling
+as fast as it may); the bare exchange spends well under a microsecond between its read and
+its write (its own mean_gap_us).
+"""
+import re
+import sys
+
+READ, WRITE, EPOLL_WAIT = 0, 1, 232
+event = re.compile(r"\s*([\d.]+):\s+raw_syscalls:sys_(enter|exit): NR (\d+)(?: = (-?\d+))?")
+events = []
+for line in sys.stdin:
+    m = event.match(line)
+    if m:
+        result = None if m.group(4) is None else int(m.group(4))
+        events.append((float(m.group(1)) * 1e6, m.group(2), int(m.group(3)), result))
+
+wake, code, turn = [], [], []
+for i, (t, kind, nr, result) in enumerate(events):
+    if kind != "exit" or nr != READ or not result or result <= 0 or i + 1 >= len(events):
+        continue
+    # The reply's last read is followed by the next request's write before the loop waits again.
+    write_at = None
+    for later in events[i + 1:i + 16]:
+        if later[1] == "enter" and later[2] == EPOLL_WAIT:
+            break
+        if later[1] == "enter" and later[2] == WRITE:
+            write_at = later[0]
+            break
+    if write_at is None:
+        continue
+    turn.append(write_at - t)
+    code.append(events[i + 1][0] - t)
+    before = events[i - 2] if i >= 2 else None  # exit of what preceded the read's enter
+    if before and before[1] == "exit" and before[2] == EPOLL_WAIT:
+        wake.append(events[i - 1][0] - before[0])
+
+
+def summary(name, values):
+    if not values:
+        print(f"{name}: none")
+        return
+    values = sorted(values)
+    n = len(values)
+    print(f"{name}: {n} turns, p50 {values[n // 2]:.0f} us, p90 {values[int(0.9 * (n - 1))]:.0f} us, "
+          f"mean {sum(values) / n:.1f} us")
+
+
+summary("epoll_wait's return -> the reply's read", wake)
+summary("the reply's read -> the next syscall (gateway code)", code)
+summary("the reply's read -> the next request's write", turn)
