@@ -52,8 +52,8 @@ def summary(name, values):
         return
     values = sorted(values)
     n = len(values)
-    print(f"{name}: {n} turns, p50 {values[n // 2]:.0f} us, p90 {values[int(0.9 * (n - 1))]:.0f} us, "
-          f"mean {sum(values) / n:.1f} us")
+    p50, p90 = values[n // 2], values[int(0.9 * (n - 1))]
+    print(f"{name}: {n} turns, p50 {p50:.0f} us, p90 {p90:.0f} us, mean {sum(values) / n:.1f} us")
 
 
 summary("epoll_wait's return -> the reply's read", wake)
