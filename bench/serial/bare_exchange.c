@@ -13,7 +13,12 @@
  * is too slow there and ratios exceed 1 (IMS's and Whedco's at 9600 come out too slow as well).
  * The bare exchange pays what any program would on this line, and nothing of the gateway.
  *
- *   bare_exchange [--warmup S] [--timeout-ms MS] PTY BAUD SECONDS SCRIPT
+ *   bare_exchange [--warmup S] [--timeout-ms MS] [--turn-us US] PTY BAUD SECONDS SCRIPT
+ *
+ * --turn-us US (default 0) spends US microseconds on the CPU between the end of each reply and
+ * the next request, as a program doing its own work there would: not a reference, a diagnostic.
+ * Run beside the plain bare exchange, it shows what a turn of that length costs on this host
+ * (docs/performance.md, "A turn's cost on this host").
  *
  * SCRIPT (written by bench/serial/bare_script.py from the simulator's --wire-log of a gateway
  * run) has one exchange per line: "P|L BYTES HEX", HEX the request's bytes and BYTES how many
@@ -232,19 +237,28 @@ static void drain_until_quiet(int fd, double quiet_s) {
 }
 
 static void usage(void) {
-  fprintf(stderr, "usage: bare_exchange [--warmup S] [--timeout-ms MS] PTY BAUD SECONDS SCRIPT\n");
+  fprintf(stderr,
+          "usage: bare_exchange [--warmup S] [--timeout-ms MS] [--turn-us US] PTY BAUD SECONDS "
+          "SCRIPT\n");
   exit(2);
 }
 
 int main(int argc, char** argv) {
   double warmup = 0;
   double timeout_s = 0.1;
+  double turn_s = 0;
   int arg = 1;
   while (arg < argc && strncmp(argv[arg], "--", 2) == 0) {
     if (strcmp(argv[arg], "--warmup") == 0 && arg + 1 < argc) {
       warmup = atof(argv[arg + 1]);
     } else if (strcmp(argv[arg], "--timeout-ms") == 0 && arg + 1 < argc) {
       timeout_s = atof(argv[arg + 1]) / 1000;
+    } else if (strcmp(argv[arg], "--turn-us") == 0 && arg + 1 < argc) {
+      turn_s = atof(argv[arg + 1]) / 1e6;
+      if (turn_s < 0 || turn_s > 0.1) {
+        fprintf(stderr, "bare_exchange: --turn-us takes 0 to 100000 microseconds\n");
+        exit(2);
+      }
     } else {
       usage();
     }
@@ -278,6 +292,12 @@ int main(int argc, char** argv) {
   const double stop = start + seconds;
   size_t next = 0;
   for (;;) {
+    /* --turn-us: a program's own work between a reply and its next request, spent on the CPU
+     * (a busy wait, not a sleep), so that its cost on this host can be told from the line's. */
+    if (turn_s > 0 && reply_end >= 0) {
+      while (now_s() < reply_end + turn_s) {
+      }
+    }
     const double written = now_s();
     if (written >= stop || next == script.count) break;
     const int cycle_start = next == script.prologue;

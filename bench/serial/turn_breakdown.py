@@ -2,9 +2,11 @@
 """Where the gateway's turn goes on a serial bus: from `perf script` output of the syscall
 tracepoints of one gateway process, the time from the wake-up that brought a reply to the
 read that took it, from that read to the next syscall (the gateway's own code: the reply's
-parsing and bookkeeping, the next poll's choice and its request), and from the reply's read to
-the next request's write. Only turns that end in a write count (a reply followed by the next
-request); reads of the reply's earlier chunks are left out.
+parsing and bookkeeping, the next poll's choice and its request), from the reply's read to the
+next request's write, and from the write's return to the wait for its reply (while the gateway
+still runs, a PTY's receive work queued on its CPU waits for it). Only turns that end in a
+write count (a reply followed by the next request); reads of the reply's earlier chunks are
+left out.
 
   perf record -e raw_syscalls:sys_enter,raw_syscalls:sys_exit -p GATEWAY_PID -o F -- sleep 3
   perf script -i F -F time,event,trace | bench/serial/turn_breakdown.py
@@ -25,7 +27,7 @@ for line in sys.stdin:
         result = None if m.group(4) is None else int(m.group(4))
         events.append((float(m.group(1)) * 1e6, m.group(2), int(m.group(3)), result))
 
-wake, code, turn = [], [], []
+wake, code, turn, tail = [], [], [], []
 for i, (t, kind, nr, result) in enumerate(events):
     if kind != "exit" or nr != READ or not result or result <= 0 or i + 1 >= len(events):
         continue
@@ -40,6 +42,17 @@ for i, (t, kind, nr, result) in enumerate(events):
     if write_at is None:
         continue
     turn.append(write_at - t)
+    # After the write, until the loop sleeps: the wait that lasts (the reply's turnaround), not
+    # a poll of the reactor that returns at once.
+    after = [e for e in events[i + 1:i + 40] if e[0] > write_at]
+    for j, e in enumerate(after):
+        if e[1] != "enter" or e[2] != EPOLL_WAIT:
+            continue
+        back = next((x for x in after[j + 1:] if x[1] == "exit" and x[2] == EPOLL_WAIT), None)
+        if back is not None and back[0] - e[0] > 200:
+            written = next(x for x in after if x[1] == "exit" and x[2] == WRITE)
+            tail.append(e[0] - written[0])
+            break
     code.append(events[i + 1][0] - t)
     before = events[i - 2] if i >= 2 else None  # exit of what preceded the read's enter
     if before and before[1] == "exit" and before[2] == EPOLL_WAIT:
@@ -59,3 +72,4 @@ def summary(name, values):
 summary("epoll_wait's return -> the reply's read", wake)
 summary("the reply's read -> the next syscall (gateway code)", code)
 summary("the reply's read -> the next request's write", turn)
+summary("the write's return -> the wait for its reply", tail)
