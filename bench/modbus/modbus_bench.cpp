@@ -3,15 +3,21 @@
 // clients. Prints both, the throughput ratio and the latency percentiles.
 //
 //   modbus_bench --fieldgate-port P [--clients 16] [--seconds 5] [--unit 1] [--registers 10]
-//                [--rounds 8]
+//                [--rounds 8] [--reference process|thread]
 //
-// The caller starts fieldgate (see bench/modbus/run); the bare server runs in this process.
+// The caller starts fieldgate (see bench/modbus/run). The bare server runs in a process of its
+// own, forked before any client thread, as fieldgate runs in its own: a server thread in the
+// clients' process switches to and from them without changing address space, which a server
+// process (fieldgate's, or any real one) cannot (`--reference thread` keeps it in this process
+// for comparison; docs/performance.md, "Session of 2026-12-07, morning").
 #include <arpa/inet.h>
 #include <fmt/format.h>
 #include <modbus/modbus.h>
 #include <netinet/in.h>
+#include <sys/prctl.h>
 #include <sys/select.h>
 #include <sys/socket.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <CLI/CLI.hpp>
 
@@ -19,6 +25,8 @@
 #include <atomic>
 #include <cerrno>
 #include <chrono>
+#include <csignal>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -90,27 +98,50 @@ double percentile(const std::vector<double>& sorted, double p) {
 }
 
 // libmodbus's own multi-client server loop (as in its tests): select() over the listening
-// socket and the clients, modbus_receive + modbus_reply on a flat mapping.
+// socket and the clients, modbus_receive + modbus_reply on a flat mapping. It serves from a
+// child process (serve_in_process) or a thread of this one (serve_in_thread).
 class BareServer {
  public:
-  BareServer(int registers) {
+  explicit BareServer(int registers) {
     ctx_ = modbus_new_tcp("127.0.0.1", 0);
     mapping_ = modbus_mapping_new(0, 0, 0, registers + 1100);
     listen_ = modbus_tcp_listen(ctx_, 32);
+    if (listen_ < 0) throw std::runtime_error("the bare server cannot listen");
     sockaddr_in addr{};
     socklen_t len = sizeof addr;
     getsockname(listen_, reinterpret_cast<sockaddr*>(&addr), &len);
     port_ = ntohs(addr.sin_port);
-    thread_ = std::thread([this] { loop(); });
   }
   ~BareServer() {
     stop_ = true;
-    thread_.join();
+    if (thread_.joinable()) thread_.join();
+    if (child_ > 0) {
+      ::kill(child_, SIGTERM);
+      ::waitpid(child_, nullptr, 0);
+    }
     ::close(listen_);
     modbus_mapping_free(mapping_);
     modbus_free(ctx_);
   }
+  BareServer(const BareServer&) = delete;
+  BareServer& operator=(const BareServer&) = delete;
   int port() const { return port_; }
+
+  // Before any other thread exists: the child is a copy of this process at this point.
+  void serve_in_process() {
+    const pid_t parent = ::getpid();
+    child_ = ::fork();
+    if (child_ < 0) throw std::runtime_error("fork failed");
+    if (child_ == 0) {
+      ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+      if (::getppid() != parent) ::_exit(0);
+      loop();
+      ::_exit(0);
+    }
+  }
+  void serve_in_thread() {
+    thread_ = std::thread([this] { loop(); });
+  }
 
  private:
   void loop() {
@@ -151,6 +182,7 @@ class BareServer {
   int port_ = 0;
   std::atomic<bool> stop_{false};
   std::thread thread_;
+  pid_t child_ = -1;
 };
 
 void print(const char* name, const Result& r) {
@@ -170,16 +202,24 @@ int main(int argc, char** argv) {
   int fieldgate_port = 0, clients = 16, unit = 1, registers = 10;
   double seconds = 5;
   int rounds = 8;
+  std::string reference = "process";
   app.add_option("--fieldgate-port", fieldgate_port, "port fieldgate listens on")->required();
   app.add_option("--clients", clients, "concurrent clients");
   app.add_option("--seconds", seconds, "time each server is measured, over all rounds");
   app.add_option("--rounds", rounds, "slices each server's time is measured in, alternating")
       ->check(CLI::Range(2, 100));
+  app.add_option("--reference", reference,
+                 "where the bare libmodbus server runs: its own process, or a thread of this one")
+      ->check(CLI::IsMember({"process", "thread"}));
   app.add_option("--unit", unit, "unit ID to read on fieldgate");
   app.add_option("--registers", registers, "input registers per read (from address 0)");
   CLI11_PARSE(app, argc, argv);
 
   BareServer bare(registers);
+  if (reference == "process")
+    bare.serve_in_process();
+  else
+    bare.serve_in_thread();
   // Alternate in short slices, in the order ABBA within each pair of rounds, so drift in
   // machine load (a busy core, another benchmark's leftovers) falls on both servers alike.
   auto merge = [](Result a, const Result& b) {
@@ -203,8 +243,11 @@ int main(int argc, char** argv) {
   }
   std::sort(b.latencies_us.begin(), b.latencies_us.end());
   std::sort(g.latencies_us.begin(), g.latencies_us.end());
-  fmt::print("{} clients, {} registers per read, {:.1f} s each in {} alternating slices\n", clients,
-             registers, seconds, rounds);
+  fmt::print(
+      "{} clients, {} registers per read, {:.1f} s each in {} alternating slices; libmodbus in "
+      "{}\n",
+      clients, registers, seconds, rounds,
+      reference == "process" ? "a process of its own" : "a thread of the clients' process");
   print("libmodbus", b);
   print("fieldgate", g);
   const double ratio = (static_cast<double>(g.requests) / g.seconds) /
