@@ -32,27 +32,28 @@ for i, (t, kind, nr, result) in enumerate(events):
     if kind != "exit" or nr != READ or not result or result <= 0 or i + 1 >= len(events):
         continue
     # The reply's last read is followed by the next request's write before the loop waits again.
-    write_at = None
-    for later in events[i + 1:i + 16]:
-        if later[1] == "enter" and later[2] == EPOLL_WAIT:
+    write = None  # index of the write's enter
+    for k in range(i + 1, min(i + 16, len(events))):
+        if events[k][1] == "enter" and events[k][2] == EPOLL_WAIT:
             break
-        if later[1] == "enter" and later[2] == WRITE:
-            write_at = later[0]
+        if events[k][1] == "enter" and events[k][2] == WRITE:
+            write = k
             break
-    if write_at is None:
+    if write is None:
         continue
-    turn.append(write_at - t)
-    # After the write, until the loop sleeps: the wait that lasts (the reply's turnaround), not
-    # a poll of the reactor that returns at once.
-    after = [e for e in events[i + 1:i + 40] if e[0] > write_at]
-    for j, e in enumerate(after):
-        if e[1] != "enter" or e[2] != EPOLL_WAIT:
-            continue
-        back = next((x for x in after[j + 1:] if x[1] == "exit" and x[2] == EPOLL_WAIT), None)
-        if back is not None and back[0] - e[0] > 200:
-            written = next(x for x in after if x[1] == "exit" and x[2] == WRITE)
-            tail.append(e[0] - written[0])
-            break
+    turn.append(events[write][0] - t)
+    # After the write's return, until the loop sleeps: the wait that lasts (the reply's
+    # turnaround), not a poll of the reactor that returns at once. A capture that ends first
+    # leaves the turn out of this figure.
+    after = events[write + 1:write + 40]
+    if after and after[0][1] == "exit" and after[0][2] == WRITE:
+        for j, e in enumerate(after):
+            if e[1] != "enter" or e[2] != EPOLL_WAIT:
+                continue
+            back = next((x for x in after[j + 1:] if x[1] == "exit" and x[2] == EPOLL_WAIT), None)
+            if back is not None and back[0] - e[0] > 200:
+                tail.append(e[0] - after[0][0])
+                break
     code.append(events[i + 1][0] - t)
     before = events[i - 2] if i >= 2 else None  # exit of what preceded the read's enter
     if before and before[1] == "exit" and before[2] == EPOLL_WAIT:
