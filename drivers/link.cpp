@@ -23,7 +23,57 @@ Clock::time_point Link::wire_free_at() const {
   return std::max(Clock::now(), tx_done_);
 }
 
+bool Link::send_ahead(std::string_view bytes) {
+  if (!ahead_.empty() || bytes.empty()) return false;
+  const auto written = transport_.write_available(bytes);
+  if (written == 0) return false;
+  const auto wire = std::chrono::microseconds(
+      static_cast<int64_t>(static_cast<double>(written) * char_time_us()));
+  stats_.bytes_sent += written;
+  ahead_at_ = Clock::now();
+  tx_done_ = wire_free_at() + wire;
+  ahead_.assign(bytes);
+  ahead_written_ = written;
+  return true;
+}
+
+void Link::drop_sent_ahead() {
+  if (!ahead_.empty() && tap_) {
+    tap_at_ = ahead_at_;
+    tap_(true, std::string_view(ahead_).substr(0, ahead_written_));
+    tap_at_.reset();
+  }
+  ahead_.clear();
+  ahead_written_ = 0;
+  taking_over_ = false;
+}
+
 asio::awaitable<std::error_code> Link::send(std::string_view bytes) {
+  if (std::exchange(taking_over_, false)) {
+    if (bytes != ahead_) {
+      drop_sent_ahead();
+      ahead_mismatch_ = true;
+      co_return std::make_error_code(std::errc::protocol_error);
+    }
+    // The wire trace shows the request where its exchange begins, a moment after it left.
+    const std::string rest = ahead_.substr(ahead_written_);
+    const std::string sent = std::exchange(ahead_, {});
+    ahead_written_ = 0;
+    if (tap_) {
+      tap_at_ = ahead_at_;
+      tap_(true, sent);
+      tap_at_.reset();
+    }
+    if (rest.empty()) co_return std::error_code{};
+    const auto wire = std::chrono::microseconds(
+        static_cast<int64_t>(static_cast<double>(rest.size()) * char_time_us()));
+    auto ec = co_await transport_.write(rest);
+    if (!ec) {
+      stats_.bytes_sent += rest.size();
+      tx_done_ = wire_free_at() + wire;
+    }
+    co_return ec;
+  }
   // write() completes when the OS has the bytes, not when they have crossed a slow line: a
   // reply deadline counted from here would run out while the request is still on the wire.
   const auto wire = std::chrono::microseconds(
@@ -76,6 +126,7 @@ asio::awaitable<LinkResync> Link::resync(std::chrono::microseconds guard,
 void Link::discard_input() {
   // A device that keeps talking is cut short by the transport's flush after this much.
   constexpr std::size_t kReadOffLimit = 4096;
+  if (!ahead_.empty()) return;  // what comes is the reply to the request sent ahead
   std::string stray = std::exchange(buffer_, {});
   bool emptied = false;
   while (stray.size() < kReadOffLimit) {
@@ -124,6 +175,7 @@ asio::awaitable<LinkRead> Link::read_frame(const FrameSplitter& splitter,
   // A read that may not wait is a flush: a frame it finds came out of turn, and finding none
   // says nothing about the line.
   const bool no_wait = timing.reply_timeout.count() <= 0 && timing.byte_timeout.count() <= 0;
+  if (no_wait && !ahead_.empty()) co_return result;  // the input is the request sent ahead's
   char chunk[512];
   const auto take_waiting = [&] {
     if (take_available(buffer_) == 0) return false;

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -85,6 +86,24 @@ class Link {
   // Waits without touching the line (inter-frame gap, pacing).
   asio::awaitable<void> pause(std::chrono::microseconds duration);
 
+  // Sending ahead: the next exchange's request, written the moment the bus has accepted the
+  // reply before it (the line proven in step), so the wire does not wait for the bookkeeping
+  // between two exchanges. Written at once or not at all (false: the transport would have had
+  // to wait, or cannot write without waiting). The exchange it belongs to takes it over: after
+  // take_over_sent_ahead() its first send() must ask for exactly these bytes, and writes
+  // nothing. Until then discard_input() and reads that may not wait leave the input alone:
+  // whatever arrives is that request's reply. Another send() meanwhile (an urgent command)
+  // goes out as it would have.
+  bool send_ahead(std::string_view bytes);
+  bool has_sent_ahead() const { return !ahead_.empty(); }
+  std::chrono::steady_clock::time_point sent_ahead_at() const { return ahead_at_; }
+  void take_over_sent_ahead() { taking_over_ = !ahead_.empty(); }
+  // The bytes sent ahead are given up without their exchange (their reply is owed to the line).
+  void drop_sent_ahead();
+  // True once after a send() that should have taken over the bytes sent ahead asked for others
+  // (it sent nothing and failed): the line owes the reply to the bytes sent ahead.
+  bool take_ahead_mismatch() { return std::exchange(ahead_mismatch_, false); }
+
   // A line a family wants in the gateway's log, at a syslog level (4 warning, 5 notice, 6 info,
   // 7 debug). Every stream family logs this way: the bus logs the notes with its name and
   // clears them after each family call that may leave some (drivers/README.md).
@@ -99,6 +118,11 @@ class Link {
   // receives (rx), for the wire trace.
   using Tap = std::function<void(bool tx, std::string_view bytes)>;
   void set_tap(Tap tap) { tap_ = std::move(tap); }
+  // For the tap: when the bytes it sees went out or came in. Now, but for a request sent ahead,
+  // which the tap sees when its exchange takes it over: when it was written.
+  std::chrono::steady_clock::time_point tap_time() const {
+    return tap_at_ ? *tap_at_ : std::chrono::steady_clock::now();
+  }
   // What a family knows of the frame it just sent or read, in the protocol's words (a protocol
   // file's command name; a reply's captures), for the wire trace line of that frame. Building
   // a label costs a format: families ask labels_wanted() first, which the bus sets while it
@@ -137,6 +161,12 @@ class Link {
   // next request can only drop bytes that arrive while it runs, which a flush a moment earlier
   // would have missed as well: reading off the OS queue is enough.
   bool in_step_ = false;
+  std::string ahead_;  // sent ahead, not yet taken over
+  std::size_t ahead_written_ = 0;
+  std::chrono::steady_clock::time_point ahead_at_{};
+  bool taking_over_ = false;
+  std::optional<std::chrono::steady_clock::time_point> tap_at_;
+  bool ahead_mismatch_ = false;
 };
 
 }  // namespace fieldgate

@@ -68,6 +68,10 @@ asio::awaitable<Reply> ProtocolFamily::transact_node(Link& link, NodeContext& no
   co_return co_await transact(link, node.address(), request, timing);
 }
 
+std::optional<std::string> ProtocolFamily::pipelined_request(NodeContext&, const Request&) {
+  return std::nullopt;
+}
+
 asio::awaitable<Reply> ProtocolFamily::transact(Link& link, const NodeAddress& node,
                                                 const Request& request, const LinkTiming& timing) {
   co_return co_await transact_node(link, context_of(node), request, timing);

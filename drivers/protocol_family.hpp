@@ -151,6 +151,13 @@ class ProtocolFamily : public Family {
   // address, where it has none; each default calls the other.
   virtual asio::awaitable<Reply> transact_node(Link& link, NodeContext& node,
                                                const Request& request, const LinkTiming& timing);
+  // The bytes transact_node() would write first for `request`, were it called now, where nothing
+  // but discard_input() comes before that send(). nullopt where something else would (a resync,
+  // a query of its own, a refusal, pacing) or might, and by default. The bus may then send the
+  // request ahead (Link::send_ahead) the moment the exchange before it has been accepted, and
+  // transact_node() finds it sent. Bytes that differ from what transact_node() then sends cost
+  // the bus a proof of alignment (it logs them as an error), never a reply taken for another.
+  virtual std::optional<std::string> pipelined_request(NodeContext& node, const Request& request);
   // By address, for callers that hold no context (tests, tools): the context configure_node()
   // kept for the address, or else one bound to a model without options (the options' defaults).
   virtual asio::awaitable<Reply> transact(Link& link, const NodeAddress& node,

@@ -218,6 +218,12 @@ Reply interpret_copley_reply(const NodeAddress& node, const Request& request,
   return Reply{};
 }
 
+std::optional<std::string> CopleyFamily::pipelined_request(NodeContext& context,
+                                                           const Request& request) {
+  const NodeAddress& node = context.address();
+  return copley::encode_command(node.number, node.axis, request.command);
+}
+
 asio::awaitable<Reply> CopleyFamily::transact(Link& link, const NodeAddress& node,
                                               const Request& request, const LinkTiming& timing) {
   // Replies carry no address: anything left over from an earlier exchange would be taken for

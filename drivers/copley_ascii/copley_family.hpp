@@ -18,6 +18,7 @@ class CopleyFamily final : public ProtocolFamily {
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing) override;
+  std::optional<std::string> pipelined_request(NodeContext& node, const Request& request) override;
   // A node other than 0 is reached through the gateway amplifier over CAN: its reply timeout
   // must exceed the amplifier's CAN timeout, so that e 32 for an absent node is its answer.
   // The proof of alignment, on the gateway amplifier (every node's replies come through it):

@@ -345,6 +345,20 @@ asio::awaitable<Reply> ImsPartyLineFamily::transact(Link& link, const NodeAddres
   co_return reply;
 }
 
+std::optional<std::string> ImsPartyLineFamily::pipelined_request(NodeContext& node,
+                                                                 const Request& request) {
+  // What transact() does before its line goes out, where none of it needs the line: no pacing,
+  // no jog to end first, nothing the shadow refuses, an echo to read.
+  if (request.bus_wide || shadow_.fast()) return std::nullopt;
+  const char name = name_of(node.address());
+  const auto kind = ims::classify(request.command);
+  if (kind == ims::CommandClass::no_echo ||
+      (kind == ims::CommandClass::index && shadow_.jogging(name)) ||
+      shadow_.check(name, request.command, Clock::now()))
+    return std::nullopt;
+  return ims::encode_line(name, request.command);
+}
+
 // A move aborts a jog (docs/axis-profile.md, buffer mode Aborting): an index sent to a jogging
 // unit would wait behind the jog's ramp and answer nothing until it starts (p.13), so the jog is
 // ramped down with M0 first and `^` read until the unit is idle; then the index goes out.

@@ -33,6 +33,7 @@ class ImsPartyLineFamily final : public ProtocolFamily {
   asio::awaitable<LinkResync> resync_after_failure(Link& link, const LinkTiming& timing) override;
   asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing) override;
+  std::optional<std::string> pipelined_request(NodeContext& node, const Request& request) override;
   // ESC, ^C and @ of a bus-wide action marked urgent: written at once, even in the middle of
   // another exchange (ESC also clears every unit's half-received line).
   asio::awaitable<Reply> send_urgent(Link& link, const NodeAddress& node,

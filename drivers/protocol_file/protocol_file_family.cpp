@@ -323,38 +323,56 @@ asio::awaitable<Reply> ProtocolFileFamily::run(Link& link, const CommandSpec& co
   co_return reading.reply;
 }
 
-asio::awaitable<Reply> ProtocolFileFamily::transact(Link& link, const NodeAddress& node,
-                                                    const Request& request,
-                                                    const LinkTiming& timing) {
-  const CommandSpec* command = nullptr;
-  std::vector<int64_t> arguments;
+ProtocolFileFamily::Resolved ProtocolFileFamily::resolve(const NodeAddress& node,
+                                                         const Request& request) const {
+  Resolved r;
   if (const auto* compiled = dynamic_cast<const CompiledProtocolCommand*>(request.compiled.get())) {
-    command = compiled->command;
+    r.command = compiled->command;
     for (const auto& a : compiled->arguments) {
       if (a.constant) {
-        arguments.push_back(a.value);
+        r.arguments.push_back(a.value);
       } else if (a.placeholder < request.arguments.size()) {
-        arguments.push_back(request.arguments[a.placeholder]);
+        r.arguments.push_back(request.arguments[a.placeholder]);
       } else {
-        co_return refused(fmt::format("{}: an argument is missing", command->name));
+        r.refusal = fmt::format("{}: an argument is missing", r.command->name);
+        return r;
       }
     }
   } else {
-    command = spec_->find(request.command);
-    if (!command || !command->parameters().empty())
-      co_return refused(fmt::format("'{}' is no command of protocol {} without arguments",
-                                    request.command, spec_->name));
+    r.command = spec_->find(request.command);
+    if (!r.command || !r.command->parameters().empty()) {
+      r.refusal = fmt::format("'{}' is no command of protocol {} without arguments",
+                              request.command, spec_->name);
+      return r;
+    }
   }
-  std::string address;
   if (request.bus_wide) {
-    if (!spec_->broadcast_prefix)
-      co_return refused(fmt::format("protocol {} has no broadcast address", spec_->name));
-    address = *spec_->broadcast_prefix;
+    if (!spec_->broadcast_prefix) {
+      r.refusal = fmt::format("protocol {} has no broadcast address", spec_->name);
+      return r;
+    }
+    r.address = *spec_->broadcast_prefix;
   } else {
-    address = spec_->address_text(node.number);
+    r.address = spec_->address_text(node.number);
   }
+  return r;
+}
+
+std::optional<std::string> ProtocolFileFamily::pipelined_request(NodeContext& node,
+                                                                 const Request& request) {
+  const Resolved r = resolve(node.address(), request);
+  if (!r.refusal.empty() || request.bus_wide || !r.command->reply) return std::nullopt;
+  std::string why;
+  return encode_request(*spec_, *r.command, r.arguments, r.address, why);
+}
+
+asio::awaitable<Reply> ProtocolFileFamily::transact(Link& link, const NodeAddress& node,
+                                                    const Request& request,
+                                                    const LinkTiming& timing) {
+  const Resolved r = resolve(node, request);
+  if (!r.refusal.empty()) co_return refused(r.refusal);
   link.discard_input();
-  co_return co_await run(link, *command, arguments, address, timing);
+  co_return co_await run(link, *r.command, r.arguments, r.address, timing);
 }
 
 asio::awaitable<void> ProtocolFileFamily::discover(Link& link, const StartupStep& step,

@@ -45,6 +45,7 @@ class ProtocolFileFamily final : public ProtocolFamily {
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   asio::awaitable<Reply> transact(Link& link, const NodeAddress& node, const Request& request,
                                   const LinkTiming& timing) override;
+  std::optional<std::string> pipelined_request(NodeContext& node, const Request& request) override;
   std::optional<AlignmentProof> alignment_proof(NodeContext& node,
                                                 const LinkTiming& timing) override;
 
@@ -53,6 +54,15 @@ class ProtocolFileFamily final : public ProtocolFamily {
                                                          std::string& error) const;
 
  private:
+  // A request as the protocol runs it: its command, argument values and address text; or why
+  // it cannot run.
+  struct Resolved {
+    const CommandSpec* command = nullptr;
+    std::vector<int64_t> arguments;
+    std::string address;
+    std::string refusal;  // not empty: refused, and why
+  };
+  Resolved resolve(const NodeAddress& node, const Request& request) const;
   // One command and its confirmations, as the device must answer them.
   asio::awaitable<Reply> run(Link& link, const CommandSpec& command,
                              const std::vector<int64_t>& arguments, std::string_view address,

@@ -52,6 +52,12 @@ class ByteTransport {
   // Reads what the OS has already buffered without waiting (0 if nothing). Link relies on it
   // to see strays before a request, so every transport must be able to tell.
   virtual std::size_t read_available(asio::mutable_buffer buffer) = 0;
+  // Writes what the OS takes at once, without waiting; returns how many bytes it took (0 also
+  // where the transport cannot write without waiting, the default: nothing is then sent ahead).
+  virtual std::size_t write_available(std::string_view bytes) {
+    (void)bytes;
+    return 0;
+  }
   // Drops whatever the OS has buffered but nobody read yet.
   virtual void discard_input() = 0;
   virtual std::string describe() const = 0;

@@ -74,6 +74,14 @@ std::size_t SerialTransport::read_available(asio::mutable_buffer buffer) {
   return n > 0 ? static_cast<std::size_t>(n) : 0;
 }
 
+std::size_t SerialTransport::write_available(std::string_view bytes) {
+  if (!stream_.is_open()) return 0;
+  // O_NONBLOCK, as in read_available: a full output queue is EAGAIN, and a failed port fails
+  // the exchange's own send.
+  const auto n = ::write(stream_.native_handle(), bytes.data(), bytes.size());
+  return n > 0 ? static_cast<std::size_t>(n) : 0;
+}
+
 void SerialTransport::discard_input() {
   if (stream_.is_open()) ::tcflush(stream_.native_handle(), TCIFLUSH);
 }

@@ -24,6 +24,7 @@ class SerialTransport final : public StreamTransport<asio::serial_port> {
   asio::awaitable<std::error_code> open() override;
   asio::awaitable<std::error_code> write(std::string_view bytes) override;
   std::size_t read_available(asio::mutable_buffer buffer) override;
+  std::size_t write_available(std::string_view bytes) override;
   std::error_code set_baud(unsigned baud) override;
   unsigned baud() const override { return current_baud_; }
   void drain() override;

@@ -1,6 +1,7 @@
 #include "drivers/transport/tcp_transport.hpp"
 
 #include <fmt/format.h>
+#include <sys/socket.h>
 
 #include <boost/asio/as_tuple.hpp>
 #include <boost/asio/connect.hpp>
@@ -35,6 +36,14 @@ std::size_t TcpTransport::read_available(asio::mutable_buffer buffer) {
   if (!stream_.is_open() || stream_.available(ec) == 0 || ec) return 0;
   const auto n = stream_.read_some(buffer, ec);
   return ec ? 0 : n;
+}
+
+std::size_t TcpTransport::write_available(std::string_view bytes) {
+  if (!stream_.is_open()) return 0;
+  // Whatever asio's own mode of the socket: this send never waits, and a closed peer is no signal.
+  const auto n =
+      ::send(stream_.native_handle(), bytes.data(), bytes.size(), MSG_DONTWAIT | MSG_NOSIGNAL);
+  return n > 0 ? static_cast<std::size_t>(n) : 0;
 }
 
 void TcpTransport::discard_input() {

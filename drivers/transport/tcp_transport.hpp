@@ -15,6 +15,7 @@ class TcpTransport final : public StreamTransport<asio::ip::tcp::socket> {
 
   asio::awaitable<std::error_code> open() override;
   std::size_t read_available(asio::mutable_buffer buffer) override;
+  std::size_t write_available(std::string_view bytes) override;
   void discard_input() override;
   std::string describe() const override;
   double char_time_us() const override { return char_time_us_; }

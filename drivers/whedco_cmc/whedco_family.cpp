@@ -394,6 +394,25 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const BoundNode& bound
   co_return Reply{};
 }
 
+std::optional<std::string> WhedcoFamily::pipelined_request(NodeContext& context,
+                                                           const Request& request) {
+  // What transact_node() and exchange() do before their send, where none of it needs the line.
+  const int unit = context.address().number;
+  if (request.bus_wide || resync_ != Resync::none) return std::nullopt;
+  if (const auto c = contacted_.find(unit); c == contacted_.end() || !c->second)
+    return std::nullopt;
+  std::string error;
+  const auto prepared = whedco::prepare_command(request.command, error);
+  if (!prepared) return std::nullopt;
+  int ratio = 1;
+  if (prepared->quantity != whedco::Quantity::none) {
+    const auto it = unit_ratios_.find(std::make_pair(unit, prepared->axis));
+    if (it == unit_ratios_.end()) return std::nullopt;
+    ratio = it->second;
+  }
+  return whedco::sent_line(unit, whedco::wire_command(*prepared, ratio)) + whedco::kTerminator;
+}
+
 asio::awaitable<Reply> WhedcoFamily::transact_node(Link& link, NodeContext& context,
                                                    const Request& request,
                                                    const LinkTiming& timing) {

@@ -31,6 +31,7 @@ class WhedcoFamily final : public ProtocolFamily {
   asio::awaitable<void> on_link_open(Link& link, const LinkTiming& timing) override;
   asio::awaitable<Reply> transact_node(Link& link, NodeContext& node, const Request& request,
                                        const LinkTiming& timing) override;
+  std::optional<std::string> pipelined_request(NodeContext& node, const Request& request) override;
   const ModelOptionSpecs& model_options() const override;
   // The node's context carries its model's status_layout.
   NodeContextPtr bind_node(const NodeAddress& node, const Model& model) override;

@@ -145,6 +145,24 @@ std::optional<PollPlan::Due> PollPlan::pick(SteadyTime now) {
   return Due{chosen.second, chosen.first};
 }
 
+std::optional<PollPlan::Due> PollPlan::pick_after(std::size_t index, SteadyTime now) {
+  auto& it = items_[index];
+  auto& due = schedule_[index].next_due;
+  const SteadyTime was_due = due;
+  const auto last_run = it.last_run;
+  const auto overruns = it.overruns;
+  const auto picks = picks_;
+  completed(index, now);
+  const auto next = pick(now);
+  const SteadyTime moved_to = due;
+  due = was_due;
+  it.last_run = last_run;
+  it.overruns = overruns;
+  picks_ = picks;
+  requeue(index, moved_to);
+  return next;
+}
+
 void PollPlan::completed(std::size_t index, SteadyTime now) {
   auto& it = items_[index];
   auto& due = schedule_[index].next_due;

@@ -56,6 +56,9 @@ class PollPlan {
   // goes to the longest-waiting one instead, so no class stops entirely. With nothing due: the
   // earliest item, to sleep until. Costs a look at each period's earliest item, not a scan.
   std::optional<Due> pick(SteadyTime now);
+  // What pick(now) would give once `item` had completed at `now`, leaving the plan as it is: the
+  // poll a bus may send ahead while `item` is on the wire.
+  std::optional<Due> pick_after(std::size_t item, SteadyTime now);
   // Whether a node's items take part in pick() (a stream bus polls no offline node).
   void set_eligible(int node, bool eligible);
   static constexpr unsigned kStarvationGuard = 8;

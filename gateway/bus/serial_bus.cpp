@@ -63,11 +63,11 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
   link_.set_tap([this](bool tx, std::string_view bytes) {
     if (!trace_.active()) return;
     if (trace_collecting_) {
-      traced_.push_back({Clock::now(), tx, std::string(bytes), {}});
+      traced_.push_back({link_.tap_time(), tx, std::string(bytes), {}});
       return;
     }
     // Outside a transaction: link-open procedures, urgent commands, discarded input.
-    trace_.emit(Clock::now(), {}, tx ? TraceDirection::tx : TraceDirection::rx, {},
+    trace_.emit(link_.tap_time(), {}, tx ? TraceDirection::tx : TraceDirection::rx, {},
                 printable_bytes(bytes));
   });
   link_.set_label_tap([this](std::string_view label) {
@@ -323,8 +323,12 @@ void SerialBus::record(NodeRuntime& n, const Reply& reply, bool poll) {
 }
 
 asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& request, int retries,
-                                           bool accept_no_reply, bool poll) {
+                                           bool accept_no_reply, bool poll, bool sent_ahead) {
   Reply reply;
+  if (sent_ahead && (!aligned_ || !link_.has_sent_ahead())) {
+    abandon_sent_ahead();
+    sent_ahead = false;
+  }
   if (!aligned_) co_await prove_aligned(n, true);
   if (!aligned_ && transport_->is_open()) {
     // Nothing is sent while the line is out of step: its reply could not be told from a late one.
@@ -339,10 +343,25 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
       ++counters_.retries;
       ++(*n.image).counters.retries;
     }
-    const auto started = Clock::now();
+    const bool taking_over = attempt == 0 && sent_ahead;
+    const auto started = taking_over ? link_.sent_ahead_at() : Clock::now();
     const auto received_before = link_.stats().bytes_received;
     collect_trace(true);
+    if (taking_over) link_.take_over_sent_ahead();
     reply = co_await family_.transact_node(link_, *n.family_context, request, n.timing);
+    if (taking_over && (link_.take_ahead_mismatch() || link_.has_sent_ahead())) {
+      // The family's exchange was not the one its request was sent ahead for: a family whose
+      // pipelined_request() does not match its transact_node().
+      log::error(
+          "bus {}: node {} ({}): '{}' was sent ahead, but the exchange {}; its reply is "
+          "owed and the line is proven in step again",
+          config_->name, n.config->name, n.config->address.text, request.command,
+          link_.has_sent_ahead() ? "did not take it over" : "sent other bytes");
+      if (link_.has_sent_ahead()) link_.drop_sent_ahead();
+      debt_.add();
+      reply = Reply::of(Reply::Status::garbled, "request sent ahead was not the exchange's own");
+    }
+    if (armed_ && reply.status == Reply::Status::ok) send_armed_poll();
     collect_trace(false);
     // The trace's outcome names (docs/wire-trace.md), as CAN buses give them.
     trace_transaction(n,
@@ -567,7 +586,62 @@ void SerialBus::record_latency(double seconds) {
   counters_.bytes_received = link_.stats().bytes_received;
 }
 
-asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
+BusTurnInput SerialBus::turn_input(SteadyTime now, std::optional<PollPlan::Due> due) const {
+  BusTurnInput in;
+  in.now = now;
+  in.commands_queued = !commands_.empty();
+  if (due) in.poll = BusTurnInput::Poll{due->item, due->when, plan_.items()[due->item].period};
+  for (const auto& n : nodes_) {
+    if (n->image->state != NodeState::offline) continue;
+    if (!in.probe || n->next_probe < in.probe->when)
+      if (auto item = plan_.probe_item(n->index))
+        in.probe = BusTurnInput::Poll{*item, n->next_probe, plan_.items()[*item].period};
+  }
+  in.commands_in_row = commands_in_row_;
+  in.command_credit = command_credit_;
+  in.all_nodes_offline = all_nodes_offline_now();
+  in.link_opened = opened_at_;
+  in.probe_interval = config_->timing.probe_interval;
+  return in;
+}
+
+void SerialBus::arm_next_poll(std::size_t current) {
+  armed_.reset();
+  if (!commands_.empty() || !aligned_ || config_->timing.inter_frame_gap.count() > 0) return;
+  const auto now = now_();
+  const auto due = plan_.pick_after(current, now);
+  if (!due) return;
+  auto in = turn_input(now, due);
+  in.commands_in_row = 0;  // as after the poll under way
+  const BusTurn turn = next_bus_turn(in);
+  if (turn.kind != BusTurn::Kind::poll) return;
+  const auto& item = plan_.item(turn.item);
+  const auto& node = nodes_[static_cast<std::size_t>(item.node)];
+  if (node->image->state == NodeState::offline) return;  // a probe is not sent ahead
+  auto bytes = family_.pipelined_request(*node->family_context, item.request);
+  if (!bytes) return;
+  armed_ = PollAhead{node, turn.item, plan_number_, std::move(*bytes)};
+}
+
+void SerialBus::send_armed_poll() {
+  auto armed = std::exchange(armed_, std::nullopt);
+  // The reply just taken proved the line in step; a command that came meanwhile goes first.
+  if (!commands_.empty() || !aligned_ || stopping_ || link_.buffered() > 0 ||
+      armed->plan != plan_number_ || armed->node->image->state == NodeState::offline ||
+      !transport_->is_open())
+    return;
+  if (link_.send_ahead(armed->bytes)) ahead_ = std::move(armed);
+}
+
+void SerialBus::abandon_sent_ahead() {
+  ahead_.reset();
+  if (!link_.has_sent_ahead()) return;
+  link_.drop_sent_ahead();
+  debt_.add();
+  aligned_ = false;
+}
+
+asio::awaitable<void> SerialBus::run_poll(std::size_t item_index, bool sent_ahead) {
   auto& item = plan_.item(item_index);
   const auto runtime = nodes_[static_cast<std::size_t>(item.node)];
   auto& n = *runtime;
@@ -575,7 +649,10 @@ asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
   const bool probing = (*n.image).state == NodeState::offline;
   const Request request = item.request;
   const auto targets = item.targets;
-  Reply reply = co_await transact(n, request, probing ? 0 : config_->timing.retries, false, true);
+  if (!probing) arm_next_poll(item_index);
+  Reply reply =
+      co_await transact(n, request, probing ? 0 : config_->timing.retries, false, true, sent_ahead);
+  armed_.reset();
   const auto now = now_();
   if (probing) {
     n.next_probe = now + config_->timing.probe_interval;
@@ -597,6 +674,10 @@ asio::awaitable<void> SerialBus::run_poll(std::size_t item_index) {
 }
 
 asio::awaitable<void> SerialBus::open_link() {
+  // What was sent ahead on the closed port is gone with it (debt_ is cleared once it opens).
+  armed_.reset();
+  ahead_.reset();
+  link_.drop_sent_ahead();
   auto delay = config_->timing.reconnect_min;
   while (!stopping_) {
     const auto ec = co_await transport_->open();
@@ -659,26 +740,22 @@ asio::awaitable<void> SerialBus::run() {
       co_await open_link();
       continue;
     }
+    if (ahead_) {
+      // Its request is on the line: nothing else may go before its exchange.
+      const auto ahead = *std::exchange(ahead_, std::nullopt);
+      commands_in_row_ = 0;
+      command_credit_ = command_credit_after(command_credit_, BusTurn::Kind::poll);
+      if (ahead.plan == plan_number_) {
+        co_await run_poll(ahead.item, true);
+      } else {
+        abandon_sent_ahead();  // a reload renumbered the plan under it
+      }
+      continue;
+    }
     const auto now = now_();
     // The next poll: a due item of a node that is not offline (rate-monotonic, see PollPlan),
     // or the probe of an offline node, whichever is due first.
-    auto due = plan_.pick(now);
-    BusTurnInput in;
-    in.now = now;
-    in.commands_queued = !commands_.empty();
-    if (due) in.poll = BusTurnInput::Poll{due->item, due->when, plan_.item(due->item).period};
-    for (const auto& n : nodes_) {
-      if (n->image->state != NodeState::offline) continue;
-      if (!in.probe || n->next_probe < in.probe->when)
-        if (auto item = plan_.probe_item(n->index))
-          in.probe = BusTurnInput::Poll{*item, n->next_probe, plan_.item(*item).period};
-    }
-    in.commands_in_row = commands_in_row_;
-    in.command_credit = command_credit_;
-    in.all_nodes_offline = all_nodes_offline_now();
-    in.link_opened = opened_at_;
-    in.probe_interval = config_->timing.probe_interval;
-    const BusTurn turn = next_bus_turn(in);
+    const BusTurn turn = next_bus_turn(turn_input(now, plan_.pick(now)));
     command_credit_ = command_credit_after(command_credit_, turn.kind);
     if (turn.kind == BusTurn::Kind::command) {
       auto cmd = take_command();

@@ -7,6 +7,8 @@
 #include <deque>
 #include <functional>
 #include <memory>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "drivers/link.hpp"
@@ -89,8 +91,9 @@ class SerialBus final : public Bus {
   // a transaction), and each image's polled points.
   void plan_polls();
   asio::awaitable<void> open_link();
+  // `sent_ahead`: the request went out ahead (Link::send_ahead); its first attempt takes it over.
   asio::awaitable<Reply> transact(NodeRuntime& node, const Request& request, int retries,
-                                  bool accept_no_reply, bool poll);
+                                  bool accept_no_reply, bool poll, bool sent_ahead = false);
   std::shared_ptr<PendingCommand> take_command();
   // After a timeout, a garbled reply or stray bytes: the family drains the line until quiet.
   // `heard`: bytes came back in the failed exchange.
@@ -100,7 +103,18 @@ class SerialBus final : public Bus {
   // `node`: the node of the failed exchange (or of the next request); `heard`: whether it sent
   // anything in that exchange (a garbled or late reply), as opposed to silence.
   asio::awaitable<void> prove_aligned(NodeRuntime& node, bool heard);
-  asio::awaitable<void> run_poll(std::size_t item_index);
+  asio::awaitable<void> run_poll(std::size_t item_index, bool sent_ahead = false);
+  // What run() decides from at `now`, with `due` as the plan's offer.
+  BusTurnInput turn_input(SteadyTime now, std::optional<PollPlan::Due> due) const;
+  // Pipelining: while poll `current` is on the wire, the poll that would follow it (when no
+  // command waits) is chosen and its request prepared; the moment its reply is accepted the
+  // request goes out (send_armed_poll), and run() makes it the next transaction. Nothing is sent
+  // ahead of a command, a probe, an inter-frame gap or a line out of step.
+  void arm_next_poll(std::size_t current);
+  void send_armed_poll();
+  // A request sent ahead that will not get its exchange: its reply is owed, and no reply is
+  // trusted until a proof of alignment passed.
+  void abandon_sent_ahead();
   void record(NodeRuntime& node, const Reply& reply, bool poll);
   void record_latency(double seconds);
   void set_state(NodeRuntime& node, NodeState state, std::string_view why);
@@ -159,6 +173,14 @@ class SerialBus final : public Bus {
   // reopen of a line where nothing answers, whose notices are logged at debug.
   void log_notes(bool quiet);
   SteadyTime opened_at_{};
+  struct PollAhead {
+    std::shared_ptr<NodeRuntime> node;
+    std::size_t item = 0;
+    uint64_t plan = 0;  // plan_number_ when chosen
+    std::string bytes;  // the family's request (ProtocolFamily::pipelined_request)
+  };
+  std::optional<PollAhead> armed_;  // chosen, not sent
+  std::optional<PollAhead> ahead_;  // sent: the next transaction on the line
 };
 
 }  // namespace fieldgate

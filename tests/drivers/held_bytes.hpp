@@ -33,7 +33,18 @@ class HeldBytes final : public ByteTransport {
   asio::awaitable<std::error_code> open() override { co_return std::error_code{}; }
   void close() override {}
   bool is_open() const override { return true; }
-  asio::awaitable<std::error_code> write(std::string_view) override { co_return std::error_code{}; }
+  std::string written;
+  std::size_t takes_at_once = static_cast<std::size_t>(-1);  // write_available's room
+
+  asio::awaitable<std::error_code> write(std::string_view bytes) override {
+    written += bytes;
+    co_return std::error_code{};
+  }
+  std::size_t write_available(std::string_view bytes) override {
+    const std::size_t n = std::min(bytes.size(), takes_at_once);
+    written += bytes.substr(0, n);
+    return n;
+  }
   asio::awaitable<std::pair<std::error_code, std::size_t>> read_some(
       asio::mutable_buffer buffer) override {
     ++reads_started;

@@ -274,3 +274,63 @@ TEST(PollPlan, PickAgreesWithAScanOfEveryItemThroughARandomRun) {
 
 }  // namespace
 }  // namespace fieldgate
+
+namespace fieldgate {
+namespace {
+
+// pick_after(i, t) is what completed(i, t) then pick(t) give, and changes nothing: a plan asked
+// at every turn runs exactly as a plan never asked.
+TEST(PollPlan, PickAfterForeseesTheNextPickAndLeavesThePlanAsItWas) {
+  std::mt19937 random(7);
+  PollPlan asked, untouched;
+  const std::chrono::microseconds periods[] = {1ms, 10ms, 25ms, 100ms};
+  for (int node = 0; node < 6; ++node)
+    for (int k = 0; k < 3; ++k) {
+      const auto it = item(node, k == 0 ? "a" : k == 1 ? "b" : "c", periods[random() % 4]);
+      asked.add(it);
+      untouched.add(it);
+    }
+  const SteadyTime start{};
+  asked.start(start);
+  untouched.start(start);
+  SteadyTime now = start;
+  int foreseen = 0;
+  for (int turn = 0; turn < 3000; ++turn) {
+    now += std::chrono::microseconds(random() % 2500);
+    if (turn % 97 == 0) {
+      const int node = static_cast<int>(random() % 6);
+      const bool eligible = random() % 2 == 0;
+      asked.set_eligible(node, eligible);
+      untouched.set_eligible(node, eligible);
+    }
+    const auto due = asked.pick(now);
+    const auto due_untouched = untouched.pick(now);
+    ASSERT_EQ(due.has_value(), due_untouched.has_value()) << "turn " << turn;
+    if (!due || due->when > now) continue;
+    ASSERT_EQ(due->item, due_untouched->item) << "turn " << turn;
+    const auto finished = now + std::chrono::microseconds(random() % 3000);
+    const auto foreseen_pick = asked.pick_after(due->item, finished);
+    PollPlan copy = asked;
+    copy.completed(due->item, finished);
+    const auto actual = copy.pick(finished);
+    ASSERT_EQ(foreseen_pick.has_value(), actual.has_value()) << "turn " << turn;
+    if (actual) {
+      EXPECT_EQ(foreseen_pick->item, actual->item) << "turn " << turn;
+      EXPECT_EQ(foreseen_pick->when, actual->when) << "turn " << turn;
+      ++foreseen;
+    }
+    for (std::size_t i = 0; i < asked.items().size(); ++i)
+      ASSERT_EQ(asked.next_due(i), untouched.next_due(i)) << "item " << i << ", turn " << turn;
+    asked.completed(due->item, finished);
+    untouched.completed(due->item, finished);
+    now = finished;
+  }
+  EXPECT_GT(foreseen, 1000);
+  for (std::size_t i = 0; i < asked.items().size(); ++i) {
+    EXPECT_EQ(asked.items()[i].overruns, untouched.items()[i].overruns);
+    EXPECT_EQ(asked.items()[i].last_run, untouched.items()[i].last_run);
+  }
+}
+
+}  // namespace
+}  // namespace fieldgate

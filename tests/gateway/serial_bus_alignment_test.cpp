@@ -247,6 +247,8 @@ TEST_P(SerialBusAlignment, NoValueOrConfirmationComesFromAnotherExchange) {
   // Late replies came, and were drained (while the line went quiet, or during a proof).
   EXPECT_GT(bus_->counters().alignment_proofs, 0u);
   EXPECT_GT(bus_->counters().stray_replies + bus_->counters().resync_bytes, 0u);
+  // Polls were sent ahead of the bookkeeping (Link::send_ahead) through all of it.
+  EXPECT_GT(line_->writes_ahead(), 0);
 }
 
 INSTANTIATE_TEST_SUITE_P(Copley, SerialBusAlignment,

@@ -104,6 +104,19 @@ class FakeLine : public ByteTransport {
         co_return std::pair{std::make_error_code(std::errc::operation_canceled), std::size_t{0}};
     }
   }
+  // As a port's output queue takes a short request: whole, at once (Link::send_ahead).
+  std::size_t write_available(std::string_view bytes) override {
+    if (!open_ || !write_ahead_) return 0;
+    ++writes_ahead_;
+    writes_.emplace_back(bytes);
+    if (far_end_) far_end_(bytes);
+    data_ready_.cancel();
+    return bytes.size();
+  }
+  // How many writes were made without waiting (requests sent ahead).
+  int writes_ahead() const { return writes_ahead_; }
+  // A line that only writes by waiting: nothing can be sent ahead on it.
+  void refuse_write_ahead() { write_ahead_ = false; }
   std::size_t read_available(asio::mutable_buffer buffer) override { return take(buffer); }
   void discard_input() override {
     arrive();
@@ -147,6 +160,8 @@ class FakeLine : public ByteTransport {
   bool open_ = true;
   int opens_ = 0;
   bool keep_order_ = false;
+  bool write_ahead_ = true;
+  int writes_ahead_ = 0;
 };
 
 // Runs one awaitable, and whatever else io has to do, to completion; throws if the awaitable
