@@ -52,6 +52,11 @@ struct BusCounters {
   uint64_t alignment_proofs = 0;
   uint64_t alignment_failures = 0;
   uint64_t stray_replies = 0;
+  // Serial buses: polls whose request went out the moment the reply before it was accepted
+  // (drivers/README.md, "Sending ahead"), and those whose exchange did not take it over (their
+  // reply owed, the line proven in step again).
+  uint64_t sent_ahead = 0;
+  uint64_t sent_ahead_lost = 0;
   bool link_up = false;
   bool open_attempted = false;  // the first open finished, successfully or not
 };

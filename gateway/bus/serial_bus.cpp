@@ -358,6 +358,7 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
           config_->name, n.config->name, n.config->address.text, request.command,
           link_.has_sent_ahead() ? "did not take it over" : "sent other bytes");
       if (link_.has_sent_ahead()) link_.drop_sent_ahead();
+      ++counters_.sent_ahead_lost;
       debt_.add();
       reply = Reply::of(Reply::Status::garbled, "request sent ahead was not the exchange's own");
     }
@@ -630,13 +631,16 @@ void SerialBus::send_armed_poll() {
       armed->plan != plan_number_ || armed->node->image->state == NodeState::offline ||
       !transport_->is_open())
     return;
-  if (link_.send_ahead(armed->bytes)) ahead_ = std::move(armed);
+  if (!link_.send_ahead(armed->bytes)) return;
+  ++counters_.sent_ahead;
+  ahead_ = std::move(armed);
 }
 
 void SerialBus::abandon_sent_ahead() {
   ahead_.reset();
   if (!link_.has_sent_ahead()) return;
   link_.drop_sent_ahead();
+  ++counters_.sent_ahead_lost;
   debt_.add();
   aligned_ = false;
 }

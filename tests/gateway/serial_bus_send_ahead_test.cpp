@@ -55,8 +55,7 @@ class MisforeseeingFamily final : public ProtocolFamily {
                                        const LinkTiming& timing) override {
     co_return co_await copley_->transact_node(link, node, request, timing);
   }
-  std::optional<std::string> pipelined_request(NodeContext& node,
-                                               const Request& request) override {
+  std::optional<std::string> pipelined_request(NodeContext& node, const Request& request) override {
     auto bytes = copley_->pipelined_request(node, request);
     if (bytes && ++asked_ % lie_every_ == 0) {
       ++lies;
@@ -170,6 +169,8 @@ TEST_F(SerialBusSendAhead, PollsGoAheadAndEveryValueIsTheNodesOwn) {
   // The line is saturated (1 ms periods): after the first exchanges nearly every poll goes out
   // the moment the reply before it is taken.
   EXPECT_GT(line_->writes_ahead(), good_ / 2) << good_ << " polls";
+  EXPECT_EQ(bus_->counters().sent_ahead, static_cast<uint64_t>(line_->writes_ahead()));
+  EXPECT_EQ(bus_->counters().sent_ahead_lost, 0u);
   EXPECT_EQ(bus_->counters().alignment_proofs, 0u);
   EXPECT_EQ(bus_->counters().resyncs, 0u);
   for (const auto& request : journal_) EXPECT_EQ(request.find("r0x33"), std::string::npos);
@@ -209,6 +210,7 @@ TEST_F(SerialBusSendAhead, ARequestSentAheadThatIsNotTheExchangesOwnCostsAProofN
   for (const auto& request : journal_) sent_wrong += request.find("r0x33") != std::string::npos;
   EXPECT_GT(sent_wrong, 0) << "the wrong requests went ahead";
   EXPECT_GE(bus_->counters().alignment_proofs, 1u);
+  EXPECT_GE(bus_->counters().sent_ahead_lost, static_cast<uint64_t>(sent_wrong));
   EXPECT_FALSE(bus_->node_images().empty());
   for (int node = 0; node < 3; ++node) EXPECT_EQ(image(node).state, NodeState::online);
   io_.run_for(1ms);
