@@ -23,66 +23,61 @@ Clock::time_point Link::wire_free_at() const {
   return std::max(Clock::now(), tx_done_);
 }
 
+void Link::count_sent(std::size_t n) {
+  // write() completes when the OS has the bytes, not when they have crossed a slow line: a
+  // reply deadline counted from here would run out while the request is still on the wire.
+  const auto wire =
+      std::chrono::microseconds(static_cast<int64_t>(static_cast<double>(n) * char_time_us()));
+  stats_.bytes_sent += n;
+  tx_done_ = wire_free_at() + wire;
+}
+
+void Link::tap_sent_ahead(std::string_view bytes) {
+  if (!tap_) return;
+  tap_at_ = ahead_at_;
+  tap_(true, bytes);
+  tap_at_.reset();
+}
+
 bool Link::send_ahead(std::string_view bytes) {
   if (!ahead_.empty() || bytes.empty()) return false;
   const auto written = transport_.write_available(bytes);
   if (written == 0) return false;
-  const auto wire = std::chrono::microseconds(
-      static_cast<int64_t>(static_cast<double>(written) * char_time_us()));
-  stats_.bytes_sent += written;
   ahead_at_ = Clock::now();
-  tx_done_ = wire_free_at() + wire;
+  count_sent(written);
   ahead_.assign(bytes);
   ahead_written_ = written;
   return true;
 }
 
 void Link::drop_sent_ahead() {
-  if (!ahead_.empty() && tap_) {
-    tap_at_ = ahead_at_;
-    tap_(true, std::string_view(ahead_).substr(0, ahead_written_));
-    tap_at_.reset();
-  }
+  if (!ahead_.empty()) tap_sent_ahead(std::string_view(ahead_).substr(0, ahead_written_));
   ahead_.clear();
   ahead_written_ = 0;
   taking_over_ = false;
 }
 
 asio::awaitable<std::error_code> Link::send(std::string_view bytes) {
-  if (std::exchange(taking_over_, false)) {
+  std::string rest;  // of a request sent ahead, what the OS did not take then
+  const bool taken_over = std::exchange(taking_over_, false);
+  if (taken_over) {
     if (bytes != ahead_) {
       drop_sent_ahead();
       ahead_mismatch_ = true;
       co_return std::make_error_code(std::errc::protocol_error);
     }
     // The wire trace shows the request where its exchange begins, a moment after it left.
-    const std::string rest = ahead_.substr(ahead_written_);
-    const std::string sent = std::exchange(ahead_, {});
+    rest = ahead_.substr(ahead_written_);
+    tap_sent_ahead(ahead_);
+    ahead_.clear();
     ahead_written_ = 0;
-    if (tap_) {
-      tap_at_ = ahead_at_;
-      tap_(true, sent);
-      tap_at_.reset();
-    }
     if (rest.empty()) co_return std::error_code{};
-    const auto wire = std::chrono::microseconds(
-        static_cast<int64_t>(static_cast<double>(rest.size()) * char_time_us()));
-    auto ec = co_await transport_.write(rest);
-    if (!ec) {
-      stats_.bytes_sent += rest.size();
-      tx_done_ = wire_free_at() + wire;
-    }
-    co_return ec;
+    bytes = rest;
   }
-  // write() completes when the OS has the bytes, not when they have crossed a slow line: a
-  // reply deadline counted from here would run out while the request is still on the wire.
-  const auto wire = std::chrono::microseconds(
-      static_cast<int64_t>(static_cast<double>(bytes.size()) * char_time_us()));
   auto ec = co_await transport_.write(bytes);
   if (!ec) {
-    stats_.bytes_sent += bytes.size();
-    tx_done_ = wire_free_at() + wire;
-    if (tap_) tap_(true, bytes);
+    count_sent(bytes.size());
+    if (tap_ && !taken_over) tap_(true, bytes);
   }
   co_return ec;
 }

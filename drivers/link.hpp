@@ -142,6 +142,10 @@ class Link {
  private:
   // When the bytes sent so far will have left the wire, estimated from the character time.
   std::chrono::steady_clock::time_point wire_free_at() const;
+  // Counts n bytes the OS took and moves the estimate of when the line is free.
+  void count_sent(std::size_t n);
+  // The tap's view of bytes sent ahead, stamped with when they were written.
+  void tap_sent_ahead(std::string_view bytes);
   // A read that ended without a frame: what had arrived goes with it (and to the trace).
   LinkRead end_read(LinkRead::Status status);
   // Appends what the OS already holds to `into` without waiting (one read), counted as
