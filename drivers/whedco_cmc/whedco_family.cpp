@@ -394,9 +394,18 @@ asio::awaitable<Reply> WhedcoFamily::exchange(Link& link, const BoundNode& bound
   co_return Reply{};
 }
 
+std::optional<int> WhedcoFamily::known_unit_ratio(int unit,
+                                                  const whedco::PreparedCommand& prepared) const {
+  if (prepared.quantity == whedco::Quantity::none) return 1;
+  const auto it = unit_ratios_.find(std::make_pair(unit, prepared.axis));
+  if (it == unit_ratios_.end()) return std::nullopt;
+  return it->second;
+}
+
 std::optional<std::string> WhedcoFamily::pipelined_request(NodeContext& context,
                                                            const Request& request) {
-  // What transact_node() and exchange() do before their send, where none of it needs the line.
+  // transact_node() would send this line with no exchange before it: no first contact, no UR?
+  // and no resync.
   const int unit = context.address().number;
   if (request.bus_wide || resync_ != Resync::none) return std::nullopt;
   if (const auto c = contacted_.find(unit); c == contacted_.end() || !c->second)
@@ -404,13 +413,9 @@ std::optional<std::string> WhedcoFamily::pipelined_request(NodeContext& context,
   std::string error;
   const auto prepared = whedco::prepare_command(request.command, error);
   if (!prepared) return std::nullopt;
-  int ratio = 1;
-  if (prepared->quantity != whedco::Quantity::none) {
-    const auto it = unit_ratios_.find(std::make_pair(unit, prepared->axis));
-    if (it == unit_ratios_.end()) return std::nullopt;
-    ratio = it->second;
-  }
-  return whedco::sent_line(unit, whedco::wire_command(*prepared, ratio)) + whedco::kTerminator;
+  const auto ratio = known_unit_ratio(unit, *prepared);
+  if (!ratio) return std::nullopt;
+  return whedco::encode_command(unit, whedco::wire_command(*prepared, *ratio));
 }
 
 asio::awaitable<Reply> WhedcoFamily::transact_node(Link& link, NodeContext& context,
@@ -429,27 +434,24 @@ asio::awaitable<Reply> WhedcoFamily::transact_node(Link& link, NodeContext& cont
   if (!prepared) co_return refused(error);
   if (!contacted_[node.number]) co_await first_contact(link, bound, timing);
 
-  int ratio = 1;
-  if (prepared->quantity != whedco::Quantity::none) {
-    const auto key = std::make_pair(node.number, prepared->axis);
-    auto it = unit_ratios_.find(key);
-    if (it == unit_ratios_.end()) {
-      const std::string query = std::string("UR") + prepared->axis + "?";
-      Reply ur = co_await exchange(link, bound, query, Request::Expect::values,
-                                   NumberFormat::decimal, QueryKind::plain, 1, timing);
-      if (ur.status != Reply::Status::ok) {
-        ur.text = fmt::format("reading the unit ratio of axis {} ({}): {}", prepared->axis, query,
-                              ur.text);
-        co_return ur;
-      }
-      if (ur.values.size() != 1 || ur.values[0] < whedco::kMinUnitRatio ||
-          ur.values[0] > whedco::kMaxUnitRatio)
-        co_return garbled(
-            fmt::format("unit ratio of axis {} is not a whole number 1..10000", prepared->axis));
-      it = unit_ratios_.emplace(key, static_cast<int>(ur.values[0])).first;
+  std::optional<int> known = known_unit_ratio(node.number, *prepared);
+  if (!known) {
+    const std::string query = std::string("UR") + prepared->axis + "?";
+    Reply ur = co_await exchange(link, bound, query, Request::Expect::values, NumberFormat::decimal,
+                                 QueryKind::plain, 1, timing);
+    if (ur.status != Reply::Status::ok) {
+      ur.text =
+          fmt::format("reading the unit ratio of axis {} ({}): {}", prepared->axis, query, ur.text);
+      co_return ur;
     }
-    ratio = it->second;
+    if (ur.values.size() != 1 || ur.values[0] < whedco::kMinUnitRatio ||
+        ur.values[0] > whedco::kMaxUnitRatio)
+      co_return garbled(
+          fmt::format("unit ratio of axis {} is not a whole number 1..10000", prepared->axis));
+    known = static_cast<int>(ur.values[0]);
+    unit_ratios_.emplace(std::make_pair(node.number, prepared->axis), *known);
   }
+  const int ratio = *known;
   const std::string wire = whedco::wire_command(*prepared, ratio);
   Reply r = co_await exchange(link, bound, wire, request.expect, request.format, prepared->kind,
                               prepared->scaled_reply ? ratio : 1, timing);

@@ -61,6 +61,9 @@ class WhedcoFamily final : public ProtocolFamily {
   // The first exchange with a unit since the port opened: reads FC, and clears the power-up
   // state (Power Failure, every axis faulted) with WB, as the manual asks after power-up.
   asio::awaitable<void> first_contact(Link& link, const BoundNode& node, const LinkTiming& timing);
+  // The unit ratio a command's wire form is scaled by: 1 if it carries no quantity, the ratio
+  // read from the unit before, or nullopt if UR? must be read first.
+  std::optional<int> known_unit_ratio(int unit, const whedco::PreparedCommand& prepared) const;
 
   std::map<std::pair<int, char>, int> unit_ratios_;  // (unit, axis) -> pulses per user unit
   std::map<int, bool> contacted_;
