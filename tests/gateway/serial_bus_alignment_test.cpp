@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "copley_requests.hpp"
 #include "fake_line.hpp"
 #include "gateway/bus/serial_bus.hpp"
 #include "gateway/config/config_loader.hpp"
@@ -50,12 +51,7 @@ class CopleyLine {
   }
 
   void on_write(std::string_view bytes) {
-    pending_ += bytes;
-    for (auto cr = pending_.find('\r'); cr != std::string::npos; cr = pending_.find('\r')) {
-      const std::string request = pending_.substr(0, cr);
-      pending_.erase(0, cr + 1);
-      answer(request);
-    }
+    for (const auto& request : requests_.take(bytes)) answer(request);
   }
   const std::vector<Executed>& journal() const { return journal_; }
   long ms_now() const {
@@ -65,13 +61,10 @@ class CopleyLine {
   }
 
  private:
-  void answer(const std::string& request) {
-    std::string prefix;
-    std::string command = request;
-    if (request.size() > 2 && request[0] >= '1' && request[0] <= '9' && request[1] == ' ') {
-      prefix = request.substr(0, 2);
-      command = request.substr(2);
-    }
+  void answer(const test::CopleyRequest& heard) {
+    const std::string& request = heard.line;
+    const std::string& prefix = heard.prefix;
+    const std::string& command = heard.command;
     auto delay = std::chrono::milliseconds(1 + random_() % 3);
     if (pauses_ && ++count_ % 12 == 0) delay += 230ms;
     std::string reply;
@@ -108,7 +101,7 @@ class CopleyLine {
   std::mt19937 random_;
   bool pauses_;
   int count_ = 0;
-  std::string pending_;
+  test::CopleyRequests requests_;
   std::vector<Executed> journal_;
   FakeLine::Clock::time_point busy_until_{};
   FakeLine::Clock::time_point start_{};

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "copley_requests.hpp"
 #include "fake_line.hpp"
 #include "gateway/bus/serial_bus.hpp"
 #include "gateway/config/config_loader.hpp"
@@ -51,14 +52,10 @@ class SerialBusSchedule : public ::testing::Test {
   }
 
   void on_write(std::string_view bytes) {
-    pending_ += bytes;
-    for (auto cr = pending_.find('\r'); cr != std::string::npos; cr = pending_.find('\r')) {
-      const std::string request = pending_.substr(0, cr);
-      pending_.erase(0, cr + 1);
+    for (const auto& [request, prefix, command] : requests_.take(bytes)) {
       journal_.push_back(request);
       if (silent_) continue;
-      const bool to_n3 = request.rfind("3 ", 0) == 0;
-      const std::string command = to_n3 ? request.substr(2) : request;
+      const bool to_n3 = prefix == "3 ";
       std::string reply = "e 3";
       if (command == "g r0x32") reply = to_n3 ? "v 3333" : "v 1000";
       if (command.rfind("s r0xca ", 0) == 0) reply = "ok";
@@ -110,7 +107,7 @@ class SerialBusSchedule : public ::testing::Test {
   std::shared_ptr<const LoadedConfig> config_;
   FakeLine* line_ = nullptr;
   bool silent_ = false;
-  std::string pending_;
+  test::CopleyRequests requests_;
   std::vector<std::string> journal_;
   int answered_ = 0;
   std::shared_ptr<SerialBus> bus_;

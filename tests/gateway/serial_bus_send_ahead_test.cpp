@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "copley_requests.hpp"
 #include "fake_line.hpp"
 #include "gateway/bus/serial_bus.hpp"
 #include "gateway/config/config_loader.hpp"
@@ -112,17 +113,8 @@ class SerialBusSendAhead : public ::testing::Test {
   // Every request is answered in order, 500 us after it came (a few characters' wire time), and
   // journalled: three nodes polled every millisecond keep the line busy.
   void on_write(std::string_view bytes) {
-    pending_ += bytes;
-    for (auto cr = pending_.find('\r'); cr != std::string::npos; cr = pending_.find('\r')) {
-      const std::string request = pending_.substr(0, cr);
-      pending_.erase(0, cr + 1);
+    for (const auto& [request, prefix, command] : requests_.take(bytes)) {
       journal_.push_back(request);
-      std::string prefix;
-      std::string command = request;
-      if (request.size() > 2 && request[0] >= '1' && request[0] <= '9' && request[1] == ' ') {
-        prefix = request.substr(0, 2);
-        command = request.substr(2);
-      }
       std::string reply = "e 3";
       if (command == "g r0x32" && kPositions.count(prefix))
         reply = "v " + std::to_string(kPositions.at(prefix));
@@ -155,7 +147,7 @@ class SerialBusSendAhead : public ::testing::Test {
   std::shared_ptr<const LoadedConfig> config_;
   std::shared_ptr<MisforeseeingFamily> family_;
   FakeLine* line_ = nullptr;
-  std::string pending_;
+  test::CopleyRequests requests_;
   std::vector<std::string> journal_;
   std::shared_ptr<SerialBus> bus_;
   int wrong_ = 0, good_ = 0;
