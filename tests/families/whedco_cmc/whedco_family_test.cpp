@@ -259,6 +259,47 @@ TEST_F(WhedcoOnSimulatedLine, UnitRatioIsReadOnceAndConvertsBothWays) {
   EXPECT_EQ(transport_.writes().back(), "4AMX?\r");
 }
 
+// Sending ahead (drivers/README.md): pipelined_request() gives the line the next transact()
+// for that request sends with no exchange before it, or nothing.
+TEST_F(WhedcoOnSimulatedLine, RequestSentAheadIsTheLineItsExchangeSends) {
+  line_.unit(4)->execute("URX1000", sim::SimClock::now());
+  NodeContext& unit4 = family_.context_of(node("4"));
+  const auto sends_exactly = [&](const Request& r, const std::string& ahead) {
+    const std::size_t before = transport_.writes().size();
+    const Reply reply = transact("4", r);
+    EXPECT_EQ(reply.status, Status::ok) << reply.text;
+    ASSERT_EQ(transport_.writes().size(), before + 1) << r.command;
+    EXPECT_EQ(transport_.writes().back(), ahead) << r.command;
+  };
+  // First contact (FC) comes before any request to a unit.
+  EXPECT_FALSE(family_.pipelined_request(unit4, read("RS")));
+  EXPECT_EQ(transact("4", read("RS")).status, Status::ok);
+  const auto rs = family_.pipelined_request(unit4, read("RS"));
+  ASSERT_TRUE(rs);
+  EXPECT_EQ(*rs, "4RS\r");
+  sends_exactly(read("RS"), *rs);
+  // A quantity in user units before the axis's unit ratio is known: URX? comes first.
+  EXPECT_FALSE(family_.pipelined_request(unit4, write("AMX12500")));
+  EXPECT_EQ(transact("4", write("AMX12500")).status, Status::ok);
+  EXPECT_EQ(transport_.writes().back(), "4AMX12.5\r");
+  const auto amx = family_.pipelined_request(unit4, write("AMX25000"));
+  ASSERT_TRUE(amx);
+  EXPECT_EQ(*amx, "4AMX25\r");
+  sends_exactly(write("AMX25000"), *amx);
+  // Axis Y's ratio is still unread, and no unit takes a bus-wide request.
+  EXPECT_FALSE(family_.pipelined_request(unit4, write("AMY100")));
+  Request everyone = read("RS");
+  everyone.bus_wide = true;
+  EXPECT_FALSE(family_.pipelined_request(unit4, everyone));
+  // After a failure the line is voided before the next request: nothing goes ahead of that.
+  EXPECT_EQ(transact("6", read("RS")).status, Status::timeout);
+  EXPECT_FALSE(family_.pipelined_request(unit4, read("RS")));
+  EXPECT_EQ(transact("4", read("RS")).status, Status::ok);
+  const auto again = family_.pipelined_request(unit4, read("RS"));
+  ASSERT_TRUE(again);
+  sends_exactly(read("RS"), *again);
+}
+
 TEST_F(WhedcoOnSimulatedLine, EchoAndNonEchoUnitsOnOneLine) {
   EXPECT_EQ(transact("4", read("V1=?")).values, std::vector<int64_t>{0});
   EXPECT_EQ(transact("5/non-echo", write("V1=-42")).status, Status::ok);
