@@ -8,7 +8,11 @@
 
 #include <chrono>
 #include <deque>
+#include <optional>
+#include <random>
+#include <string>
 #include <thread>
+#include <utility>
 
 #include "drivers/ims_party_line/ims_chain.hpp"
 #include "drivers/ims_party_line/ims_codec.hpp"
@@ -466,6 +470,58 @@ TEST_F(ImsTransact, UnitThatWasSwitchedOffComesBack) {
   EXPECT_EQ(transact('C', read("Z")).status, Reply::Status::timeout);
   control("axis-on", {"C"});
   EXPECT_EQ(transact('C', read("Z")).status, Reply::Status::ok);
+}
+
+// Sending ahead (drivers/README.md): the serial bus asks for the next poll's line while the poll
+// before it is on the wire, and writes it once that poll's reply is accepted. Whatever the
+// family gives then must be exactly the first line its transact() for that poll sends. Random
+// traffic to three units (polls, parameters, indexes, jogs fast and slow, M0), the lines asked
+// for as the bus asks for them.
+TEST_F(ImsTransact, APollSentAheadIsTheFirstLineItsExchangeSends) {
+  const std::vector<const char*> polls = {"Z", "^", "z"};
+  const std::vector<const char*> commands = {"V5000", "K0 0", "R200",  "R-200",
+                                             "M3000", "M0",   "M15000"};
+  std::mt19937 random(20261207);
+  int given = 0, withheld = 0;
+  std::optional<std::pair<char, std::string>> ahead;  // (unit, line) asked for the next poll
+  for (int step = 0; step < 400; ++step) {
+    const char name = "ABC"[random() % 3];
+    const bool poll = random() % 4 != 0;
+    const std::size_t pick = random() % (poll ? polls.size() : commands.size());
+    const Request r = poll ? read(polls[pick]) : write(commands[pick]);
+    SCOPED_TRACE(::testing::Message() << "step " << step << ": " << name << r.command);
+    // The line asked for while the previous poll was on the wire, for this poll.
+    const std::optional<std::string> expected =
+        ahead && poll && ahead->first == name ? std::optional(ahead->second) : std::nullopt;
+    ahead.reset();
+    // While this poll is on the wire the bus asks for the line of the poll after it: here, the
+    // next step's if it is a poll, drawn now from a copy of the generator.
+    if (poll) {
+      auto peek = random;
+      const char next_name = "ABC"[peek() % 3];
+      if (peek() % 4 != 0) {
+        const Request next = read(polls[peek() % polls.size()]);
+        if (auto line = family_.pipelined_request(family_.context_of(unit(next_name)), next)) {
+          ahead.emplace(next_name, *line);
+          ++given;
+        } else {
+          ++withheld;
+        }
+      }
+    }
+    transport_->clear_writes();
+    const Reply reply = transact(name, r);
+    if (expected) {
+      ASSERT_FALSE(transport_->writes().empty());
+      EXPECT_EQ(transport_->writes().front(), *expected);
+    }
+    if (reply.status != Reply::Status::ok) ahead.reset();  // the bus sends nothing ahead then
+    if (!poll && step % 16 == 0) std::this_thread::sleep_for(50ms);  // let moves end now and then
+  }
+  RecordProperty("lines_given", given);
+  RecordProperty("lines_withheld", withheld);
+  EXPECT_GT(given, 60);     // not a vacuous check
+  EXPECT_GT(withheld, 10);  // fast steps and jogs were in the traffic
 }
 
 }  // namespace
