@@ -130,6 +130,8 @@ modbus::ModbusTcpServerOptions Gateway::server_options(const GatewayConfig& conf
   options.max_clients = m.max_clients;
   options.when_full = m.evict_when_full ? modbus::WhenFull::evict_idle : modbus::WhenFull::refuse;
   options.max_clients_per_address = m.max_clients_per_address;
+  options.max_connects_per_second_per_address = m.max_connects_per_second_per_address;
+  options.max_connects_per_second = m.max_connects_per_second;
   options.idle_timeout = m.idle_timeout;
   options.request_timeout = m.request_timeout;
   if (!m.allow.empty()) {
@@ -205,7 +207,7 @@ void Gateway::start_metrics() {
   try {
     metrics_ = std::make_unique<MetricsServer>(
         io_.get_executor(), asio::ip::tcp::endpoint(asio::ip::make_address(m.address), m.port),
-        [this] { return render_metrics(*this); });
+        [this] { return render_metrics(*this); }, m.allow);
     metrics_->start();
     const auto ep = metrics_->local_endpoint();
     log::notice("metrics: http://{}:{}/metrics", ep.address().to_string(), ep.port());

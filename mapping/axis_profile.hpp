@@ -93,6 +93,13 @@ inline constexpr uint16_t kProfileErrorDisabled = 0xfff0;     // motion while Di
 inline constexpr uint16_t kProfileErrorErrorStop = 0xffef;    // only reset/power off in ErrorStop
 inline constexpr uint16_t kProfileErrorStopping = 0xffee;     // motion while a stop runs
 inline constexpr uint16_t kProfileErrorDeviceFault = 0xffed;  // error bit without a device code
+// The controller reset, power-cycled, signed on or booted while the command (or a native action)
+// ran: whatever it had done of it is lost, so it never ends done. An action code, shared with
+// the native action block.
+inline constexpr uint16_t kActionErrorControllerReset = 0xfffa;
+// A move or home whose actions completed but whose axis stands still away from the command's
+// target (or not homed): the controller did not run the command to its end (a reset, a limit).
+inline constexpr uint16_t kProfileErrorNotAtTarget = 0xffec;
 
 // Which setpoint of the model a profile value feeds.
 enum class ProfileSetpoint {
@@ -139,6 +146,11 @@ struct ProfileAxisDef {
   // The reset action acts only on a faulted axis: outside ErrorStop, MC_Reset sends nothing and
   // is done (a CiA 402 fault reset writes the controlword and would switch an enabled drive off).
   bool reset_only_in_error_stop = false;
+  // How far from its target a move may end and still be done, in the position's units.
+  int64_t position_tolerance = 0;
+  // A polled point whose value changes at every reset of the controller (a count of the unit's
+  // sign-on messages): a command across such a change ends failed.
+  std::string reset_count;
   SourceMark mark;
 
   bool supports(ProfileCommand c) const { return commands.count(c) != 0; }

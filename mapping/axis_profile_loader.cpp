@@ -26,8 +26,12 @@ class ProfileParser {
         r_.error(e.first, fmt::format("axis_profile: axis '{}' is defined twice", name));
         continue;
       }
-      if (auto axis = parse_axis(name, e.second)) model_.profile_axes.push_back(std::move(*axis));
+      if (auto axis = parse_axis(name, e.second)) {
+        model_.profile_axes.push_back(std::move(*axis));
+        commands_of_.push_back(e.second["commands"]);
+      }
     }
+    check_shared_setpoints();
   }
 
  private:
@@ -100,10 +104,11 @@ class ProfileParser {
   std::optional<ProfileAxisDef> parse_axis(const std::string& name, const YAML::Node& n) {
     const std::string where = "axis_profile " + name;
     if (!r_.expect_map(n, where)) return std::nullopt;
-    r_.reject_unknown_keys(n,
-                           {"position", "velocity", "error_code", "status", "setpoints", "fixed",
-                            "hold", "commands", "unsupported", "reset_only_in_error_stop"},
-                           where);
+    r_.reject_unknown_keys(
+        n,
+        {"position", "velocity", "error_code", "status", "setpoints", "fixed", "hold", "commands",
+         "unsupported", "reset_only_in_error_stop", "position_tolerance", "reset_count"},
+        where);
     ProfileAxisDef a;
     a.name = name;
     a.mark = r_.mark(n);
@@ -222,6 +227,12 @@ class ProfileParser {
                                    "'commands'",
                                    where));
     }
+    if (const auto t = n["position_tolerance"])
+      a.position_tolerance = r_.integer(t, where + " position_tolerance", 0, INT32_MAX).value_or(0);
+    if (n["reset_count"]) {
+      a.reset_count = r_.string(n["reset_count"], where + " reset_count").value_or("");
+      polled_point(n["reset_count"], a.reset_count, where + " reset_count");
+    }
     for (uint16_t c = 1; c < kProfileCommandCount; ++c) {
       const auto command = static_cast<ProfileCommand>(c);
       if (!a.commands.count(command) && !unsupported.count(command))
@@ -232,8 +243,58 @@ class ProfileParser {
     return a;
   }
 
+  // The setpoints a command of an axis fills itself: its profile values, fixed and held ones.
+  std::set<std::string> filled_by(const ProfileAxisDef& a) const {
+    std::set<std::string> filled;
+    for (const auto& [_, name] : a.setpoints)
+      if (model_.find_setpoint(name)) filled.insert(name);
+    for (const auto& [name, _] : a.fixed) filled.insert(name);
+    for (const auto& [name, _] : a.hold) filled.insert(name);
+    return filled;
+  }
+
+  // A command runs with its own copy of the node's setpoints, so a setpoint that another axis's
+  // command fills is safe only where this axis's command fills it too: otherwise it would go out
+  // with whatever the other axis last sent.
+  void check_shared_setpoints() {
+    const auto& axes = model_.profile_axes;
+    for (std::size_t i = 0; i < axes.size(); ++i) {
+      const auto own = filled_by(axes[i]);
+      for (const auto& [command, actions] : axes[i].commands) {
+        for (const auto& action_name : actions) {
+          const ActionDef* action = model_.find_action(action_name);
+          if (!action) continue;
+          for (const auto& step : action->steps) {
+            if (step.kind != ActionStep::Kind::send) continue;
+            for (const auto& used : step.command.placeholders()) {
+              if (own.count(used)) continue;
+              for (std::size_t j = 0; j < axes.size(); ++j) {
+                if (j == i || !filled_by(axes[j]).count(used)) continue;
+                const YAML::Node at = commands_of_[i]
+                                          ? commands_of_[i][std::string(to_string(command))]
+                                          : YAML::Node();
+                const std::string message = fmt::format(
+                    "axis_profile {} commands {}: action {} sends setpoint '{}', which axis {}'s "
+                    "commands set and axis {}'s do not: give it to axis {} (setpoints, fixed or "
+                    "hold), or use a setpoint of its own",
+                    axes[i].name, to_string(command), action_name, used, axes[j].name, axes[i].name,
+                    axes[i].name);
+                if (at)
+                  r_.error(at, message);
+                else
+                  r_.diagnostics().error(axes[i].mark, message);
+                break;
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+
   YamlReader& r_;
   Model& model_;
+  std::vector<YAML::Node> commands_of_;  // each parsed axis's commands: node, for error marks
 };
 
 }  // namespace

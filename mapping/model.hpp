@@ -54,6 +54,9 @@ struct PointDef {
   std::vector<BitDef> bits;
   std::optional<int64_t> min;
   std::optional<int64_t> max;
+  // The value the controller takes as "none" (a frequency source 0 that never moves): a profile
+  // motion command refuses to send it as its speed.
+  std::optional<int64_t> none;
   SourceMark mark;
 
   bool readable() const { return read.has_value(); }
@@ -72,6 +75,7 @@ struct SetpointDef {
   int64_t default_value = 0;
   std::optional<int64_t> min;
   std::optional<int64_t> max;
+  std::optional<int64_t> none;  // as PointDef::none
   SourceMark mark;
 };
 

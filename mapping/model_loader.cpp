@@ -129,7 +129,7 @@ class ModelParser {
           const std::string where = "point " + name;
           auto defined = definition<PointDef>(name, where, spec,
                                               {"description", "type", "units", "scale", "read",
-                                               "write", "poll", "bits", "min", "max"});
+                                               "write", "poll", "bits", "min", "max", "none"});
           if (!defined) return;
           PointDef& p = *defined;
           if (auto t = r_.require(spec, "type", where)) {
@@ -172,8 +172,15 @@ class ModelParser {
           if (spec["min"]) p.min = r_.integer(spec["min"], where + " min", INT64_MIN, INT64_MAX);
           if (spec["max"]) p.max = r_.integer(spec["max"], where + " max", INT64_MIN, INT64_MAX);
           check_limits(spec, where, p.type, p.min, p.max);
+          p.none = parse_none(spec, where, p.type);
           model.points.push_back(std::move(p));
         });
+  }
+
+  std::optional<int64_t> parse_none(const YAML::Node& spec, const std::string& where,
+                                    ValueType type) {
+    if (!spec["none"]) return std::nullopt;
+    return r_.integer(spec["none"], where + " none", min_value(type), max_value(type));
   }
 
   void check_limits(const YAML::Node& spec, const std::string& where, ValueType type,
@@ -255,46 +262,43 @@ class ModelParser {
   }
 
   void parse_setpoints(const YAML::Node& node, Model& model) {
-    for_each_entry(node, "setpoints",
-                   [&](const std::string& name, const YAML::Node&, const YAML::Node& spec) {
-                     const std::string where = "setpoint " + name;
-                     auto defined = definition<SetpointDef>(
-                         name, where, spec,
-                         {"description", "type", "units", "scale", "default", "min", "max"});
-                     if (!defined) return;
-                     SetpointDef& s = *defined;
-                     if (model.find_point(name))
-                       r_.error(spec, fmt::format("{}: a point has the same name", where));
-                     if (auto t = r_.require(spec, "type", where)) {
-                       if (auto text = r_.string(*t, where + " type")) {
-                         if (auto vt = parse_value_type(*text))
-                           s.type = *vt;
-                         else
-                           r_.error(*t, fmt::format("{}: unknown type '{}'", where, *text));
-                       }
-                     }
-                     if (spec["units"])
-                       s.units = r_.string(spec["units"], where + " units").value_or("");
-                     if (spec["scale"])
-                       s.scale = r_.number(spec["scale"], where + " scale").value_or(1.0);
-                     if (spec["min"])
-                       s.min = r_.integer(spec["min"], where + " min", INT64_MIN, INT64_MAX);
-                     if (spec["max"])
-                       s.max = r_.integer(spec["max"], where + " max", INT64_MIN, INT64_MAX);
-                     check_limits(spec, where, s.type, s.min, s.max);
-                     if (spec["default"]) {
-                       if (auto d = r_.integer(spec["default"], where + " default",
-                                               min_value(s.type), max_value(s.type))) {
-                         s.default_value = *d;
-                         if ((s.min && *d < *s.min) || (s.max && *d > *s.max))
-                           r_.error(spec["default"],
-                                    fmt::format("{}: default {} is outside min/max", where, *d));
-                       }
-                     } else if (s.min && *s.min > 0) {
-                       s.default_value = *s.min;
-                     }
-                     model.setpoints.push_back(std::move(s));
-                   });
+    for_each_entry(
+        node, "setpoints", [&](const std::string& name, const YAML::Node&, const YAML::Node& spec) {
+          const std::string where = "setpoint " + name;
+          auto defined = definition<SetpointDef>(
+              name, where, spec,
+              {"description", "type", "units", "scale", "default", "min", "max", "none"});
+          if (!defined) return;
+          SetpointDef& s = *defined;
+          if (model.find_point(name))
+            r_.error(spec, fmt::format("{}: a point has the same name", where));
+          if (auto t = r_.require(spec, "type", where)) {
+            if (auto text = r_.string(*t, where + " type")) {
+              if (auto vt = parse_value_type(*text))
+                s.type = *vt;
+              else
+                r_.error(*t, fmt::format("{}: unknown type '{}'", where, *text));
+            }
+          }
+          if (spec["units"]) s.units = r_.string(spec["units"], where + " units").value_or("");
+          if (spec["scale"]) s.scale = r_.number(spec["scale"], where + " scale").value_or(1.0);
+          if (spec["min"]) s.min = r_.integer(spec["min"], where + " min", INT64_MIN, INT64_MAX);
+          if (spec["max"]) s.max = r_.integer(spec["max"], where + " max", INT64_MIN, INT64_MAX);
+          check_limits(spec, where, s.type, s.min, s.max);
+          s.none = parse_none(spec, where, s.type);
+          if (spec["default"]) {
+            if (auto d = r_.integer(spec["default"], where + " default", min_value(s.type),
+                                    max_value(s.type))) {
+              s.default_value = *d;
+              if ((s.min && *d < *s.min) || (s.max && *d > *s.max))
+                r_.error(spec["default"],
+                         fmt::format("{}: default {} is outside min/max", where, *d));
+            }
+          } else if (s.min && *s.min > 0) {
+            s.default_value = *s.min;
+          }
+          model.setpoints.push_back(std::move(s));
+        });
   }
 
   std::optional<Condition> parse_condition(const YAML::Node& node, const Model& model,

@@ -60,7 +60,7 @@ constexpr DiagnosticLayout kDiagnostics[] = {
     {DiagnosticField::action_error, "diag.action_error", ValueType::uint16,
      "device error code of the last failed action (0xffff: not completed in time, 0xfffe: ended "
      "by failed condition, 0xfffd: unreachable, 0xfffc: no reply to a step, 0xfffb: garbled "
-     "reply to a step)"},
+     "reply to a step, 0xfffa: the controller reset while the action ran)"},
     {DiagnosticField::node_state, "diag.node_state", ValueType::uint16,
      "0 starting, 1 online, 2 offline, 3 faulted (answers, refuses every poll)"},
     {DiagnosticField::unknown_writes, "diag.unknown_writes", ValueType::uint32,

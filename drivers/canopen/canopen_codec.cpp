@@ -322,7 +322,7 @@ std::optional<Heartbeat> parse_heartbeat(const CanFrame& frame) {
   if (frame.error || frame.rtr || frame.len < 1) return std::nullopt;
   if (frame.id <= cob::heartbeat || frame.id > cob::heartbeat + kMaxNodeId) return std::nullopt;
   return Heartbeat{static_cast<uint8_t>(frame.id - cob::heartbeat),
-                   static_cast<uint8_t>(frame.data[0] & 0x7F)};
+                   static_cast<uint8_t>(frame.data[0] & 0x7F), (frame.data[0] & 0x80) != 0};
 }
 
 std::optional<Emergency> parse_emergency(const CanFrame& frame) {

@@ -121,7 +121,8 @@ std::string_view nmt_state_text(uint8_t state);
 
 struct Heartbeat {
   uint8_t node = 0;
-  uint8_t state = 0;  // with the node-guarding toggle bit removed
+  uint8_t state = 0;    // with the node-guarding toggle bit removed
+  bool toggle = false;  // bit 7: set in every other node-guarding reply, never in a heartbeat
 };
 std::optional<Heartbeat> parse_heartbeat(const CanFrame& frame);
 

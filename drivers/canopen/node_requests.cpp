@@ -82,9 +82,9 @@ asio::awaitable<Reply> NodeRequests::upload(const ObjectAddress& object, int ret
     if (reply.status == Reply::Status::ok)
       store_object(object.index, object.sub, result->data, finished_at);
     if (reply.status != Reply::Status::timeout && reply.status != Reply::Status::garbled) break;
-    if (attempt < retries) host_.record(reply, finished_at);
+    if (attempt < retries) host_.record(reply, started, finished_at);
   }
-  host_.record(reply, finished_at);
+  host_.record(reply, started, finished_at);
   co_return reply;
 }
 
@@ -107,7 +107,7 @@ asio::awaitable<Reply> NodeRequests::download(const Operation& op, TimePoint now
   host_.transfer_done(std::chrono::duration<double>(finished_at - now).count());
   note_abort(*result);
   Reply reply = reply_of(*result);
-  host_.record(reply, finished_at);
+  host_.record(reply, now, finished_at);
   // Confirmed: the points of this object hold the written value until their next poll.
   if (reply.status == Reply::Status::ok) {
     store_object(op.object.index, op.object.sub, written, finished_at);

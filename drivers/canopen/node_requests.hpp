@@ -30,8 +30,9 @@ class RequestHost : public NodeHost {
   virtual void transfer_done(double seconds) = 0;
   // A poll's transfer is tried once more.
   virtual void retrying() = 0;
-  // A transfer's reply, for the node's reply accounting (online, offline).
-  virtual void record(const Reply& reply, TimePoint at) = 0;
+  // A transfer's reply, for the node's reply accounting (online, offline); `sent`: when its
+  // request went out (a timeout of one the node's restart dropped takes it not offline).
+  virtual void record(const Reply& reply, TimePoint sent, TimePoint at) = 0;
   // The points take these values (from a read, a confirmed write) at `at`.
   virtual void store(const std::vector<PointUpdate>& updates, TimePoint at) = 0;
   // A confirmed write re-armed the heartbeat consumer.

@@ -92,19 +92,22 @@ void NodeSupervision::went_offline() {
   pre_operational_check_ = false;
 }
 
-void NodeSupervision::on_heartbeat(uint8_t state, TimePoint now) {
+void NodeSupervision::on_heartbeat(uint8_t state, bool toggle, TimePoint now) {
   const auto previous = status_.nmt_state;
   status_.nmt_state = state;
-  if (guarding_since_) guard_answered_ = true;
   if (state == nmt_state::boot_up) {
+    last_boot_up_ = now;
     if (host_.presence() == Presence::online)
       host_.log(kWarning, fmt::format("node {} sent boot-up: it restarted", who()));
     host_.probe_by(now);
-    bring_up(true);  // its 0x1017 is back at its default
+    bring_up(true);         // its 0x1017 is back at its default
+    guard_toggle_.reset();  // its next guard reply carries 0, like a heartbeat: not counted
     if (consumer()) host_.go_online();
   } else {
+    const bool heartbeat = !take_guard_reply(toggle);
+    if (heartbeat) heartbeat_while_guarding(now);
     // The consumer is armed once the producer time is configured (and not given up on).
-    if (consumer() && heartbeat_deadline_ != TimePoint::max()) {
+    if (heartbeat && consumer() && heartbeat_deadline_ != TimePoint::max()) {
       if (!heartbeat_seen_) {
         heartbeat_seen_ = true;
         status_.liveness = Liveness::heartbeat;
@@ -280,6 +283,13 @@ void NodeSupervision::report_pre_operational(const Reply& r) {
 }
 
 std::optional<CanFrame> NodeSupervision::guard(TimePoint now) {
+  if (guard_paused_) {
+    guard_paused_ = false;
+    guarding_since_ = now;
+    guard_answered_ = false;
+    host_.log(kInfo, fmt::format("node {} sent no heartbeat within {} ms: node guarding again",
+                                 who(), milliseconds(consumer_time())));
+  }
   if (!guard_answered_ && now - *guarding_since_ >= consumer_time()) {
     next_guard_ = TimePoint::max();
     host_.log(
@@ -295,6 +305,7 @@ std::optional<CanFrame> NodeSupervision::guard(TimePoint now) {
   rtr.id = cob::heartbeat + id_;
   rtr.len = 1;
   rtr.rtr = true;
+  guard_outstanding_ = true;
   return rtr;
 }
 
@@ -302,12 +313,48 @@ void NodeSupervision::stop_guarding() {
   next_guard_ = TimePoint::max();
   guarding_since_.reset();
   guard_answered_ = false;
+  if (guard_outstanding_) guard_toggle_.reset();  // its reply may still come, unseen
+  guard_outstanding_ = false;
+  guard_paused_ = false;
+}
+
+bool NodeSupervision::take_guard_reply(bool toggle) {
+  const bool asked = guarding_since_ && guard_outstanding_;
+  // Toggle 0 where nothing was asked or 1 was due: a heartbeat.
+  if (!toggle && (!asked || guard_toggle_ == true)) return false;
+  if (asked) {
+    // Where the toggle was unknown, the first reply only tells it: alone, a 0 looks like a
+    // heartbeat. A 1 where 0 was due (another master's RTR, a reset unseen) is followed, not
+    // counted.
+    if (guard_toggle_ == toggle) {
+      guard_answered_ = true;
+      ++status_.guard_replies;
+    }
+    guard_outstanding_ = false;
+  }
+  // Only a guard reply has bit 7 set: after one, whoever asked for it, the next carries 0.
+  guard_toggle_ = !toggle;
+  return true;
+}
+
+void NodeSupervision::heartbeat_while_guarding(TimePoint now) {
+  const bool guarding = guarding_since_ && next_guard_ != TimePoint::max();
+  if (!guarding && !guard_paused_) return;
+  if (!guard_paused_) {
+    stop_guarding();
+    guard_paused_ = true;
+    host_.log(kInfo, fmt::format("node {} sends heartbeats the gateway did not set up: node "
+                                 "guarding stops while they come",
+                                 who()));
+  }
+  next_guard_ = now + consumer_time();
 }
 
 void NodeSupervision::watch_by_sdo(TimePoint now) {
   status_.liveness = Liveness::sdo;
   heartbeat_deadline_ = TimePoint::max();
   if (guarding_since_) return;
+  guard_paused_ = false;
   guarding_since_ = now;
   guard_answered_ = false;
   next_guard_ = now;

@@ -42,6 +42,8 @@ struct NodeStatus {
   uint64_t emergencies = 0;
   uint32_t last_abort = 0;  // last SDO abort code the node sent
   uint64_t pdos = 0;        // TPDOs taken into the process image
+  // Node-guarding replies taken: each answered an RTR of the bus with the toggle bit expected.
+  uint64_t guard_replies = 0;
 };
 
 struct SupervisionTiming {
@@ -102,7 +104,12 @@ class NodeSupervision {
   void went_online(bool from_offline);
   void went_offline();
 
-  void on_heartbeat(uint8_t state, TimePoint now);
+  // A frame on the node's NMT error-control COB-ID (0x700 + id): boot-up, heartbeat or
+  // node-guarding reply; `toggle` is its bit 7.
+  void on_heartbeat(uint8_t state, bool toggle, TimePoint now);
+  // The node sent a boot-up after `sent`: a request sent then was dropped by its restart, and its
+  // timeout says nothing about the node now.
+  bool restarted_since(TimePoint sent) const { return last_boot_up_ && *last_boot_up_ > sent; }
   void on_emergency(const Emergency& emcy);
   // A confirmed download, by a command or by the bus's own bring-up; true where it re-armed the
   // heartbeat consumer (0x1017 written). A command's producer time is the node's from then on.
@@ -128,6 +135,12 @@ class NodeSupervision {
  private:
   void watch_by_sdo(TimePoint now);
   void stop_guarding();
+  // Takes a state frame as the reply to the outstanding guard RTR where its toggle bit is the
+  // one expected; false where it is none (a heartbeat, or another master's guarding).
+  bool take_guard_reply(bool toggle);
+  // A heartbeat while the node is guarded: someone else set its producer time. Guarding waits
+  // until none came for a consumer time.
+  void heartbeat_while_guarding(TimePoint now);
   std::string who() const;  // "drive (2)"
 
   uint8_t id_;
@@ -153,6 +166,15 @@ class NodeSupervision {
   TimePoint next_guard_ = TimePoint::max();
   std::optional<TimePoint> guarding_since_;
   bool guard_answered_ = false;
+  bool guard_outstanding_ = false;  // an RTR sent, its reply not yet taken
+  // The toggle bit of the next guard reply (CiA 301: it alternates), learnt from the node's last
+  // reply. Unknown until one came, after a boot-up (the next is 0, which a heartbeat looks like)
+  // and after guarding stopped with a reply outstanding.
+  std::optional<bool> guard_toggle_;
+  // Heartbeats came while guarding (another tool set 0x1017): next_guard_ is when guarding
+  // starts again, pushed on by every heartbeat.
+  bool guard_paused_ = false;
+  std::optional<TimePoint> last_boot_up_;
   // NMT start sent by the bus; a later pre-operational heartbeat means the node stayed there.
   std::optional<TimePoint> start_sent_;
   bool pre_operational_check_ = false;  // read its error register and report

@@ -97,7 +97,9 @@ struct CanBus::NodeRuntime final : RequestHost {
     ++bus.counters_.retries;
     ++image->counters.retries;
   }
-  void record(const Reply& reply, SteadyTime at) override { bus.record(*this, reply, at); }
+  void record(const Reply& reply, SteadyTime sent, SteadyTime at) override {
+    bus.record(*this, reply, sent, at);
+  }
   void store(const std::vector<PointUpdate>& updates, SteadyTime at) override {
     for (const auto& u : updates)
       image->points[static_cast<std::size_t>(u.point)] = {u.value, at, true};
@@ -478,12 +480,18 @@ void CanBus::dispatch(const CanFrame& frame, SteadyTime now) {
     case FrameRole::heartbeat:
       trace_frame(frame, TraceDirection::rx, now, {});
       if (auto hb = parse_heartbeat(frame)) {
-        if (hb->state == nmt_state::boot_up && !n.requests.absent_objects().empty()) {
-          // Restarted: perhaps with other firmware. Absent objects are polled again.
-          n.requests.absent_objects().clear();
-          n.image->polled = n.polled;
+        if (hb->state == nmt_state::boot_up) {
+          ++n.image->controller_resets;
+          // The SDO timeouts before it were the controller's before its restart.
+          n.image->counters.consecutive_timeouts = 0;
+          if (!n.requests.absent_objects().empty()) {
+            // Restarted: perhaps with other firmware. Absent objects are polled again.
+            n.requests.absent_objects().clear();
+            n.image->polled = n.polled;
+          }
         }
-        n.nmt.on_heartbeat(hb->state, now);
+        n.nmt.on_heartbeat(hb->state, hb->toggle, now);
+        if (hb->state == nmt_state::boot_up) notify(n);
       }
       break;
     case FrameRole::emergency:
@@ -580,6 +588,9 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
   if (state == NodeState::online) {
     log::notice("bus {}: node {} ({}) online{}", config_->name, n.config->name, n.id,
                 old == NodeState::offline ? " again" : "");
+    // Online by its heartbeat, the probes that timed out before do not count toward the next
+    // offline.
+    img.counters.consecutive_timeouts = 0;
     n.nmt.went_online(old == NodeState::offline);
     plan_.resume_node(n.index, now);
     n.tpdos.restart(now);
@@ -593,8 +604,9 @@ void CanBus::set_state(NodeRuntime& n, NodeState state, std::string_view why) {
   n.wake.cancel();
 }
 
-void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {
+void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime sent, SteadyTime at) {
   auto& c = n.image->counters;
+  const auto consecutive_timeouts = c.consecutive_timeouts;
   switch (count_reply(c, counters_, reply, at)) {
     case ReplyOutcome::answered:
       set_state(n, NodeState::online, {});
@@ -602,6 +614,12 @@ void CanBus::record(NodeRuntime& n, const Reply& reply, SteadyTime at) {
     case ReplyOutcome::garbled:
       break;
     case ReplyOutcome::failed:
+      if (reply.status == Reply::Status::timeout && n.nmt.restarted_since(sent)) {
+        // Sent before the node's boot-up: its restart dropped the request. Counted as a timeout,
+        // but the node that just booted is not silent.
+        c.consecutive_timeouts = consecutive_timeouts;
+        break;
+      }
       if (reply.status == Reply::Status::timeout &&
           c.consecutive_timeouts >= static_cast<uint32_t>(config_->timing.offline_after)) {
         n.nmt.sdo_silent();  // its heartbeat may go on while SDO is dead

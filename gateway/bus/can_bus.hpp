@@ -94,7 +94,7 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   void on_tpdo(NodeRuntime& n, const CanFrame& frame, SteadyTime now);
   void refresh_local_points(NodeRuntime& n, SteadyTime now);
 
-  void record(NodeRuntime& n, const Reply& reply, SteadyTime at);
+  void record(NodeRuntime& n, const Reply& reply, SteadyTime sent, SteadyTime at);
   void set_state(NodeRuntime& n, NodeState state, std::string_view why);
   void link_failed(std::error_code ec);
   void fail_commands(std::string_view why);

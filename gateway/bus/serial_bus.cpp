@@ -663,17 +663,40 @@ asio::awaitable<void> SerialBus::run_poll(std::size_t item_index, bool sent_ahea
   } else if (plan == plan_number_) {
     plan_.completed(item_index, now);
   }
-  if (reply.status != Reply::Status::ok) co_return;
   auto& img = (*n.image);
-  for (const auto& t : targets) {
-    if (t.field >= static_cast<int>(reply.values.size())) {
-      ++img.counters.errors;
-      img.counters.last_error_text = "reply has fewer values than the model expects";
-      continue;
+  std::vector<int> failed;
+  if (reply.status != Reply::Status::ok) {
+    // A probe of an offline node is not a poll: the node's state already says its values are old.
+    if (!probing)
+      for (const auto& t : targets) failed.push_back(t.point);
+  } else {
+    for (const auto& t : targets) {
+      if (t.field >= static_cast<int>(reply.values.size())) {
+        ++img.counters.errors;
+        img.counters.last_error_text = "reply has fewer values than the model expects";
+        failed.push_back(t.point);
+        continue;
+      }
+      store_polled_value(img.points[static_cast<std::size_t>(t.point)],
+                         reply.values[static_cast<std::size_t>(t.field)], now);
     }
-    img.points[static_cast<std::size_t>(t.point)] = {
-        reply.values[static_cast<std::size_t>(t.field)], now, true};
   }
+  for (const int p : failed) {
+    auto& point = img.points[static_cast<std::size_t>(p)];
+    ++point.failed_polls;
+    ++point.failed_polls_total;
+  }
+  if (!failed.empty()) {
+    ++img.counters.failed_polls;
+    n.failure_report.failed(failed,
+                            reply.status == Reply::Status::ok
+                                ? "reply has fewer values than the model expects"
+                                : fmt::format("{}: {}", to_string(reply.status), reply.text));
+  }
+  if (const auto line =
+          n.failure_report.due(config_->name, n.config->name, img, *n.config->model, now))
+    log::write(line->level, line->text);
+  if (reply.status != Reply::Status::ok) co_return;
   if (on_update_) on_update_(first_node_index_ + n.index);
 }
 

@@ -17,6 +17,7 @@
 #include "gateway/bus/bus.hpp"
 #include "gateway/bus/bus_turn.hpp"
 #include "gateway/bus/pending_command.hpp"
+#include "gateway/bus/poll_failure_report.hpp"
 #include "gateway/bus/poll_plan.hpp"
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/config/gateway_config.hpp"
@@ -81,6 +82,7 @@ class SerialBus final : public Bus {
     LinkTiming timing;      // the bus's, with the node's reply timeout
     int poll_items = 0;     // distinct poll requests of the node
     int refused_polls = 0;  // polls in a row the node answered with a device error
+    PollFailureReport failure_report;
   };
   static constexpr int kProofAttemptsPerCall = 3;
   static constexpr std::chrono::milliseconds kCommandPatience{1000};

@@ -232,19 +232,24 @@ class ConfigParser {
 
   void parse_metrics(const YAML::Node& node, MetricsConfig& m) {
     if (!r_.expect_map(node, "metrics")) return;
-    r_.reject_unknown_keys(node, {"listen", "enabled"}, "metrics");
+    r_.reject_unknown_keys(node, {"listen", "enabled", "allow"}, "metrics");
     m.enabled = true;
     if (node["enabled"]) m.enabled = r_.boolean(node["enabled"], "metrics enabled").value_or(true);
     if (node["listen"]) parse_listen(node["listen"], "metrics listen", m.address, m.port);
+    if (const auto allow = node["allow"]) m.allow = parse_allow(allow, "metrics");
   }
 
   void parse_console(const YAML::Node& node, ConsoleConfig& c) {
     if (!r_.expect_map(node, "console")) return;
-    r_.reject_unknown_keys(node, {"listen", "enabled", "allow", "token_file"}, "console");
+    r_.reject_unknown_keys(
+        node, {"listen", "enabled", "allow", "token_file", "max_pending_per_address"}, "console");
     c.enabled = true;
     if (node["enabled"]) c.enabled = r_.boolean(node["enabled"], "console enabled").value_or(true);
     if (node["listen"]) parse_listen(node["listen"], "console listen", c.address, c.port);
     if (const auto allow = node["allow"]) c.allow = parse_allow(allow, "console");
+    if (const auto cap = node["max_pending_per_address"])
+      c.max_pending_per_address = static_cast<std::size_t>(
+          r_.integer(cap, "console max_pending_per_address", 0, 1024).value_or(16));
     if (const auto file = node["token_file"]) {
       if (const auto text = expand(file, "console token_file")) {
         fs::path p(*text);
@@ -291,9 +296,9 @@ class ConfigParser {
     if (!r_.expect_map(node, what)) return;
     r_.reject_unknown_keys(
         node,
-        {"listen", "max_clients", "when_full", "max_clients_per_address", "idle_timeout",
-         "request_timeout", "word_order", "offline_reads", "writes_enabled", "allow",
-         "read_only_units", "read_only_tables", "name"},
+        {"listen", "max_clients", "when_full", "max_clients_per_address", "max_connects_per_second",
+         "max_connects_per_second_per_address", "idle_timeout", "request_timeout", "word_order",
+         "offline_reads", "writes_enabled", "allow", "read_only_units", "read_only_tables", "name"},
         what);
     if (!named && node["name"])
       r_.error(node["name"], what + ": the default listener has no name (it is '" +
@@ -315,6 +320,13 @@ class ConfigParser {
       m.max_clients_per_address = static_cast<std::size_t>(
           r_.integer(node["max_clients_per_address"], what + " max_clients_per_address", 0, 1024)
               .value_or(0));
+    for (auto [key, field] :
+         {std::pair{"max_connects_per_second", &ModbusConfig::max_connects_per_second},
+          std::pair{"max_connects_per_second_per_address",
+                    &ModbusConfig::max_connects_per_second_per_address}})
+      if (const auto rate = node[key])
+        m.*field = static_cast<std::size_t>(
+            r_.integer(rate, what + " " + key, 0, 100000).value_or(m.*field));
     if (node["idle_timeout"])
       m.idle_timeout =
           r_.duration(node["idle_timeout"], what + " idle_timeout").value_or(m.idle_timeout);
@@ -413,8 +425,10 @@ class ConfigParser {
         node,
         {"reply_timeout", "byte_timeout", "guard_time", "forward_timeout", "inter_frame_gap",
          "turnaround", "retries", "offline_after", "probe_interval", "reconnect_min",
-         "reconnect_max", "heartbeat_timeout", "start_nodes"},
+         "reconnect_max", "heartbeat_timeout", "start_nodes", "stale_after"},
         where);
+    if (node["stale_after"])
+      parse_stale_after(node["stale_after"], t.stale_after, where + " stale_after");
     for (const char* key : {"heartbeat_timeout", "start_nodes"})
       if (node[key] && !can)
         r_.error(node[key], fmt::format("{} {}: only a CAN bus (can: ...) has heartbeats and NMT",
@@ -451,6 +465,22 @@ class ConfigParser {
       r_.error(node["byte_timeout"], where + " byte_timeout: must be greater than 0");
     if (t.reconnect_max < t.reconnect_min)
       r_.error(node, where + ": reconnect_max is smaller than reconnect_min");
+  }
+
+  void parse_stale_after(const YAML::Node& node, StaleAfter& stale, const std::string& where) {
+    if (!r_.expect_map(node, where)) return;
+    r_.reject_unknown_keys(node, {"failed_polls", "periods", "at_least"}, where);
+    if (node["failed_polls"])
+      stale.failed_polls = static_cast<uint32_t>(
+          r_.integer(node["failed_polls"], where + " failed_polls", 0, 1000).value_or(3));
+    if (node["periods"])
+      stale.periods = static_cast<uint32_t>(
+          r_.integer(node["periods"], where + " periods", 0, 1000).value_or(4));
+    if (node["at_least"]) {
+      stale.at_least = r_.duration(node["at_least"], where + " at_least").value_or(stale.at_least);
+      if (stale.at_least.count() < 0)
+        r_.error(node["at_least"], where + " at_least: must not be negative");
+    }
   }
 
   void parse_serial(const YAML::Node& node, SerialSettings& s, const std::string& where,
@@ -729,6 +759,7 @@ class ConfigParser {
                             "reply_timeout", "listener", "profile_unit", "axis_units"},
                            where);
     n.listener = resolve_listener(node["listener"], config, where, bus_listener_);
+    n.stale_after = bus.timing.stale_after;
     if (node["reply_timeout"]) {
       n.reply_timeout = r_.duration(node["reply_timeout"], where + " reply_timeout");
       if (n.reply_timeout && n.reply_timeout->count() <= 0)

@@ -30,6 +30,9 @@ struct ModbusConfig {
   std::size_t max_clients = 32;
   bool evict_when_full = true;              // when_full: evict_idle (true) or refuse
   std::size_t max_clients_per_address = 0;  // 0: no limit
+  // New connections per second (a burst of two seconds' worth); 0: no limit.
+  std::size_t max_connects_per_second_per_address = 40;
+  std::size_t max_connects_per_second = 200;
   microseconds idle_timeout{std::chrono::seconds(300)};
   WordOrder word_order = WordOrder::high_first;
   OfflineReads offline_reads = OfflineReads::exception;
@@ -53,6 +56,15 @@ struct ListenerConfig {
 
 inline constexpr const char* kDefaultListener = "default";
 
+// When a polled point's value is stale and answered 0x0B instead (`timing: stale_after:`; the
+// image's FreshnessPolicy): after `failed_polls` failed polls in a row, or once older than
+// `periods` of its poll period, and at least `at_least`.
+struct StaleAfter {
+  uint32_t failed_polls = 3;
+  uint32_t periods = 4;
+  microseconds at_least{std::chrono::seconds(2)};
+};
+
 struct BusTiming {
   LinkTiming link;
   bool reply_timeout_set = false;  // given in the config (not the default)
@@ -67,6 +79,7 @@ struct BusTiming {
   // this long goes offline; 0 means no heartbeat consumer.
   microseconds heartbeat_timeout{0};
   bool start_nodes = false;  // NMT start for every node at start-up and after its boot-up
+  StaleAfter stale_after;
 };
 
 struct TransportConfig {
@@ -94,6 +107,7 @@ struct NodeConfig {
   std::map<std::string, WriteLimits> limits;         // by point or setpoint name
   std::optional<microseconds> reply_timeout;         // overrides the bus's for this node
   std::size_t listener = 0;  // index of GatewayConfig::listener_modbus: 0 is `modbus:`
+  StaleAfter stale_after;    // its bus's
   std::map<std::string, uint8_t> axis_units;  // profile axis name -> its unit ID
   SourceMark mark;
   // What the node's values depend on: its bus's protocol and link, its address and its model's
@@ -131,6 +145,7 @@ struct MetricsConfig {
   bool enabled = false;
   std::string address = "127.0.0.1";
   uint16_t port = 9502;
+  ClientAllowList allow;  // empty: every peer may scrape
 };
 
 // The web console (gateway/console): read-only pages of the plant, off unless configured.
@@ -141,6 +156,9 @@ struct ConsoleConfig {
   std::string address = "127.0.0.1";
   uint16_t port = 9580;
   ClientAllowList allow;
+  // Connections from one address that have not had a request let in yet; a further one takes
+  // the slot of that address's oldest. 0: no limit.
+  std::size_t max_pending_per_address = 16;
   std::string token_file;
   std::string token_sha256;  // lower-case hex, read from token_file when the config loads
   bool loopback() const;

@@ -16,6 +16,7 @@
 #include "gateway/console/console_access.hpp"
 #include "gateway/console/console_assets.hpp"
 #include "gateway/http/accept_loop.hpp"
+#include "gateway/http/request_reading.hpp"
 #include "gateway/lifecycle/log.hpp"
 
 namespace fieldgate {
@@ -90,6 +91,7 @@ struct ConsoleServer::State : std::enable_shared_from_this<ConsoleServer::State>
   asio::steady_timer accept_retry;
   ConsoleConfig config;
   Snapshot snapshot;
+  HttpConnections connections;
   std::size_t open = 0;     // connections being served now
   std::size_t streams = 0;  // of them, event streams
   int trace_streams = 0;
@@ -168,14 +170,21 @@ std::string_view path_of(std::string_view target) {
   return target.substr(0, target.find('?'));
 }
 
-asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& state) {
-  beast::flat_buffer buffer(8192);
-  http::request_parser<http::empty_body> parser;
-  parser.header_limit(8192);
-  stream.expires_after(ConsoleServer::exchange_timeout);
-  auto [ec, n] = co_await http::async_read(stream, buffer, parser, use_tuple);
-  (void)n;
-  if (ec) co_return;
+asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& state,
+                               HttpConnection& connection) {
+  beast::flat_buffer buffer;
+  http_request::Parser parser;
+  const auto ec =
+      co_await http_request::read(stream, buffer, parser, ConsoleServer::exchange_timeout);
+  if (ec) {
+    if (const auto status = http_request::status_for(ec, parser)) {
+      ++state.stats.bad_requests;
+      auto res = http_request::error_response(*status);
+      common_headers(res);
+      co_await http_request::reply_and_finish(stream, res, ConsoleServer::exchange_timeout);
+    }
+    co_return;
+  }
   ++state.stats.requests;
   const auto& req = parser.get();
   const std::string_view target(req.target().data(), req.target().size());
@@ -199,6 +208,7 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& 
   const ConsoleAsset* asset = find_console_asset(path);
   if (asset && (access == ConsoleAccess::token_missing || access == ConsoleAccess::token_wrong))
     access = ConsoleAccess::allowed;
+  connection.admitted = access == ConsoleAccess::allowed;
   const bool head = req.method() == http::verb::head;
   if (access != ConsoleAccess::allowed) {
     ++state.stats.denied;
@@ -240,12 +250,7 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& 
   }
   res.prepare_payload();
   if (head) res.body().clear();
-  stream.expires_after(ConsoleServer::exchange_timeout);
-  auto [wec, wn] = co_await http::async_write(stream, res, use_tuple);
-  (void)wec;
-  (void)wn;
-  beast::error_code ignored;
-  stream.socket().shutdown(asio::ip::tcp::socket::shutdown_send, ignored);
+  co_await http_request::reply_and_finish(stream, res, ConsoleServer::exchange_timeout);
 }
 
 }  // namespace
@@ -259,8 +264,11 @@ ConsoleServer::~ConsoleServer() {
 }
 
 void ConsoleServer::start() {
-  start_accepting(state_, max_connections,
-                  [](auto& stream, auto& state) { return exchange(stream, state); });
+  start_accepting(state_,
+                  HttpConnectionLimits{max_connections, state_->config.max_pending_per_address},
+                  [](auto& stream, auto& state, HttpConnection& connection) {
+                    return exchange(stream, state, connection);
+                  });
 }
 
 void ConsoleServer::stop() {

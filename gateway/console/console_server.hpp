@@ -19,7 +19,9 @@ namespace asio = boost::asio;
 struct ConsoleServerStats {
   std::uint64_t accepted = 0;
   std::uint64_t requests = 0;
-  std::uint64_t refused = 0;          // closed at once: max_connections were open
+  std::uint64_t refused = 0;          // closed at once: no slot, and none to evict
+  std::uint64_t evicted = 0;          // closed before its request had come, to make room
+  std::uint64_t bad_requests = 0;     // answered 400, 413 or 431: the request could not be parsed
   std::uint64_t denied = 0;           // 403: address or token
   std::uint64_t streams = 0;          // live streams opened
   std::uint64_t streams_dropped = 0;  // a client that stopped reading was cut off
@@ -34,6 +36,12 @@ class ConsoleServer {
  public:
   using Snapshot = std::function<std::string()>;
 
+  // Beyond max_connections, a newcomer takes the slot of the connection that has waited longest
+  // without a request let in (address and token); only if every one has been let in is it
+  // closed at once. Beyond ConsoleConfig::max_pending_per_address connections from one address
+  // not let in yet, it takes the slot of that address's oldest such one. So clients that hold
+  // slots without sending a request, however fast they reconnect, never keep a user with the
+  // token out.
   static constexpr std::size_t max_connections = 160;
   static constexpr std::size_t max_streams = 128;
   // A request must arrive, and each write of a reply or event go out, within this.

@@ -146,7 +146,7 @@ asio::awaitable<ControlResult> ControlService::apply(ControlWrite w) {
         co_return result;
       }
       // The confirmed value until the next poll; for a write-only point, its only readback.
-      image_.node(w.node).points[index] = {w.value, Clock::now(), true};
+      store_polled_value(image_.node(w.node).points[index], w.value, Clock::now());
       co_return result;
     }
     case ControlWrite::Kind::action: {
@@ -167,10 +167,12 @@ asio::awaitable<ControlResult> ControlService::write(ControlWrite w, WritePolicy
   co_return co_await apply(w);
 }
 
-asio::awaitable<ControlResult> ControlService::start_action(int node, const ActionDef& action,
-                                                            std::shared_ptr<ActionState> slot) {
+asio::awaitable<ControlResult> ControlService::start_action(
+    int node, const ActionDef& action, std::shared_ptr<ActionState> slot,
+    std::optional<ActionArguments> arguments) {
   const ModelPtr model = node_config(node).model;
-  const Reply reply = co_await actions_.start(node, model, action, std::move(slot));
+  const Reply reply =
+      co_await actions_.start(node, model, action, std::move(slot), std::move(arguments));
   co_return control_result_of(reply);
 }
 

@@ -4,6 +4,7 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -64,8 +65,10 @@ class ControlService {
   // action made of urgent steps, a stop byte, gets past it).
   bool line_held_for(int node, const ActionDef& action) const;
   // Starts an action whose status goes to `slot` (a profile axis keeps its own).
-  asio::awaitable<ControlResult> start_action(int node, const ActionDef& action,
-                                              std::shared_ptr<ActionState> slot);
+  // `arguments`: what its steps send (by default the node's setpoints as they are now).
+  asio::awaitable<ControlResult> start_action(
+      int node, const ActionDef& action, std::shared_ptr<ActionState> slot,
+      std::optional<ActionArguments> arguments = std::nullopt);
 
   const NodeConfig& node_config(int node) const {
     return *nodes_.at(static_cast<std::size_t>(node));

@@ -1,9 +1,12 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
 
+#include "gateway/image/node_turn.hpp"
 #include "mapping/axis_profile.hpp"
 
 namespace fieldgate {
@@ -25,6 +28,14 @@ struct ProfileAxisRuntime {
   std::shared_ptr<ActionState> action;
   bool error_latched = false;
   uint16_t error_id = 0;
+  // What the running command runs with and what proves it done: its arguments (for each of its
+  // actions), the position it must end at (moves), and the controller's resets when it was
+  // accepted (a reset since ends it failed).
+  ActionArguments arguments;
+  std::optional<int64_t> target;
+  uint64_t resets = 0;
+  std::optional<int64_t> reset_count;
+  std::chrono::steady_clock::time_point accepted{};
 };
 
 }  // namespace fieldgate

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "gateway/image/axis_profile_state.hpp"
+#include "gateway/image/node_turn.hpp"
 #include "mapping/node_diagnostics.hpp"
 
 namespace fieldgate {
@@ -19,6 +20,28 @@ struct PointValue {
   int64_t value = 0;
   SteadyTime updated{};
   bool valid = false;  // a good reply has been seen
+  // Polls of the point that failed (timeout, garbled, refused, unreachable): in a row since its
+  // last good value (a value stored with {value, time, true} clears it), and in all. A bus keeps
+  // the total across a good value with store_polled_value().
+  uint32_t failed_polls = 0;
+  uint64_t failed_polls_total = 0;
+};
+
+// A polled value arrived: fresh again, its failure total kept.
+inline void store_polled_value(PointValue& point, int64_t value, SteadyTime at) {
+  point = {value, at, true, 0, point.failed_polls_total};
+}
+
+// When a polled point's value is stale, so never served (gateway/image/point_freshness.hpp): its
+// last `failed_polls` polls failed, or it is older than `periods` of its poll period and
+// `at_least`. Set by the bus from its `timing: stale_after:` (docs/configuration.md).
+struct FreshnessPolicy {
+  uint32_t failed_polls = 3;  // 0: failures alone never make a point stale
+  uint32_t periods = 4;       // 0: no age bound
+  std::chrono::microseconds at_least{std::chrono::seconds(2)};
+  // By model point index: the period the bus polls it at (the node's poll: overrides applied);
+  // empty, or 0 for a point: the model's poll class period.
+  std::vector<std::chrono::microseconds> poll_periods;
 };
 
 // faulted: the node answers, but refuses every poll (e.g. a wrong axis letter): its values are
@@ -36,6 +59,9 @@ struct NodeCounters {
   // Commands (writes, action steps) that got no valid reply: sent, so they may have run. Also
   // counted in timeouts or errors; a PLC must not assume either outcome.
   uint64_t unknown_writes = 0;
+  // Polls that failed (PointValue::failed_polls counts them per point); a probe of an offline
+  // node is not counted.
+  uint64_t failed_polls = 0;
   int64_t last_device_error = 0;
   std::string last_error_text;
   SteadyTime last_good{};
@@ -64,6 +90,8 @@ inline constexpr uint16_t kActionErrorNoReply = 0xfffc;
 // The reply that should have ended a step arrived corrupted (not a valid reply to it): it may
 // have run; never retried. Told apart from no reply at all.
 inline constexpr uint16_t kActionErrorGarbled = 0xfffb;
+// kActionErrorControllerReset (0xfffa, mapping/axis_profile.hpp): the controller reset while
+// the action ran.
 
 struct NodeImage {
   std::vector<PointValue> points;  // by model point index
@@ -74,10 +102,16 @@ struct NodeImage {
   std::vector<int64_t> setpoints;  // by model setpoint index
   NodeCounters counters;
   NodeState state = NodeState::starting;
+  // Resets, power cycles, boot-ups and sign-ons of the controller that the gateway saw (from its
+  // family, a CANopen boot-up or the model's reset indication): a command running across one
+  // never ends done.
+  uint64_t controller_resets = 0;
+  std::shared_ptr<NodeTurnState> turn = std::make_shared<NodeTurnState>();
   // The values were read by the bus a reload replaced (the node itself unchanged): served, with
   // their age, while this node is still starting on the new bus.
   bool carried_over = false;
   ActionState action;
+  FreshnessPolicy freshness;
   std::vector<ProfileAxisRuntime> profile_axes;  // by the model's profile axis index
 };
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 
 #include "gateway/gateway.hpp"
+#include "gateway/image/point_freshness.hpp"
 #include "gateway/metrics/process_metrics.hpp"
 #include "gateway/sparkplug/session_stats.hpp"
 
@@ -169,6 +170,20 @@ std::string render_metrics(const Gateway& gateway) {
       w.sample("fieldgate_node_last_good_poll_age_seconds", node_labels[i],
                std::chrono::duration<double>(now - c.last_good).count());
   }
+  w.family("fieldgate_node_stale_points", "gauge",
+           "Points whose value is stale: its last polls failed, or it is older than its bound.");
+  {
+    std::size_t i = 0;
+    for (const auto& bus : config.gateway.buses)
+      for (const auto& node : bus.nodes) {
+        const auto& n = image.node(static_cast<int>(i));
+        std::size_t stale = 0;
+        for (std::size_t p = 0; p < n.points.size(); ++p)
+          if (n.points[p].valid && !point_is_fresh(n, *node.model, p, now)) ++stale;
+        w.sample("fieldgate_node_stale_points", node_labels[i], static_cast<double>(stale));
+        ++i;
+      }
+  }
   struct NodeCounter {
     const char* name;
     const char* help;
@@ -182,6 +197,9 @@ std::string render_metrics(const Gateway& gateway) {
        "Transactions a forwarding device reported the node unreachable for (Copley e 32).",
        &NodeCounters::unreachable},
       {"fieldgate_node_errors_total", "Device errors and garbled replies.", &NodeCounters::errors},
+      {"fieldgate_node_failed_polls_total",
+       "Polls that fed no value (timeout, garbled, refused, unreachable), probes aside.",
+       &NodeCounters::failed_polls},
   };
   for (const auto& c : node_counters) {
     w.family(c.name, "counter", c.help);
@@ -218,18 +236,26 @@ std::string render_metrics(const Gateway& gateway) {
   for (const auto& [l, stats] : listeners)
     w.sample("fieldgate_modbus_clients", l, static_cast<double>(stats->clients_connected));
   w.family("fieldgate_modbus_clients_refused_total", "counter",
-           "Connections closed at once: client limit or allow list.");
+           "Connections closed at once, by the rule that refused them (docs/modbus-tcp.md).");
   for (const auto& [l, stats] : listeners) {
-    w.sample("fieldgate_modbus_clients_refused_total", l + ",reason=\"max_clients\"",
-             static_cast<double>(stats->clients_refused));
-    w.sample("fieldgate_modbus_clients_refused_total", l + ",reason=\"allow_list\"",
-             static_cast<double>(stats->clients_denied));
+    const auto& r = stats->refused;
+    for (const auto& [reason, count] :
+         {std::pair{"max_clients", r.max_clients}, std::pair{"per_address", r.per_address},
+          std::pair{"connect_rate_per_address", r.rate_per_address},
+          std::pair{"connect_rate", r.rate}, std::pair{"no_idle_client", r.no_idle_client},
+          std::pair{"allow_list", stats->clients_denied}})
+      w.sample("fieldgate_modbus_clients_refused_total", fmt::format("{},reason=\"{}\"", l, reason),
+               static_cast<double>(count));
   }
   w.family("fieldgate_modbus_clients_evicted_total", "counter",
-           "Idle connections closed to make room for a new one (when_full: evict_idle).");
-  for (const auto& [l, stats] : listeners)
-    w.sample("fieldgate_modbus_clients_evicted_total", l,
-             static_cast<double>(stats->clients_evicted));
+           "Connections closed to make room for a new one (when_full: evict_idle), by the rule: "
+           "never_spoke (no complete request), overdue (silent beyond its own polling rhythm).");
+  for (const auto& [l, stats] : listeners) {
+    w.sample("fieldgate_modbus_clients_evicted_total", l + ",reason=\"never_spoke\"",
+             static_cast<double>(stats->evicted.never_spoke));
+    w.sample("fieldgate_modbus_clients_evicted_total", l + ",reason=\"overdue\"",
+             static_cast<double>(stats->evicted.overdue));
+  }
   if (const auto* rtu = gateway.rtu_server()) {
     const auto& r = rtu->stats();
     const std::string port = fmt::format("port=\"{}\"", label(rtu->options().serial.device));

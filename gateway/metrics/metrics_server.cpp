@@ -10,6 +10,7 @@
 
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/http/accept_loop.hpp"
+#include "gateway/http/request_reading.hpp"
 
 namespace fieldgate {
 
@@ -21,11 +22,15 @@ constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
 }
 
 struct MetricsServer::State {
-  State(asio::any_io_executor ex, asio::ip::tcp::endpoint ep, Render r)
-      : acceptor(ex, ep), accept_retry(ex), render(std::move(r)) {}
+  State(asio::any_io_executor ex, asio::ip::tcp::endpoint ep, Render r, ClientAllowList a)
+      : acceptor(ex, ep), accept_retry(ex), render(std::move(r)), allow(std::move(a)) {}
   asio::ip::tcp::acceptor acceptor;
   asio::steady_timer accept_retry;
   Render render;
+  ClientAllowList allow;
+  // Closed unanswered, as the Modbus listener does with a client off its allow list.
+  bool denies(const asio::ip::address& peer) const { return !allow.allows(peer); }
+  HttpConnections connections;
   std::size_t open = 0;  // connections being served now
   MetricsServerStats stats;
   bool stopped = false;
@@ -33,15 +38,22 @@ struct MetricsServer::State {
 
 namespace {
 
-asio::awaitable<void> exchange(beast::tcp_stream& stream, MetricsServer::State& state) {
-  beast::flat_buffer buffer(8192);
-  http::request_parser<http::empty_body> parser;
-  parser.header_limit(8192);
+asio::awaitable<void> exchange(beast::tcp_stream& stream, MetricsServer::State& state,
+                               HttpConnection& connection) {
+  beast::flat_buffer buffer;
+  http_request::Parser parser;
   // One deadline for the whole exchange, reading and writing: a scraper is local and quick.
-  stream.expires_after(MetricsServer::exchange_timeout);
-  auto [ec, n] = co_await http::async_read(stream, buffer, parser, use_tuple);
-  (void)n;
-  if (ec) co_return;
+  const auto ec =
+      co_await http_request::read(stream, buffer, parser, MetricsServer::exchange_timeout);
+  if (ec) {
+    if (const auto status = http_request::status_for(ec, parser)) {
+      ++state.stats.bad_requests;
+      auto res = http_request::error_response(*status);
+      co_await http_request::reply_and_finish(stream, res, MetricsServer::exchange_timeout);
+    }
+    co_return;
+  }
+  connection.admitted = true;
   const auto& req = parser.get();
   http::response<http::string_body> res;
   res.version(req.version());
@@ -65,26 +77,24 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, MetricsServer::State& 
   }
   res.prepare_payload();
   if (req.method() == http::verb::head) res.body().clear();
-  auto [wec, wn] = co_await http::async_write(stream, res, use_tuple);
-  (void)wec;
-  (void)wn;
-  beast::error_code ignored;
-  stream.socket().shutdown(asio::ip::tcp::socket::shutdown_send, ignored);
+  co_await http_request::reply_and_finish(stream, res, MetricsServer::exchange_timeout);
 }
 
 }  // namespace
 
 MetricsServer::MetricsServer(asio::any_io_executor executor, asio::ip::tcp::endpoint endpoint,
-                             Render render)
-    : state_(std::make_shared<State>(executor, endpoint, std::move(render))) {}
+                             Render render, ClientAllowList allow)
+    : state_(std::make_shared<State>(executor, endpoint, std::move(render), std::move(allow))) {}
 
 MetricsServer::~MetricsServer() {
   stop();
 }
 
 void MetricsServer::start() {
-  start_accepting(state_, max_connections,
-                  [](auto& stream, auto& state) { return exchange(stream, state); });
+  start_accepting(state_, HttpConnectionLimits{max_connections, 0},
+                  [](auto& stream, auto& state, HttpConnection& connection) {
+                    return exchange(stream, state, connection);
+                  });
 }
 
 void MetricsServer::stop() {

@@ -10,18 +10,24 @@
 #include <memory>
 #include <string>
 
+#include "gateway/modbus/access_control.hpp"
+
 namespace fieldgate {
 
 namespace asio = boost::asio;
 
 struct MetricsServerStats {
   std::uint64_t accepted = 0;
-  std::uint64_t refused = 0;  // closed at once: max_connections were open
+  std::uint64_t refused = 0;       // closed at once: max_connections were open, none to evict
+  std::uint64_t evicted = 0;       // closed while its request had not come, to make room
+  std::uint64_t denied = 0;        // closed unanswered: the peer is not on the allow list
+  std::uint64_t bad_requests = 0;  // answered 400, 413 or 431: the request could not be parsed
 };
 
 // A minimal HTTP/1.1 endpoint (Boost.Beast) answering GET /metrics with the text the callback
-// renders, and POST /trace?bus=NAME&on=1 (the wire trace switch); anything else gets 404 or 405.
-// One short-lived coroutine per connection.
+// renders, and POST /trace?bus=NAME&on=1 (the wire trace switch); anything else gets 404 or 405,
+// and a request that cannot be parsed 400, 413 or 431 (gateway/http/request_reading.hpp). With an
+// allow list, a peer off it is closed unanswered. One short-lived coroutine per connection.
 class MetricsServer {
  public:
   using Render = std::function<std::string()>;
@@ -34,8 +40,10 @@ class MetricsServer {
   // closed.
   static constexpr std::chrono::seconds exchange_timeout{2};
 
-  // Binds at once; throws boost::system::system_error if it cannot.
-  MetricsServer(asio::any_io_executor executor, asio::ip::tcp::endpoint endpoint, Render render);
+  // Binds at once; throws boost::system::system_error if it cannot. An empty allow list lets
+  // every peer in.
+  MetricsServer(asio::any_io_executor executor, asio::ip::tcp::endpoint endpoint, Render render,
+                ClientAllowList allow = {});
   ~MetricsServer();
   void start();
   void stop();

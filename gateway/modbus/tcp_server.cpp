@@ -1,6 +1,8 @@
 #include "gateway/modbus/tcp_server.hpp"
 
+#include <algorithm>
 #include <list>
+#include <map>
 
 #include <boost/asio/as_tuple.hpp>
 #include <boost/asio/co_spawn.hpp>
@@ -66,11 +68,50 @@ struct Session {
   // When the last complete request arrived (or the connection, before the first one).
   Clock::time_point last_request = Clock::now();
   bool answering = false;  // a request is being answered: never evicted
-  bool closing = false;    // evicted or denied; its coroutine has not finished yet
+  bool spoke = false;      // a request of it has been complete
+  bool probation = false;  // let in over max_clients; settled at its first request
+  // Its usual time between requests (smoothed), zero until it has sent two.
+  Clock::duration rhythm{};
+  bool closing = false;  // evicted or denied; its coroutine has not finished yet
   bool timed_out = false;
   MbapFramer framer;
   std::vector<std::uint8_t> out;
 };
+
+// New connections at `rate` per second, refilled continuously; it holds two seconds' worth, so a
+// fleet of PLCs reconnecting together after a network outage gets in.
+struct ConnectBucket {
+  static constexpr double burst_seconds = 2;
+  double tokens = 0;
+  Clock::time_point at{};
+
+  static double capacity(std::size_t rate) { return burst_seconds * static_cast<double>(rate); }
+  double now_holding(std::size_t rate, Clock::time_point now) const {
+    if (at == Clock::time_point{}) return capacity(rate);
+    return std::min(capacity(rate), tokens + std::chrono::duration<double>(now - at).count() *
+                                                 static_cast<double>(rate));
+  }
+  bool take(std::size_t rate, Clock::time_point now) {
+    tokens = now_holding(rate, now);
+    at = now;
+    if (tokens < 1) return false;
+    tokens -= 1;
+    return true;
+  }
+  bool refilled(std::size_t rate, Clock::time_point now) const {
+    return now_holding(rate, now) >= capacity(rate);
+  }
+};
+
+// How long an answered connection may stay silent before it counts as gone: several of its own
+// intervals, never less than the floor.
+constexpr int overdue_intervals = 4;
+constexpr int overdue_single_request = 5;  // floors, for a client with no rhythm yet
+
+Clock::duration overdue_after(const Session& s, Clock::duration floor) {
+  if (s.rhythm == Clock::duration::zero()) return overdue_single_request * floor;
+  return std::max(floor, overdue_intervals * s.rhythm);
+}
 
 }  // namespace
 
@@ -158,7 +199,12 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
         ++stats_.clients_denied;
         continue;  // the socket closes as it goes out of scope
       }
-      if (!admit(peer)) {
+      if (!within_rate(peer)) {
+        ++stats_.clients_refused;
+        continue;
+      }
+      bool probation = false;
+      if (!admit(peer, probation)) {
         ++stats_.clients_refused;
         continue;
       }
@@ -170,31 +216,107 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
       // The session is listed at once, so the next accept already counts it.
       const auto port = socket.remote_endpoint(peer_ec).port();
       sessions_.push_back(std::make_shared<Session>(std::move(socket), peer, port));
+      sessions_.back()->probation = probation;
       ++stats_.clients_accepted;
       ++stats_.clients_connected;
       asio::co_spawn(executor_, run_session(self, std::prev(sessions_.end())), asio::detached);
     }
   }
 
-  // Whether a new connection from `peer` may be served, making room first if the policy says so.
-  bool admit(const asio::ip::address& peer) {
+  // The connect rates, checked before any open connection is looked at.
+  bool within_rate(const asio::ip::address& peer) {
+    const auto now = Clock::now();
+    if (const std::size_t rate = options_.max_connects_per_second_per_address; rate != 0) {
+      // Addresses whose bucket has refilled are as good as new: dropping them bounds the map.
+      if (connect_buckets_.size() > 1024)
+        std::erase_if(connect_buckets_,
+                      [&](const auto& entry) { return entry.second.refilled(rate, now); });
+      if (!connect_buckets_[peer].take(rate, now)) {
+        ++stats_.refused.rate_per_address;
+        return false;
+      }
+    }
+    if (const std::size_t rate = options_.max_connects_per_second; rate != 0) {
+      if (!connect_bucket_.take(rate, now)) {
+        ++stats_.refused.rate;
+        return false;
+      }
+    }
+    return true;
+  }
+
+  // Whether a new connection from `peer` may be served, making room first if the policy says
+  // so; `probation` is set when it is let in over max_clients (see WhenFull::evict_idle).
+  bool admit(const asio::ip::address& peer, bool& probation) {
     std::size_t open = 0;
     std::size_t from_peer = 0;
-    std::shared_ptr<Session> idlest;
+    std::shared_ptr<Session> silent;  // the oldest that never completed a request
     for (const auto& session : sessions_) {
       if (session->closing) continue;
       ++open;
       if (session->peer == peer) ++from_peer;
-      if (!session->answering && (!idlest || session->last_request < idlest->last_request))
-        idlest = session;
+      if (!session->spoke && !session->answering &&
+          (!silent || session->connected_at < silent->connected_at))
+        silent = session;
     }
-    if (options_.max_clients_per_address != 0 && from_peer >= options_.max_clients_per_address)
+    if (options_.max_clients_per_address != 0 && from_peer >= options_.max_clients_per_address) {
+      ++stats_.refused.per_address;
       return false;
+    }
     if (options_.max_clients == 0 || open < options_.max_clients) return true;
-    if (options_.when_full == WhenFull::refuse || !idlest) return false;
-    idlest->closing = true;
-    idlest->close();
+    if (options_.when_full == WhenFull::refuse) {
+      ++stats_.refused.max_clients;
+      return false;
+    }
+    if (silent) {
+      evict(*silent);
+      ++stats_.evicted.never_spoke;
+      return true;
+    }
+    // Every open connection has been answered: none is closed for a newcomer that has not
+    // completed a request yet. Any earlier probationer has spoken, and so is settled.
+    probation = true;
+    return true;
+  }
+
+  void evict(Session& s) {
+    s.closing = true;
+    s.close();
     ++stats_.clients_evicted;
+  }
+
+  // A probationer's first request is complete: the most overdue answered connection makes
+  // room for it, or, if every client is working, it goes. False: it is to be closed.
+  bool settle(Session& newcomer) {
+    newcomer.probation = false;
+    const auto now = Clock::now();
+    std::size_t open = 0;
+    Session* overdue = nullptr;
+    double worst = 0;
+    for (const auto& session : sessions_) {
+      if (session->closing) continue;
+      ++open;
+      if (session.get() == &newcomer || session->answering || !session->spoke) continue;
+      const auto idle = now - session->last_request;
+      const auto limit = std::max<Clock::duration>(overdue_after(*session, options_.overdue_floor),
+                                                   std::chrono::milliseconds(1));
+      if (idle <= limit) continue;
+      const double ratio = std::chrono::duration<double>(idle).count() /
+                           std::chrono::duration<double>(limit).count();
+      if (!overdue || ratio > worst) {
+        overdue = session.get();
+        worst = ratio;
+      }
+    }
+    // Someone left meanwhile, or the limit was raised by a reload.
+    if (options_.max_clients == 0 || open <= options_.max_clients) return true;
+    if (!overdue) {
+      ++stats_.refused.no_idle_client;
+      ++stats_.clients_refused;
+      return false;
+    }
+    evict(*overdue);
+    ++stats_.evicted.overdue;
     return true;
   }
 
@@ -223,7 +345,14 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
       MbapFramer::Frame frame;
       MbapFramer::Status status;
       while ((status = framer.next(frame)) == MbapFramer::Status::frame) {
-        s.last_request = Clock::now();
+        const auto now = Clock::now();
+        if (s.probation && !settle(s)) co_return;
+        if (s.spoke) {
+          const auto interval = now - s.last_request;
+          s.rhythm = s.rhythm == Clock::duration::zero() ? interval : (7 * s.rhythm + interval) / 8;
+        }
+        s.spoke = true;
+        s.last_request = now;
         s.answering = true;
         const bool keep_open = co_await answer(s, frame);
         s.answering = false;
@@ -308,6 +437,8 @@ class ModbusTcpServer::Impl : public std::enable_shared_from_this<Impl> {
   tcp::acceptor acceptor_;
   asio::steady_timer accept_retry_;
   std::list<std::shared_ptr<Session>> sessions_;
+  std::map<asio::ip::address, ConnectBucket> connect_buckets_;
+  ConnectBucket connect_bucket_;
   ModbusTcpServerStats stats_;
   bool started_ = false;
   bool stopped_ = false;

@@ -19,10 +19,19 @@ namespace fieldgate::modbus {
 
 // What a new connection does to a server already at max_clients.
 enum class WhenFull {
-  // The open connection that has gone longest without a complete request (since it connected,
-  // if it never sent one) is closed to make room (counted as evicted). Connections whose
-  // request is being answered are never chosen; if every one is, the newcomer is refused. A
-  // stalled or half-sent socket thus cannot keep a PLC that reconnects from getting in.
+  // Room is made, but a connection that has been answered is never closed for one that has not
+  // completed a request:
+  // - the oldest connection that never completed a request is closed (evicted, never_spoke);
+  // - if every open connection has, the newcomer is let in over the limit on probation: once
+  //   its first request is complete, the answered connection most overdue against its own
+  //   polling rhythm (silent for more than 4 of its usual intervals, and at least
+  //   overdue_floor; 5 overdue_floor for one that sent a single request) is closed (evicted,
+  //   overdue) and the request served. If
+  //   none is overdue, every open client is working: the newcomer is closed unanswered
+  //   (refused, no_idle_client).
+  // Connections whose request is being answered are never chosen. A stalled or half-sent
+  // socket thus cannot keep a PLC that reconnects from getting in, and peers that connect and
+  // say nothing cannot push out a PLC that polls, however fast they come.
   evict_idle,
   // The newcomer is accepted and closed at once (counted as refused).
   refuse,
@@ -37,6 +46,16 @@ struct ModbusTcpServerOptions {
   // Open connections per client address at most; a further one from that address is refused,
   // whatever when_full says, so one host cannot take every slot. 0 = no limit.
   std::size_t max_clients_per_address = 0;
+  // New connections accepted per second at most, from one client address and from all
+  // together (each a token bucket holding two seconds' worth). A connection beyond either is
+  // closed at once, before any open connection is looked at; one refused for its address does
+  // not count against the total, so one flooding address does not shut out the others.
+  // 0 = no limit.
+  std::size_t max_connects_per_second_per_address = 0;
+  std::size_t max_connects_per_second = 0;
+  // An answered connection silent for less than this is never overdue (see WhenFull), whatever
+  // its rhythm: it covers a PLC's scan jitter.
+  std::chrono::steady_clock::duration overdue_floor = std::chrono::seconds(2);
   // No new request started for this long: the connection is closed. Zero disables.
   std::chrono::steady_clock::duration idle_timeout = std::chrono::seconds(60);
   // A request not completely received, or a reply not completely sent, within this time:
@@ -54,15 +73,32 @@ struct FunctionCounters {
   std::array<std::uint64_t, 12> exception_codes{};
 };
 
+// Why a new connection was closed at once (counted in clients_refused too).
+struct RefusedCounters {
+  std::uint64_t max_clients = 0;       // full, when_full: refuse
+  std::uint64_t per_address = 0;       // max_clients_per_address
+  std::uint64_t rate_per_address = 0;  // max_connects_per_second_per_address
+  std::uint64_t rate = 0;              // max_connects_per_second
+  std::uint64_t no_idle_client = 0;    // full of working clients (evict_idle, on probation)
+};
+
+// Why an open connection was closed to make room (counted in clients_evicted too).
+struct EvictedCounters {
+  std::uint64_t never_spoke = 0;  // had not completed a request
+  std::uint64_t overdue = 0;      // silent well beyond its own polling rhythm
+};
+
 struct ModbusTcpServerStats {
   std::array<FunctionCounters, 256> functions{};  // indexed by the request's function code
   std::uint64_t clients_connected = 0;            // open now
   std::uint64_t clients_accepted = 0;             // served since start
   std::uint64_t clients_refused = 0;              // closed at once: a client limit reached
-  std::uint64_t clients_evicted = 0;              // closed to make room (WhenFull::evict_idle)
-  std::uint64_t clients_denied = 0;               // closed at once: allow_client said no
-  std::uint64_t clients_timed_out = 0;            // closed by idle_timeout / request_timeout
-  std::uint64_t framing_errors = 0;               // closed: bad MBAP protocol id or length
+  RefusedCounters refused;
+  std::uint64_t clients_evicted = 0;  // closed to make room (WhenFull::evict_idle)
+  EvictedCounters evicted;
+  std::uint64_t clients_denied = 0;     // closed at once: allow_client said no
+  std::uint64_t clients_timed_out = 0;  // closed by idle_timeout / request_timeout
+  std::uint64_t framing_errors = 0;     // closed: bad MBAP protocol id or length
 };
 
 // One open client connection, for the console.

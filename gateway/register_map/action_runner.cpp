@@ -18,6 +18,9 @@ using namespace boost::asio::experimental::awaitable_operators;
 
 namespace {
 constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
+// How long an action that names other axes' positions waits for them to be read after the
+// action before it on the node let go of the line.
+constexpr auto kHeldValuePatience = std::chrono::seconds(5);
 using Clock = std::chrono::steady_clock;
 using ReplyChannel = asio::experimental::channel<void(boost::system::error_code, Reply)>;
 
@@ -95,34 +98,79 @@ ActionState& ActionRunner::state_of(int node_index, const std::shared_ptr<Action
 
 asio::awaitable<Reply> ActionRunner::start(int node_index, ModelPtr model_ptr,
                                            const ActionDef& action,
-                                           std::shared_ptr<ActionState> slot) {
+                                           std::shared_ptr<ActionState> slot,
+                                           std::optional<ActionArguments> arguments) {
   auto& state = state_of(node_index, slot);
   const uint64_t generation = ++state.generation;
   state.status = ActionStatus::busy;
   state.code = action.code;
   state.error = 0;
   ++state.sequence;
+  ActionArguments args = arguments ? std::move(*arguments)
+                                   : ActionArguments{image_.node(node_index).setpoints, {}, {}};
   const bool confirms_early =
       std::any_of(action.steps.begin(), action.steps.end(),
                   [](const ActionStep& s) { return s.confirm_after.has_value(); });
   if (!confirms_early)
-    co_return co_await run_steps(node_index, model_ptr, action, generation, slot, {});
+    co_return co_await run_steps(node_index, model_ptr, action, generation, slot, {},
+                                 std::move(args));
   auto confirmation = std::make_shared<Confirmation>(executor_);
-  asio::co_spawn(
-      executor_,
-      run_in_background(node_index, std::move(model_ptr), action, generation, slot, confirmation),
-      asio::detached);
+  asio::co_spawn(executor_,
+                 run_in_background(node_index, std::move(model_ptr), action, generation, slot,
+                                   confirmation, std::move(args)),
+                 asio::detached);
   auto [ec, reply] = co_await confirmation->channel.async_receive(use_tuple);
   if (ec) co_return Reply::of(Reply::Status::link_down, "gateway stopping");
   co_return reply;
 }
 
+bool ActionRunner::takes_turn(const ActionDef& action) {
+  if (action.bus_wide) return false;
+  return !std::all_of(action.steps.begin(), action.steps.end(), [](const ActionStep& s) {
+    return s.urgent || s.kind == ActionStep::Kind::delay;
+  });
+}
+
+asio::awaitable<std::shared_ptr<HeldTurn>> ActionRunner::take_turn(int node_index) {
+  co_return co_await fieldgate::take_turn(image_.node(node_index).turn);
+}
+
 asio::awaitable<void> ActionRunner::run_in_background(int node_index, ModelPtr model_ptr,
                                                       const ActionDef& action, uint64_t generation,
                                                       std::shared_ptr<ActionState> slot,
-                                                      std::shared_ptr<Confirmation> confirmation) {
+                                                      std::shared_ptr<Confirmation> confirmation,
+                                                      ActionArguments arguments) {
   co_await run_steps(node_index, std::move(model_ptr), action, generation, std::move(slot),
-                     confirmation);
+                     confirmation, std::move(arguments));
+}
+
+asio::awaitable<bool> ActionRunner::fill_held(int node_index, const Model& model,
+                                              ActionArguments& arguments, SteadyTime since) {
+  auto& node = image_.node(node_index);
+  const auto fresh = [&] {
+    return std::all_of(arguments.hold.begin(), arguments.hold.end(), [&](const auto& h) {
+      const auto& v = node.points[h.second];
+      return v.valid && v.updated > since;
+    });
+  };
+  if (!fresh()) {
+    log::debug("node {}: waiting for a reading of the held points after the previous action",
+               node_index);
+    asio::steady_timer wake(executor_);
+    node.waiters.push_back(&wake);
+    const auto deadline = Clock::now() + kHeldValuePatience;
+    while (!fresh() && !stopping_ && Clock::now() < deadline) {
+      wake.expires_at(deadline);
+      co_await wake.async_wait(use_tuple);
+    }
+    node.waiters.erase(std::remove(node.waiters.begin(), node.waiters.end(), &wake),
+                       node.waiters.end());
+    if (!fresh()) co_return false;
+  }
+  for (const auto& [setpoint, point] : arguments.hold)
+    if (setpoint < arguments.setpoints.size() && point < model.points.size())
+      arguments.setpoints[setpoint] = node.points[point].value;
+  co_return true;
 }
 
 asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index, int number,
@@ -167,17 +215,44 @@ asio::awaitable<Reply> ActionRunner::submit_confirming(Bus& bus, int node_index,
 asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_ptr,
                                                const ActionDef& action, uint64_t generation,
                                                std::shared_ptr<ActionState> slot,
-                                               std::shared_ptr<Confirmation> confirmation) {
+                                               std::shared_ptr<Confirmation> confirmation,
+                                               ActionArguments arguments) {
   const Model& model = *model_ptr;
   auto& state = state_of(node_index, slot);
   auto& bus = bus_of_(node_index);
   const NodeImage& node = image_.node(node_index);
-  const auto& setpoints = node.setpoints;
+  const uint64_t resets = node.controller_resets;
   const std::string node_name = bus.node_config(node_index).name;
+  std::shared_ptr<HeldTurn> turn = std::move(arguments.turn);
+  if (!turn && takes_turn(action)) turn = co_await take_turn(node_index);
+  if (state.generation != generation) {
+    // A newer action of the same slot took over while this one waited for the node's turn:
+    // none of its steps went out.
+    if (confirmation) confirmation->give(Reply::of(Reply::Status::ok));
+    co_return Reply::of(Reply::Status::ok, "superseded before it was sent");
+  }
+  if (!arguments.hold.empty()) {
+    // Read after the previous holder of the turn let go; an action that takes no turn (a stop)
+    // goes out at once with the values as they are.
+    const SteadyTime since = turn ? turn->previous_release() : SteadyTime{};
+    const bool filled = co_await fill_held(node_index, model, arguments, since);
+    if (!filled) {
+      Reply unknown = Reply::of(Reply::Status::unreachable,
+                                "no reading of the held points after the previous action");
+      if (state.generation == generation) {
+        state.status = ActionStatus::error;
+        state.error = kActionErrorUnreachable;
+      }
+      log::warning("node {}: action {} not sent: {}", node_name, action.name, unknown.text);
+      if (confirmation) confirmation->give(unknown);
+      co_return unknown;
+    }
+  }
+  const auto& setpoints = arguments.setpoints;
   // A reload between two steps may renumber the node on its bus (a node added before it).
   const uint64_t numbering = bus.numbering();
   const auto lookup = [&](std::string_view name) -> int64_t {
-    for (std::size_t i = 0; i < model.setpoints.size(); ++i)
+    for (std::size_t i = 0; i < model.setpoints.size() && i < setpoints.size(); ++i)
       if (model.setpoints[i].name == name) return setpoints[i];
     return 0;  // unreachable: placeholders are checked against setpoints at load
   };
@@ -219,12 +294,14 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
       co_return reply;
     }
   }
+  turn.reset();
   if (confirmation) confirmation->give(reply);
   if (!action.done && !action.failed) {
     if (state.generation == generation) state.status = ActionStatus::done;
     co_return reply;
   }
-  asio::co_spawn(executor_, watch(node_index, model_ptr, action, generation, slot, Clock::now()),
+  asio::co_spawn(executor_,
+                 watch(node_index, model_ptr, action, generation, slot, Clock::now(), resets),
                  asio::detached);
   co_return reply;
 }
@@ -283,7 +360,7 @@ bool ActionRunner::refreshed_since(const NodeImage& node, const Model& model,
 asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
                                           const ActionDef& action, uint64_t generation,
                                           std::shared_ptr<ActionState> slot,
-                                          SteadyTime acknowledged) {
+                                          SteadyTime acknowledged, uint64_t resets) {
   const Model& model = *model_ptr;
   asio::steady_timer wake(executor_);
   auto& list = image_.node(node_index).waiters;
@@ -295,6 +372,13 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
   const auto blind_after = completion_blind_after(model, action);
   for (;;) {
     if (stopping_ || state.generation != generation) break;
+    if (node.controller_resets != resets) {
+      state.status = ActionStatus::error;
+      state.error = kActionErrorControllerReset;
+      log::warning("node {}: action {} failed: the controller reset while it ran", node_index,
+                   action.name);
+      break;
+    }
     if (action.failed && evaluate(node, model, *action.failed, acknowledged).value_or(false)) {
       state.status = ActionStatus::error;
       state.error = kActionErrorFailedCondition;

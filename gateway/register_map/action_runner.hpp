@@ -6,6 +6,7 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "drivers/protocol_family.hpp"
@@ -35,8 +36,18 @@ class ActionRunner {
   // a confirm_after step has waited that long for its reply. The completion watch goes on in the
   // background. The action's status goes to `slot` if given (a profile axis keeps its own, so
   // two axes of one node do not supersede each other), else to the node's action register.
+  //
+  // The steps run with `arguments` (by default the node's setpoints as they are now) and in the
+  // node's turn: no other action's step for the node goes between them. An action of urgent
+  // steps only (a stop byte) or for the whole bus takes no turn.
   asio::awaitable<Reply> start(int node_index, ModelPtr model, const ActionDef& action,
-                               std::shared_ptr<ActionState> slot = nullptr);
+                               std::shared_ptr<ActionState> slot = nullptr,
+                               std::optional<ActionArguments> arguments = std::nullopt);
+  // Takes the node's turn for a caller that sends more than one action's steps (point writes
+  // before the action) in it.
+  asio::awaitable<std::shared_ptr<HeldTurn>> take_turn(int node_index);
+  // Whether an action waits for the node's turn.
+  static bool takes_turn(const ActionDef& action);
   // Called when a poll brought new values for a node.
   void node_updated(int node_index);
   void stop();
@@ -46,7 +57,8 @@ class ActionRunner {
   ActionState& state_of(int node_index, const std::shared_ptr<ActionState>& slot);
   asio::awaitable<Reply> run_steps(int node_index, ModelPtr model, const ActionDef& action,
                                    uint64_t generation, std::shared_ptr<ActionState> slot,
-                                   std::shared_ptr<Confirmation> confirmation);
+                                   std::shared_ptr<Confirmation> confirmation,
+                                   ActionArguments arguments);
   // `number`: the node's number on the bus now (node_index, unless a reload renumbered it).
   asio::awaitable<Reply> submit_confirming(Bus& bus, int node_index, int number,
                                            const Request& request, CommandOptions options,
@@ -55,10 +67,14 @@ class ActionRunner {
                                            std::shared_ptr<ActionState> slot);
   asio::awaitable<void> run_in_background(int node_index, ModelPtr model, const ActionDef& action,
                                           uint64_t generation, std::shared_ptr<ActionState> slot,
-                                          std::shared_ptr<Confirmation> confirmation);
+                                          std::shared_ptr<Confirmation> confirmation,
+                                          ActionArguments arguments);
+  // Fills the held setpoints from values polled after `since`; false if none came in time.
+  asio::awaitable<bool> fill_held(int node_index, const Model& model, ActionArguments& arguments,
+                                  SteadyTime since);
   asio::awaitable<void> watch(int node_index, ModelPtr model, const ActionDef& action,
                               uint64_t generation, std::shared_ptr<ActionState> slot,
-                              SteadyTime acknowledged);
+                              SteadyTime acknowledged, uint64_t resets);
   bool refreshed_since(const NodeImage& node, const Model& model,
                        const std::string& condition_point, SteadyTime since) const;
   std::optional<bool> evaluate(const NodeImage& node, const Model& model, const Condition& c,

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 
+#include "gateway/image/point_freshness.hpp"
 #include "gateway/lifecycle/log.hpp"
 #include "gateway/register_map/control_exception.hpp"
 
@@ -23,6 +24,9 @@ constexpr auto kFollowInterval = std::chrono::milliseconds(20);
 // How long a command's completion waits for the profile's moving (or enabled) bit to agree with
 // it (a jog that cannot move, e.g. standing on a limit, ends done after it).
 constexpr auto kJogStartPatience = std::chrono::seconds(2);
+// How long an axis may stand still away from its target after its actions ended before the
+// command fails (a controller reporting its final steps a poll late).
+constexpr auto kArrivalPatience = std::chrono::seconds(1);
 constexpr std::size_t kTarget = 0, kVelocity = 1, kAcceleration = 2, kDeceleration = 3;
 
 int point_index(const Model& model, const std::string& name) {
@@ -89,6 +93,62 @@ std::vector<std::pair<ProfileSetpoint, std::size_t>> inputs_of(ProfileCommand c)
     default:
       return {};
   }
+}
+
+std::optional<int64_t> none_value(const Model& model, const std::string& name) {
+  if (const SetpointDef* s = model.find_setpoint(name)) return s->none;
+  if (const PointDef* p = model.find_point(name)) return p->none;
+  return std::nullopt;
+}
+
+bool is_speed(ProfileSetpoint which) {
+  return which == ProfileSetpoint::velocity || which == ProfileSetpoint::jog_velocity ||
+         which == ProfileSetpoint::home_velocity;
+}
+
+// Whether a point was read after `since`.
+bool read_since(const Model& model, const NodeImage& node, const std::string& name,
+                std::chrono::steady_clock::time_point since) {
+  const int i = point_index(model, name);
+  if (i < 0) return false;
+  const auto& v = node.points[static_cast<std::size_t>(i)];
+  return v.valid && v.updated > since;
+}
+
+// Why the controller is known to have reset since the command was accepted, if it has: the
+// gateway saw it (a boot-up, a sign-on), or the model's reset count changed.
+std::optional<std::string> reset_since_accepted(const Model& model, const NodeImage& node,
+                                                const ProfileAxisDef& axis,
+                                                const ProfileAxisRuntime& rt) {
+  if (node.controller_resets != rt.resets) return "seen by the gateway";
+  if (axis.reset_count.empty() || !read_since(model, node, axis.reset_count, rt.accepted))
+    return std::nullopt;
+  // Unknown when the command was accepted (the counter not read yet since the start): the first
+  // reading is the baseline, and follow() keeps it.
+  const auto count = point_value(model, node, axis.reset_count);
+  if (count && rt.reset_count && count != rt.reset_count)
+    return fmt::format("{} went from {} to {}", axis.reset_count,
+                       rt.reset_count ? std::to_string(*rt.reset_count) : "unknown", *count);
+  return std::nullopt;
+}
+
+enum class Arrival { yes, not_yet, no };
+
+// Whether a move stands at its target, or a home is homed, on readings after `since`.
+Arrival arrival(const Model& model, const NodeImage& node, const ProfileAxisDef& axis,
+                const ProfileAxisRuntime& rt, std::chrono::steady_clock::time_point since) {
+  if (rt.command == ProfileCommand::home) {
+    const auto it = axis.status.find(StatusBit::homed);
+    if (it == axis.status.end() || it->second.constant) return Arrival::yes;
+    if (!status_read_since(model, node, axis, StatusBit::homed, since)) return Arrival::not_yet;
+    return status_bit(model, node, axis, StatusBit::homed) ? Arrival::yes : Arrival::no;
+  }
+  if (!rt.target) return Arrival::yes;
+  if (!read_since(model, node, axis.position, since)) return Arrival::not_yet;
+  const auto position = point_value(model, node, axis.position);
+  if (!position) return Arrival::not_yet;
+  const int64_t off = *position > *rt.target ? *position - *rt.target : *rt.target - *position;
+  return off <= axis.position_tolerance ? Arrival::yes : Arrival::no;
 }
 
 void finish_with_error(ProfileAxisRuntime& rt, uint16_t code) {
@@ -201,6 +261,24 @@ AxisReading read_axis(const ProfileUnit& unit, const NodeImage& node,
   return r;
 }
 
+// Whether the page may be served: its position is fresh (not failing its polls, not older than
+// its bound) and the points behind its state were read at least once, so that no state is
+// derived from a status never seen.
+bool axis_readings_fresh(const ProfileUnit& unit, const NodeImage& node) {
+  const Model& model = *unit.model;
+  const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
+  const auto now = std::chrono::steady_clock::now();
+  const int position = point_index(model, axis.position);
+  if (position < 0 || !point_is_fresh(node, model, static_cast<std::size_t>(position), now))
+    return false;
+  for (const auto& [bit, source] : axis.status) {
+    if (source.constant) continue;
+    const int i = point_index(model, source.point);
+    if (i >= 0 && !node.points[static_cast<std::size_t>(i)].valid) return false;
+  }
+  return true;
+}
+
 modbus::ReadRegistersResult AxisProfileServer::read(const ProfileUnit& unit,
                                                     modbus::RegisterTable table, uint16_t address,
                                                     uint16_t count, WordOrder order) {
@@ -221,7 +299,8 @@ modbus::ReadRegistersResult AxisProfileServer::read(const ProfileUnit& unit,
     page[ap::sequence_number] = rt.sequence;
   } else {
     const AxisReading r = read_axis(unit, node, rt);
-    if (!r.position) return ExceptionCode::gateway_target_failed;
+    if (!r.position || !axis_readings_fresh(unit, node))
+      return ExceptionCode::gateway_target_failed;
     if (!r.online && modbus_.offline_reads == OfflineReads::exception)
       return ExceptionCode::gateway_target_failed;
     put32(ap::actual_position, *r.position);
@@ -273,8 +352,9 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
   const WritePolicy policy{true, modbus_.writes_enabled};
   if (const auto allowed = control_.check_command(unit.node_index, first, policy); !allowed.ok())
     co_return exception_for(allowed.status);
-  // The values this command passes, checked against the model's and the node's limits.
-  std::vector<std::pair<std::size_t, int64_t>> passes;  // model setpoint index, value
+  // The values this command passes, checked against the model's and the node's limits. They go
+  // into the command's own arguments: no other axis's command, nor a later write, changes them.
+  ActionArguments arguments{node.setpoints, {}, {}};
   std::vector<ControlWrite> point_writes;
   for (const auto& [which, slot] : inputs_of(cmd)) {
     const auto it = axis.setpoints.find(which);
@@ -285,20 +365,38 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
       v = v < 0 ? -v : v;
     if (const auto checked = control_.check_value(unit.node_index, it->second, v); !checked.ok())
       co_return exception_for(checked.status);
+    if (const auto none = none_value(model, it->second); none && *none == v && is_speed(which)) {
+      log::warning(
+          "unit {} axis {}: {} refused: {} {} means 'none' to this controller ({}); "
+          "write the velocity (holding {}) first",
+          unit.node->name, axis.name, to_string(cmd), it->second, v, model.name, ap::velocity);
+      co_return ExceptionCode::illegal_data_value;
+    }
     if (s)
-      passes.emplace_back(static_cast<std::size_t>(s - model.setpoints.data()), v);
+      arguments.setpoints[static_cast<std::size_t>(s - model.setpoints.data())] = v;
     else
       point_writes.push_back(
           {ControlWrite::Kind::point, unit.node_index, point_index(model, it->second), v});
   }
   for (const auto& [name, value] : axis.fixed)
-    passes.emplace_back(
-        static_cast<std::size_t>(model.find_setpoint(name) - model.setpoints.data()), value);
+    arguments
+        .setpoints[static_cast<std::size_t>(model.find_setpoint(name) - model.setpoints.data())] =
+        value;
   for (const auto& [name, point] : axis.hold) {
-    const auto value = point_value(model, node, point);
-    if (!value) co_return exception_for(ControlStatus::value_unknown);
-    passes.emplace_back(
-        static_cast<std::size_t>(model.find_setpoint(name) - model.setpoints.data()), *value);
+    // Read when the action gets the node's turn, after any action before it on the node.
+    if (!point_value(model, node, point)) co_return exception_for(ControlStatus::value_unknown);
+    arguments.hold.emplace_back(
+        static_cast<std::size_t>(model.find_setpoint(name) - model.setpoints.data()),
+        static_cast<std::size_t>(point_index(model, point)));
+  }
+  // Where a move must end: the target, or the distance from where the axis stands still.
+  std::optional<int64_t> proof_target;
+  if (cmd == ProfileCommand::move_absolute && axis.setpoints.count(ProfileSetpoint::target)) {
+    proof_target = rt.setpoints[kTarget];
+  } else if (cmd == ProfileCommand::move_relative &&
+             axis.setpoints.count(ProfileSetpoint::distance)) {
+    const auto from = point_value(model, node, axis.position);
+    if (from && !observe(unit, rt).moving) proof_target = *from + rt.setpoints[kTarget];
   }
 
   const PlcopenState state = derive_state(observe(unit, rt));
@@ -323,28 +421,63 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::command(ProfileUnit unit
     co_return modbus::WriteResult::success();
   }
   abort_shared_stops(unit, cmd);
-  for (const auto& [index, value] : passes) node.setpoints[index] = value;
   rt.status = CommandStatus::busy;
+  rt.target = proof_target;
+  rt.resets = node.controller_resets;
+  rt.reset_count = point_value(model, node, axis.reset_count);
+  rt.accepted = std::chrono::steady_clock::now();
+  const auto executor = co_await asio::this_coro::executor;
+  auto alive = alive_;
+  if (ActionRunner::takes_turn(*first) && node.turn->taken) {
+    // Another command of this node (another axis's) is on the line: this one waits for its turn,
+    // answered now with busy; how it goes shows in command_status.
+    log::debug("unit {} axis {}: {} queued behind another command of the node", unit.node->name,
+               axis.name, to_string(cmd));
+    asio::co_spawn(
+        executor,
+        run_command(unit, generation, std::move(arguments), std::move(point_writes), first, alive),
+        asio::detached);
+    co_return modbus::WriteResult::success();
+  }
+  co_return co_await run_command(unit, generation, std::move(arguments), std::move(point_writes),
+                                 first, alive);
+}
+
+asio::awaitable<modbus::WriteResult> AxisProfileServer::run_command(
+    ProfileUnit unit, uint64_t generation, ActionArguments arguments,
+    std::vector<ControlWrite> point_writes, const ActionDef* first, std::shared_ptr<bool> alive) {
+  const auto superseded = [&] { return !*alive || runtime(unit).generation != generation; };
+  // Point writes (a speed register) go out in the node's turn with the action's steps, so that
+  // another axis's command cannot write its own between them.
+  if (!point_writes.empty() && ActionRunner::takes_turn(*first)) {
+    arguments.turn = co_await actions_.take_turn(unit.node_index);
+    if (superseded()) co_return modbus::WriteResult::success();
+  }
+  {
+    auto& rt = runtime(unit);
+    rt.arguments = arguments;
+    rt.arguments.turn.reset();
+  }
   for (const auto& write : point_writes) {
     const ControlResult written = co_await control_.apply(write);
-    if (rt.generation != generation) co_return modbus::WriteResult::success();  // superseded
+    if (superseded()) co_return modbus::WriteResult::success();
     if (!written.ok()) {
-      finish_with_error(rt, written.status == ControlStatus::device_error
-                                ? static_cast<uint16_t>(written.device_code)
-                                : kActionErrorNoReply);
+      finish_with_error(runtime(unit), written.status == ControlStatus::device_error
+                                           ? static_cast<uint16_t>(written.device_code)
+                                           : kActionErrorNoReply);
       co_return exception_for(written.status);
     }
   }
-  const uint64_t action_generation = rt.action->generation + 1;
-  const auto slot = rt.action;
-  const ControlResult started = co_await control_.start_action(unit.node_index, *first, slot);
-  if (rt.generation != generation) co_return modbus::WriteResult::success();  // superseded
+  const auto slot = runtime(unit).action;
+  const uint64_t action_generation = slot->generation + 1;
+  const ControlResult started =
+      co_await control_.start_action(unit.node_index, *first, slot, std::move(arguments));
+  if (superseded()) co_return modbus::WriteResult::success();
   if (!started.ok()) {
-    finish_with_error(rt, slot->error);
+    finish_with_error(runtime(unit), slot->error);
     co_return exception_for(started.status);
   }
   const auto executor = co_await asio::this_coro::executor;
-  auto alive = alive_;
   asio::co_spawn(executor, follow(unit, generation, action_generation, 0, alive), asio::detached);
   co_return modbus::WriteResult::success();
 }
@@ -376,13 +509,16 @@ void AxisProfileServer::abort_shared_stops(const ProfileUnit& unit, ProfileComma
 
 // Waits for each action of the command to complete and starts the next; ends the command in
 // done, error (the axis goes to ErrorStop) or aborted (another command of the axis took over).
+// A move or home is done only on the device's own word after this command: a position read
+// after its actions ended at the target (moves), the homed bit set (homes, where the model
+// maps one), and no reset of the controller since the command was accepted.
 asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t generation,
                                                 uint64_t action_generation, std::size_t step,
                                                 std::shared_ptr<bool> alive) {
   const auto executor = co_await asio::this_coro::executor;
   asio::steady_timer timer(executor);
-  std::optional<std::chrono::steady_clock::time_point> jog_deadline;
-  std::chrono::steady_clock::time_point actions_ended{};
+  std::optional<std::chrono::steady_clock::time_point> actions_ended;
+  std::optional<std::chrono::steady_clock::time_point> off_target_since;
   for (;;) {
     timer.expires_after(kFollowInterval);
     co_await timer.async_wait(asio::as_tuple(asio::use_awaitable));
@@ -394,17 +530,30 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
       rt.status = CommandStatus::aborted;
       co_return;
     }
+    const auto& node = image_.node(unit.node_index);
+    const Model& model = *unit.model;
+    const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
+    if (const auto why = rt.command == ProfileCommand::reset
+                             ? std::nullopt
+                             : reset_since_accepted(model, node, axis, rt)) {
+      log::warning("unit {} axis {}: {} failed: the controller reset while it ran ({})",
+                   unit.node->name, axis.name, to_string(rt.command), *why);
+      finish_with_error(rt, kActionErrorControllerReset);
+      co_return;
+    }
+    if (!rt.reset_count && !axis.reset_count.empty())
+      rt.reset_count = point_value(model, node, axis.reset_count);
     if (slot->status == ActionStatus::busy) continue;
     if (slot->status == ActionStatus::error) {
       finish_with_error(rt, slot->error);
       co_return;
     }
-    const auto& axis = unit.model->profile_axes[static_cast<std::size_t>(unit.axis)];
     const auto& names = axis.commands.at(rt.command);
-    if (++step < names.size()) {
-      const ActionDef* next = unit.model->find_action(names[step]);
+    if (!actions_ended && ++step < names.size()) {
+      const ActionDef* next = model.find_action(names[step]);
       action_generation = slot->generation + 1;
-      const Reply reply = co_await actions_.start(unit.node_index, unit.model, *next, slot);
+      const Reply reply =
+          co_await actions_.start(unit.node_index, unit.model, *next, slot, rt.arguments);
       if (!*alive) co_return;
       auto& again = runtime(unit);
       if (again.generation != generation) co_return;
@@ -414,6 +563,8 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
       }
       continue;
     }
+    const auto now = std::chrono::steady_clock::now();
+    if (!actions_ended) actions_ended = now;
     // A jog is done once the drive runs: wait (briefly) until the polls show the motion, so the
     // state goes from busy ContinuousMotion straight on to moving ContinuousMotion.
     // Likewise a move, home, stop or halt is done only once the profile's own moving bit (which
@@ -428,20 +579,30 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
     const AxisObservation seen = observe(unit, rt);
     if ((motion && seen.moving != jog) ||
         (power && seen.enabled != (rt.command == ProfileCommand::power_on))) {
-      if (!jog_deadline) {
-        actions_ended = std::chrono::steady_clock::now();
-        jog_deadline = actions_ended + kJogStartPatience;
-      }
       // Patience runs out only against a status read after the actions ended: a poll slower
       // than the patience (a unit at 1200 baud) would otherwise end a jog done, and the axis
       // Standstill, on a status read before the jog began.
-      const auto& node = image_.node(unit.node_index);
-      const bool read_since = status_read_since(
-          *unit.model, node, axis, power ? StatusBit::enabled : StatusBit::moving, actions_ended);
-      if (std::chrono::steady_clock::now() < *jog_deadline || !read_since) {
-        --step;
+      const bool read_after = status_read_since(
+          model, node, axis, power ? StatusBit::enabled : StatusBit::moving, *actions_ended);
+      if (now < *actions_ended + kJogStartPatience || !read_after) continue;
+      if (!jog && !power) continue;  // still moving: a move or stop is done at standstill only
+    }
+    if (const auto proof = arrival(model, node, axis, rt, *actions_ended); proof != Arrival::yes) {
+      if (proof == Arrival::not_yet) continue;
+      // Standing still away from the target (or not homed) on a reading after the actions
+      // ended: give the controller a moment to report its last steps, then it did not arrive.
+      if (!off_target_since) off_target_since = now;
+      if (now < *off_target_since + kArrivalPatience ||
+          !read_since(model, node, axis.position, *off_target_since + kArrivalPatience))
         continue;
-      }
+      const auto position = point_value(model, node, axis.position);
+      log::warning("unit {} axis {}: {} failed: the axis stands at {} (target {}, tolerance {}){}",
+                   unit.node->name, axis.name, to_string(rt.command),
+                   position ? std::to_string(*position) : "unknown",
+                   rt.target ? std::to_string(*rt.target) : "none", axis.position_tolerance,
+                   rt.command == ProfileCommand::home ? ", not homed" : "");
+      finish_with_error(rt, kProfileErrorNotAtTarget);
+      co_return;
     }
     rt.status = CommandStatus::done;
     if (rt.command == ProfileCommand::reset) {

@@ -41,6 +41,7 @@ struct AxisReading {
 AxisObservation observe_axis(const ProfileUnit& unit, const NodeImage& node,
                              const ProfileAxisRuntime& rt);
 AxisReading read_axis(const ProfileUnit& unit, const NodeImage& node, const ProfileAxisRuntime& rt);
+bool axis_readings_fresh(const ProfileUnit& unit, const NodeImage& node);
 
 // Serves the axis profile page (mapping/axis_profile.hpp) of profile units: reads from the
 // process image, commands through the model's actions with the sequence-number handshake.
@@ -60,6 +61,13 @@ class AxisProfileServer {
   AxisObservation observe(const ProfileUnit& unit, const ProfileAxisRuntime& rt) const;
   asio::awaitable<modbus::WriteResult> command(ProfileUnit unit, ProfileCommand command,
                                                uint16_t sequence);
+  // The part of a command that goes to the line: its point writes and first action in the
+  // node's turn, then the follow-up.
+  asio::awaitable<modbus::WriteResult> run_command(ProfileUnit unit, uint64_t generation,
+                                                   ActionArguments arguments,
+                                                   std::vector<ControlWrite> point_writes,
+                                                   const ActionDef* first,
+                                                   std::shared_ptr<bool> alive);
   void abort_shared_stops(const ProfileUnit& unit, ProfileCommand cmd);
   asio::awaitable<void> follow(ProfileUnit unit, uint64_t generation, uint64_t action_generation,
                                std::size_t step, std::shared_ptr<bool> alive);

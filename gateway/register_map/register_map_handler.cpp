@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "gateway/image/point_freshness.hpp"
 #include "gateway/register_map/control_exception.hpp"
 #include "gateway/register_map/device_identification.hpp"
 
@@ -61,7 +62,7 @@ const ProfileUnit* RegisterMapHandler::profile_unit(uint8_t unit) const {
 }
 
 std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit,
-                                                             const RegisterEntry& e,
+                                                             const RegisterEntry& e, SteadyTime now,
                                                              int64_t& value) const {
   const auto& node = image_.node(unit.node_index);
   switch (e.kind) {
@@ -71,8 +72,14 @@ std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit
       const bool offline = node.state != NodeState::online &&
                            !(node.state == NodeState::starting && node.carried_over);
       if (!pv.valid) return ExceptionCode::gateway_target_failed;
-      if (offline && modbus_.offline_reads == OfflineReads::exception)
+      if (offline) {
+        if (modbus_.offline_reads == OfflineReads::exception)
+          return ExceptionCode::gateway_target_failed;
+        // last_value: the node's state (diagnostic block) tells that its values are old.
+      } else if (!point_is_fresh(node, *unit.model, static_cast<std::size_t>(e.index), now)) {
+        // Nothing tells a PLC that an online node's point stopped updating: never serve it.
         return ExceptionCode::gateway_target_failed;
+      }
       value = held_line_view(unit, node, e, pv.value);
       value = e.kind == RegisterEntry::Kind::point ? value : ((value >> e.bit) & 1);
       return std::nullopt;
@@ -93,8 +100,7 @@ std::optional<ExceptionCode> RegisterMapHandler::entry_value(const UnitMap& unit
       value = node.action.sequence;
       return std::nullopt;
     case RegisterEntry::Kind::diagnostic:
-      value =
-          image_.diagnostic(unit.node_index, static_cast<DiagnosticField>(e.index), Clock::now());
+      value = image_.diagnostic(unit.node_index, static_cast<DiagnosticField>(e.index), now);
       return std::nullopt;
   }
   return ExceptionCode::server_device_failure;
@@ -107,11 +113,12 @@ modbus::ReadBitsResult RegisterMapHandler::read_bits(uint8_t unit_id, modbus::Bi
   if (!unit) return ExceptionCode::gateway_path_unavailable;
   std::vector<bool> bits;
   bits.reserve(count);
+  const SteadyTime now = Clock::now();
   for (uint32_t a = address; a < static_cast<uint32_t>(address) + count; ++a) {
     const RegisterEntry* e = unit->find(to_table(table), static_cast<uint16_t>(a));
     if (!e) return ExceptionCode::illegal_data_address;
     int64_t value = 0;
-    if (auto ex = entry_value(*unit, *e, value)) return *ex;
+    if (auto ex = entry_value(*unit, *e, now, value)) return *ex;
     bits.push_back(value != 0);
   }
   return bits;
@@ -134,13 +141,14 @@ modbus::ReadRegistersResult RegisterMapHandler::read_registers(uint8_t unit_id,
   const WordOrder order = map_.word_order();
   std::vector<uint16_t> words;
   words.reserve(count);
+  const SteadyTime now = Clock::now();
   uint32_t a = address;
   const uint32_t end = static_cast<uint32_t>(address) + count;
   while (a < end) {
     const RegisterEntry* e = unit->find(to_table(table), static_cast<uint16_t>(a));
     if (!e) return ExceptionCode::illegal_data_address;
     int64_t value = 0;
-    if (auto ex = entry_value(*unit, *e, value)) return *ex;
+    if (auto ex = entry_value(*unit, *e, now, value)) return *ex;
     const auto encoded = to_registers(e->type, value, order);
     // A read may start or end inside a 32-bit value; it gets the words it covers.
     for (uint32_t w = a - e->address; w < e->count && a < end; ++w, ++a)

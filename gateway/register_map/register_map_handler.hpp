@@ -34,8 +34,10 @@ class RegisterMapHandler final : public modbus::RequestHandler {
   struct EntryValue;
   // The node a unit ID names on this listener: the one place a unit ID is resolved.
   const UnitMap* unit_of(uint8_t unit_id) const { return map_.unit(unit_id); }
+  // A point's value is served only while fresh (point_is_fresh at `now`), or, for an offline
+  // or faulted node, as `offline_reads` says.
   std::optional<modbus::ExceptionCode> entry_value(const UnitMap& unit, const RegisterEntry& e,
-                                                   int64_t& value) const;
+                                                   SteadyTime now, int64_t& value) const;
 
   std::shared_ptr<const LoadedConfig> config_;
   const RegisterMap& map_;

@@ -187,7 +187,7 @@ void EdgeNode::device_birth(Device& d) {
   Payload p = make_payload(ts, next_seq());
   d.published.clear();
   for (const auto& m : d.metrics) {
-    d.published.push_back(sample(m, *image_, d.node_index, d.command, now));
+    d.published.push_back(sample(m, *d.model, *image_, d.node_index, d.command, now));
     add_metric(p, m.name, m.type, d.published.back(), ts);
   }
   if (!publish(topics_.device_topic(MessageType::dbirth, d.id), p)) return;
@@ -218,7 +218,7 @@ void EdgeNode::scan_device(Device& d, bool include_slow, bool with_command) {
   Payload p = make_payload(ts, std::nullopt);
   for (std::size_t i = 0; i < d.metrics.size(); ++i) {
     if (d.metrics[i].slow && !include_slow) continue;
-    const MetricValue v = sample(d.metrics[i], *image_, d.node_index, d.command, now);
+    const MetricValue v = sample(d.metrics[i], *d.model, *image_, d.node_index, d.command, now);
     const auto source = d.metrics[i].source;
     const bool command = source == DeviceMetric::Source::command_metric ||
                          source == DeviceMetric::Source::command_result ||

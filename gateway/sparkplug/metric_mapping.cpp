@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include "gateway/image/point_freshness.hpp"
 #include "mapping/node_diagnostics.hpp"
 
 namespace fieldgate::sparkplug {
@@ -94,8 +95,8 @@ std::vector<DeviceMetric> device_metrics(const Model& model, const SparkplugConf
   return out;
 }
 
-MetricValue sample(const DeviceMetric& m, const ProcessImage& image, int node_index,
-                   const CommandState& command, SteadyTime now) {
+MetricValue sample(const DeviceMetric& m, const Model& model, const ProcessImage& image,
+                   int node_index, const CommandState& command, SteadyTime now) {
   using S = DeviceMetric::Source;
   const NodeImage& node = image.node(node_index);
   MetricValue v;
@@ -103,7 +104,7 @@ MetricValue sample(const DeviceMetric& m, const ProcessImage& image, int node_in
     case S::point:
     case S::point_bit: {
       const auto& pv = node.points.at(static_cast<std::size_t>(m.index));
-      if (!pv.valid) {
+      if (!point_is_fresh(node, model, static_cast<std::size_t>(m.index), now)) {
         v.is_null = true;
       } else {
         v.number = m.source == S::point ? pv.value : ((pv.value >> m.bit) & 1);

@@ -52,8 +52,10 @@ struct DeviceMetric {
 // Error", "Diagnostics/<field>", "Command/Metric|Result|Detail|Sequence".
 std::vector<DeviceMetric> device_metrics(const Model& model, const SparkplugConfig& config);
 
-MetricValue sample(const DeviceMetric& metric, const ProcessImage& image, int node_index,
-                   const CommandState& command, SteadyTime now);
+// A point's value is null (no value) until read and while stale (point_is_fresh), as on the
+// register map, where it is answered 0x0B.
+MetricValue sample(const DeviceMetric& metric, const Model& model, const ProcessImage& image,
+                   int node_index, const CommandState& command, SteadyTime now);
 
 // Whether `now` differs from `published` enough to be reported.
 bool changed(const DeviceMetric& metric, const MetricValue& published, const MetricValue& now);

@@ -174,5 +174,167 @@ TEST_F(ActionRunnerAcrossAReload, ALaterStepForANodeTheReloadTookAwayFailsUnsent
   EXPECT_EQ(image_.node(1).action.status, ActionStatus::error);
 }
 
+// Issue 49: two axes of one node commanded in the same scan. Each action runs with the values
+// it was started with, and its steps go out back to back.
+class ActionRunnerOnOneNode : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Diagnostics d;
+    model_ = load_model_text(R"(model: m
+family: techno-c
+poll_classes: {fast: 100ms}
+points:
+  py: {type: int32, read: "@0P", poll: fast}
+setpoints:
+  tx: {type: int32}
+  ty: {type: int32}
+actions:
+  setup_and_begin:
+    code: 1
+    steps:
+      - "S{tx}"
+      - {delay: 30ms}
+      - "B{tx},{ty}"
+  other:
+    code: 2
+    steps: ["O{tx},{ty}"]
+  stop:
+    code: 3
+    steps: [{send: "!", urgent: true}]
+)",
+                             "m.yaml", d);
+    ASSERT_TRUE(model_) << d.to_text();
+    node_->setpoints = {0, 0};
+    node_->points = {PointValue{}};
+    runner_.emplace(io_.get_executor(), image_, [&](int) -> Bus& { return bus_; });
+  }
+  void TearDown() override { runner_->stop(); }
+  void start(const char* name, std::optional<ActionArguments> arguments,
+             std::shared_ptr<ActionState> slot) {
+    asio::co_spawn(
+        io_,
+        [this, name, arguments, slot]() -> asio::awaitable<void> {
+          co_await runner_->start(0, model_, *model_->find_action(std::string(name)), slot,
+                                  arguments);
+        },
+        asio::detached);
+  }
+  // Until the action ended (done or error), at most 1.5 s.
+  void run_until_idle(const std::shared_ptr<ActionState>& slot) {
+    for (int i = 0; i < 300; ++i) {
+      io_.restart();
+      io_.run_for(5ms);
+      if (slot->status == ActionStatus::done || slot->status == ActionStatus::error) return;
+    }
+  }
+
+  asio::io_context io_;
+  std::shared_ptr<NodeImage> node_ = std::make_shared<NodeImage>();
+  ProcessImage image_{{node_}};
+  test::ScriptedBus bus_{{node_}};
+  ModelPtr model_;
+  std::optional<ActionRunner> runner_;
+};
+
+TEST_F(ActionRunnerOnOneNode, AnActionSendsTheValuesItWasStartedWith) {
+  const auto x = std::make_shared<ActionState>();
+  start("setup_and_begin", ActionArguments{{511, 0}, {}, {}}, x);
+  io_.run_for(5ms);
+  // A later write of the node's setpoints (another axis, the native map) changes nothing.
+  node_->setpoints = {7, 7};
+  run_until_idle(x);
+  EXPECT_EQ(bus_.sent, (std::vector<std::string>{"S511", "B511,0"}));
+  EXPECT_EQ(x->status, ActionStatus::done);
+}
+
+TEST_F(ActionRunnerOnOneNode, AnotherActionsStepsWaitUntilTheFirstActionsStepsAreOut) {
+  const auto x = std::make_shared<ActionState>(), y = std::make_shared<ActionState>();
+  start("setup_and_begin", ActionArguments{{511, 0}, {}, {}}, x);
+  start("other", ActionArguments{{0, 2022}, {}, {}}, y);
+  run_until_idle(x);
+  run_until_idle(y);
+  EXPECT_EQ(bus_.sent, (std::vector<std::string>{"S511", "B511,0", "O0,2022"}));
+  EXPECT_EQ(x->status, ActionStatus::done);
+  EXPECT_EQ(y->status, ActionStatus::done);
+}
+
+// Without the turn the check above is not vacuous: a stop (urgent steps only) takes none and goes
+// out between the first action's steps.
+TEST_F(ActionRunnerOnOneNode, AnUrgentStopDoesNotWaitForTheTurn) {
+  const auto x = std::make_shared<ActionState>(), s = std::make_shared<ActionState>();
+  start("setup_and_begin", ActionArguments{{1, 2}, {}, {}}, x);
+  start("stop", std::nullopt, s);
+  run_until_idle(x);
+  ASSERT_EQ(bus_.sent.size(), 3u);
+  EXPECT_EQ(bus_.sent[0], "S1");
+  EXPECT_EQ(bus_.sent[2], "B1,2");
+}
+
+TEST_F(ActionRunnerOnOneNode, AHeldValueIsReadAfterThePreviousActionLetGo) {
+  node_->points[0] = {100, std::chrono::steady_clock::now(), true};  // before the first action
+  const auto x = std::make_shared<ActionState>(), y = std::make_shared<ActionState>();
+  start("setup_and_begin", ActionArguments{{1, 2}, {}, {}}, x);
+  start("other", ActionArguments{{9, 0}, {{1, 0}}, {}}, y);
+  run_until_idle(x);
+  io_.run_for(50ms);
+  // The first action is through; the second waits for a reading of py after it.
+  EXPECT_EQ(bus_.sent.size(), 2u);
+  EXPECT_EQ(y->status, ActionStatus::busy);
+  node_->points[0] = {2022, std::chrono::steady_clock::now(), true};
+  runner_->node_updated(0);
+  run_until_idle(y);
+  ASSERT_EQ(bus_.sent.size(), 3u);
+  EXPECT_EQ(bus_.sent[2], "O9,2022");
+}
+
+TEST_F(ActionRunnerOnOneNode, AHeldValueThatIsNeverReadAgainFailsTheActionUnsent) {
+  node_->points[0] = {100, std::chrono::steady_clock::now(), true};
+  const auto x = std::make_shared<ActionState>(), y = std::make_shared<ActionState>();
+  start("setup_and_begin", ActionArguments{{1, 2}, {}, {}}, x);
+  start("other", ActionArguments{{9, 0}, {{1, 0}}, {}}, y);
+  for (int i = 0; i < 700 && y->status != ActionStatus::error; ++i) {
+    io_.restart();
+    io_.run_for(10ms);
+  }
+  EXPECT_EQ(bus_.sent.size(), 2u);
+  EXPECT_EQ(y->status, ActionStatus::error);
+  EXPECT_EQ(y->error, kActionErrorUnreachable);
+}
+
+TEST(ActionRunnerWatch, AControllerResetWhileTheActionRunsFailsIt) {
+  Diagnostics d;
+  const ModelPtr model = load_model_text(R"(model: m
+family: techno-c
+poll_classes: {fast: 10ms}
+points:
+  moving: {type: int32, read: "@0P", poll: fast}
+actions:
+  move:
+    code: 1
+    steps: ["M1"]
+    done: {point: moving, equals: 0}
+)",
+                                         "m.yaml", d);
+  ASSERT_TRUE(model) << d.to_text();
+  asio::io_context io;
+  auto node = std::make_shared<NodeImage>();
+  node->points = {PointValue{1, std::chrono::steady_clock::now(), true}};
+  ProcessImage image({node});
+  test::ScriptedBus bus({node});
+  ActionRunner runner(io.get_executor(), image, [&](int) -> Bus& { return bus; });
+  asio::co_spawn(
+      io, [&]() -> asio::awaitable<void> { co_await runner.start(0, model, model->actions[0]); },
+      asio::detached);
+  io.run_for(20ms);
+  ASSERT_EQ(node->action.status, ActionStatus::busy);
+  ++node->controller_resets;  // the unit signed on again: it forgot the move
+  node->points[0] = {0, std::chrono::steady_clock::now(), true};  // and stands still
+  runner.node_updated(0);
+  io.run_for(20ms);
+  EXPECT_EQ(node->action.status, ActionStatus::error);
+  EXPECT_EQ(node->action.error, kActionErrorControllerReset);
+  runner.stop();
+}
+
 }  // namespace
 }  // namespace fieldgate

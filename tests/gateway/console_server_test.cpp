@@ -10,14 +10,19 @@
 #include <boost/asio/read.hpp>
 #include <boost/asio/write.hpp>
 
+#include <poll.h>
+
 #include <chrono>
 #include <future>
+#include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/console/console_access.hpp"
 #include "gateway/console/console_server.hpp"
+#include "gateway/metrics/metrics_server.hpp"
 
 namespace fieldgate {
 namespace {
@@ -166,6 +171,216 @@ TEST_F(ConsoleServerTest, EventStreamCarriesThePlantAndTraceFrames) {
     if (still) std::this_thread::sleep_for(50ms);
   }
   EXPECT_FALSE(still);
+}
+
+// Exactly `bytes` to `port` (from `source`, a loopback address), then everything the server
+// sends until it closes.
+std::string exchange_raw(std::uint16_t port, const std::string& bytes,
+                         const char* source = "127.0.0.1") {
+  asio::io_context io;
+  tcp::socket s(io);
+  s.open(tcp::v4());
+  s.bind({asio::ip::make_address(source), 0});
+  s.connect({asio::ip::make_address("127.0.0.1"), port});
+  boost::system::error_code ec;
+  asio::write(s, asio::buffer(bytes), ec);
+  std::string reply;
+  asio::read(s, asio::dynamic_buffer(reply), ec);
+  return reply;
+}
+
+// Requests Beast cannot take, and requests for a method neither server has: each gets a status
+// line, never a bare close.
+const std::vector<std::pair<std::string, std::string>>& bad_requests() {
+  static const std::vector<std::pair<std::string, std::string>> cases = {
+      {"GARBAGE\r\n\r\n", "400"},                                 // bad request line
+      {"GET / HTTP/1.1\r\nHost x\r\n\r\n", "400"},                // header without colon
+      {"GET / HTTP/1.1\r\nHo st: x\r\n\r\n", "400"},              // bad header name
+      {"GET / HTTP/1.1\r\nHost: x\r\nX: a\x01b\r\n\r\n", "400"},  // bad header value
+      {"GET /\r\n\r\n", "400"},                                   // HTTP/0.9
+      {"GET / HTTP/2.5x\r\nHost: x\r\n\r\n", "400"},              // bad version
+      {"GET / HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\nxx\r\n",
+       "400"},  // chunked garbage
+      {"POST / HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n5;\x01\r\n", "400"},
+      {"POST / HTTP/1.1\r\nHost: x\r\nContent-Length: 5\r\nTransfer-Encoding: chunked\r\n\r\n"
+       "5\r\nhello\r\n0\r\n\r\n",
+       "400"},  // CL and TE together
+      {"GET / HTTP/1.1\r\nHost: x\r\nContent-Length: 1\r\nContent-Length: 2\r\n\r\nab", "400"},
+      {"GET / HTTP/1.1\r\nHost: x\r\nContent-Length: -1\r\n\r\n", "400"},
+      {"GET / HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(9000, 'a') + "\r\n\r\n", "431"},
+      {"POST / HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\n" + std::string(1000, 'b'),
+       "413"},
+      {"POST / HTTP/1.1\r\nHost: x\r\nContent-Length: 11\r\n\r\nhello world", "405"},
+      {"POST / HTTP/1.1\r\nHost: x\r\n\r\n", "405"},
+      {"PUT /x HTTP/1.1\r\nHost: x\r\nContent-Length: 3\r\n\r\nabc", "405"},
+      {"PUT /x HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n3\r\nabc\r\n0\r\n\r\n",
+       "405"},
+      {"DELETE / HTTP/1.0\r\n\r\n", "405"},
+  };
+  return cases;
+}
+
+TEST_F(ConsoleServerTest, EveryBadRequestGetsAStatusLine) {
+  start();
+  for (const auto& [request, status] : bad_requests()) {
+    const std::string reply = exchange_raw(port_, request);
+    EXPECT_TRUE(reply.starts_with("HTTP/1.") && reply.substr(8, 4) == " " + status)
+        << request.substr(0, 80) << " -> '" << reply.substr(0, 80) << "'";
+  }
+  // A request cut off by the peer's shutdown is answered too.
+  asio::io_context io;
+  tcp::socket s(io);
+  s.connect({asio::ip::make_address("127.0.0.1"), port_});
+  asio::write(
+      s, asio::buffer(std::string("GET / HTTP/1.1\r\nHost: x\r\nContent-Length: 9\r\n\r\nab")));
+  s.shutdown(tcp::socket::shutdown_send);
+  std::string reply;
+  boost::system::error_code ec;
+  asio::read(s, asio::dynamic_buffer(reply), ec);
+  EXPECT_TRUE(reply.starts_with("HTTP/1.1 400")) << reply;
+}
+
+class MetricsServerTest : public ::testing::Test {
+ protected:
+  void start(ClientAllowList allow = {}) {
+    server_ = std::make_unique<MetricsServer>(
+        io_.get_executor(), tcp::endpoint(asio::ip::make_address("127.0.0.1"), 0),
+        [] { return std::string("fieldgate_up 1\n"); }, std::move(allow));
+    server_->start();
+    port_ = server_->local_endpoint().port();
+    thread_ = std::thread([this] { io_.run(); });
+  }
+  void TearDown() override {
+    if (server_) asio::post(io_, [this] { server_->stop(); });
+    guard_.reset();
+    io_.stop();
+    if (thread_.joinable()) thread_.join();
+  }
+  MetricsServerStats stats() {
+    std::promise<MetricsServerStats> p;
+    asio::post(io_, [&] { p.set_value(server_->stats()); });
+    return p.get_future().get();
+  }
+
+  asio::io_context io_;
+  asio::executor_work_guard<asio::io_context::executor_type> guard_ = asio::make_work_guard(io_);
+  std::unique_ptr<MetricsServer> server_;
+  std::thread thread_;
+  uint16_t port_ = 0;
+};
+
+TEST_F(MetricsServerTest, EveryBadRequestGetsAStatusLine) {
+  start();
+  for (const auto& [request, status] : bad_requests()) {
+    const std::string reply = exchange_raw(port_, request);
+    EXPECT_TRUE(reply.starts_with("HTTP/1.") && reply.substr(8, 4) == " " + status)
+        << request.substr(0, 80) << " -> '" << reply.substr(0, 80) << "'";
+  }
+  const std::string ok = exchange_raw(port_, "GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n");
+  EXPECT_TRUE(ok.starts_with("HTTP/1.1 200")) << ok;
+  EXPECT_TRUE(ok.ends_with("fieldgate_up 1\n")) << ok;
+  EXPECT_GE(stats().bad_requests, 10u);
+}
+
+TEST_F(MetricsServerTest, APeerOffTheAllowListIsClosedUnanswered) {
+  std::string error;
+  start(ClientAllowList({*Cidr::parse("127.0.0.2/32", error), *Cidr::parse("fd00::/8", error)}));
+  const std::string get = "GET /metrics HTTP/1.1\r\nHost: x\r\n\r\n";
+  EXPECT_EQ(exchange_raw(port_, get, "127.0.0.1"), "");
+  EXPECT_TRUE(exchange_raw(port_, get, "127.0.0.2").starts_with("HTTP/1.1 200"));
+  const auto s = stats();
+  EXPECT_EQ(s.denied, 1u);
+  EXPECT_EQ(s.accepted, 1u);
+}
+
+// One client keeps every console slot taken: it holds 200 connections that never finish their
+// request and reopens each one the server closes. A user with the token is still answered at
+// every request: a newcomer takes the slot of the connection waiting longest without a request
+// let in, and the attacker cannot outpace the user's own request.
+TEST_F(ConsoleServerTest, ATokenHolderIsAnsweredWhileAReconnectingSlowlorisHoldsTheSlots) {
+  ConsoleConfig c;
+  c.token_sha256 = sha256_hex("s3cret");
+  c.max_pending_per_address = 0;  // the attacker shares the user's address
+  start(c);
+  std::atomic<bool> attacking{true};
+  std::atomic<int> reopened{0};
+  std::thread attacker([&] {
+    asio::io_context io;
+    std::vector<std::unique_ptr<tcp::socket>> held;
+    auto open_one = [&] {
+      auto s = std::make_unique<tcp::socket>(io);
+      boost::system::error_code ec;
+      s->connect({asio::ip::make_address("127.0.0.1"), port_}, ec);
+      if (!ec) asio::write(*s, asio::buffer(std::string("GET / HTTP/1.1\r\nHost: x\r\n")), ec);
+      return s;
+    };
+    for (int i = 0; i < 200; ++i) held.push_back(open_one());
+    while (attacking) {
+      std::vector<pollfd> fds;
+      for (auto& s : held) fds.push_back({s->native_handle(), POLLIN, 0});
+      ::poll(fds.data(), fds.size(), 10);
+      for (std::size_t i = 0; i < held.size(); ++i)
+        if (fds[i].revents != 0) {  // closed by the server (or refused at once): reopened
+          held[i] = open_one();
+          ++reopened;
+        }
+    }
+  });
+  // The attacker has filled the slots and is reopening what the server closes.
+  while (reopened < 50) std::this_thread::sleep_for(10ms);
+  int answered = 0;
+  for (int i = 0; i < 30; ++i)
+    answered += get("/api/plant", "Authorization: Bearer s3cret\r\n").starts_with("HTTP/1.1 200");
+  attacking = false;
+  attacker.join();
+  EXPECT_EQ(answered, 30);
+  std::promise<ConsoleServerStats> p;
+  asio::post(io_, [&] { p.set_value(server_->stats()); });
+  const auto stats = p.get_future().get();
+  EXPECT_GT(stats.evicted, 0u);
+  EXPECT_EQ(stats.requests, 30u) << "only the user's requests were let in";
+}
+
+// From one address at most max_pending_per_address connections wait for their request; live
+// views once let in do not count.
+TEST_F(ConsoleServerTest, WaitingConnectionsPerAddressAreCapped) {
+  ConsoleConfig c;
+  c.max_pending_per_address = 4;
+  start(c);
+  asio::io_context io;
+  auto from_2 = [&] {
+    auto s = std::make_unique<tcp::socket>(io);
+    s->open(tcp::v4());
+    s->bind({asio::ip::make_address("127.0.0.2"), 0});
+    s->connect({asio::ip::make_address("127.0.0.1"), port_});
+    return s;
+  };
+  std::vector<std::unique_ptr<tcp::socket>> views, silent;
+  for (int i = 0; i < 6; ++i) {
+    views.push_back(from_2());
+    asio::write(*views.back(),
+                asio::buffer(std::string("GET /events HTTP/1.1\r\nHost: x\r\n\r\n")));
+    EXPECT_NE(read_until(*views.back(), "event: plant").find("event: plant"), std::string::npos);
+  }
+  for (int i = 0; i < 10; ++i) silent.push_back(from_2());
+  auto count_open = [](auto& sockets) {
+    int open = 0;
+    for (auto& s : sockets) {
+      pollfd p{s->native_handle(), POLLIN, 0};
+      char byte;
+      // Open: nothing to read, or stream data (a view); closed: end of stream.
+      open += ::poll(&p, 1, 0) == 0 || ::recv(s->native_handle(), &byte, 1, MSG_PEEK) > 0;
+    }
+    return open;
+  };
+  // The address's oldest silent connections made room for its newer ones: 4 stay open.
+  const auto end = std::chrono::steady_clock::now() + 5s;
+  while (count_open(silent) > 4 && std::chrono::steady_clock::now() < end)
+    std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(count_open(silent), 4);
+  EXPECT_EQ(count_open(views), 6);
+  // Another address is not affected.
+  EXPECT_TRUE(get("/api/plant").starts_with("HTTP/1.1 200"));
 }
 
 }  // namespace

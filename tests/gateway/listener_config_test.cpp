@@ -141,5 +141,45 @@ TEST_F(ListenerConfigTest, WithoutListenersEverythingIsOnTheDefault) {
   EXPECT_TRUE(c->register_map.unit(7));
 }
 
+// Admission keys: the connect rates (defaults, per listener), the metrics allow list, the
+// console's cap on waiting connections per address.
+TEST_F(ListenerConfigTest, AdmissionKeys) {
+  const std::string nodes =
+      "buses:\n" + copley_bus("b1", "/dev/null", "",
+                              "      - {name: x, address: 0, model: copley-amplifier, "
+                              "unit_id: 7}\n");
+  std::optional<LoadedConfig> c;
+  ASSERT_EQ(load("modbus: {listen: 127.0.0.1:1502}\n"
+                 "listeners:\n"
+                 "  - {name: a, listen: 127.0.0.1:1503, max_connects_per_second: 0,\n"
+                 "     max_connects_per_second_per_address: 5}\n"
+                 "metrics: {listen: 127.0.0.1:9502, allow: [10.0.0.0/8, \"fd00::/8\"]}\n"
+                 "console: {listen: 127.0.0.1:9580, max_pending_per_address: 4}\n" +
+                     nodes,
+                 &c),
+            "");
+  ASSERT_TRUE(c);
+  const auto& g = c->gateway;
+  EXPECT_EQ(g.listener_modbus(0).max_connects_per_second, 200u);
+  EXPECT_EQ(g.listener_modbus(0).max_connects_per_second_per_address, 40u);
+  EXPECT_EQ(g.listener_modbus(1).max_connects_per_second, 0u);
+  EXPECT_EQ(g.listener_modbus(1).max_connects_per_second_per_address, 5u);
+  EXPECT_TRUE(g.metrics.allow.allows(asio::ip::make_address("10.1.2.3")));
+  EXPECT_FALSE(g.metrics.allow.allows(asio::ip::make_address("127.0.0.1")));
+  EXPECT_EQ(g.console.max_pending_per_address, 4u);
+
+  ASSERT_EQ(load("metrics: {listen: 127.0.0.1:9502}\n" + nodes, &c), "");
+  EXPECT_TRUE(c->gateway.metrics.allow.empty());
+  EXPECT_EQ(c->gateway.console.max_pending_per_address, 16u);
+
+  const auto e = load(
+      "modbus: {max_connects_per_second: -1}\n"
+      "metrics: {allow: [10.0.0.0/33]}\n"
+      "console: {max_pending_per_address: many}\n" +
+      nodes);
+  test::expect_contains(e, {"modbus max_connects_per_second", "metrics allow: prefix length '33'",
+                            "console max_pending_per_address"});
+}
+
 }  // namespace
 }  // namespace fieldgate

@@ -53,10 +53,11 @@ class ReloadCarryOverTest : public test::ConfigFileTest {
         ->read_registers(unit, RegisterTable::input_registers, address, 1);
   }
 
-  // Values as the replaced bus would have left them: x and y read 2 s ago.
+  // Values as the replaced bus would have left them: x and y read 1 s ago (within the 2 s a
+  // fast point may be old before it is stale, docs/register-map.md).
   static void polled(Gateway& g, const RegisterEntry& point) {
     auto images = g.buses().at(0)->node_images();
-    const auto then = std::chrono::steady_clock::now() - 2s;
+    const auto then = std::chrono::steady_clock::now() - 1s;
     for (std::size_t n = 0; n < images.size(); ++n) {
       for (auto& v : images[n]->points) v = {0, then, true};
       images[n]->points.at(static_cast<std::size_t>(point.index)).value =
@@ -76,7 +77,7 @@ TEST_F(ReloadCarryOverTest, ASerialNodesDataAgeIsTheAgeOfItsOldestPolledValue) {
   polled(g, a_point(g.config()));
   const auto age =
       g.image().diagnostic(0, DiagnosticField::data_age_ms, std::chrono::steady_clock::now());
-  EXPECT_GE(age, 2000);
+  EXPECT_GE(age, 1000);
   EXPECT_LT(age, 0xffffffff);
   auto& image = *g.buses().at(0)->node_images().at(0);
   ASSERT_EQ(image.polled.size(), image.points.size());
@@ -110,7 +111,7 @@ TEST_F(ReloadCarryOverTest, AnUnchangedNodeKeepsServingWhileItsBusIsRebuilt) {
   EXPECT_EQ(g.image().node(0).state, NodeState::starting) << "still not in touch";
   const auto age =
       g.image().diagnostic(0, DiagnosticField::data_age_ms, std::chrono::steady_clock::now());
-  EXPECT_GE(age, 2000) << "served with its age";
+  EXPECT_GE(age, 1000) << "served with its age";
   EXPECT_LT(age, 0xffffffff) << "every value was carried over";
 
   auto y = read(g, 2, point.address);

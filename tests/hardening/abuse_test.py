@@ -355,6 +355,59 @@ def reconnecting_plc(d, expect_served):
               "served), as before the fix")
 
 
+def silent_churn(d):
+    """Peers from 8 addresses connect and say nothing (about 450 connects/s in all), keeping a
+    few connections each open, while a PLC polls (two FC4 reads every 50 ms) on one connection:
+    every read is answered. With max_clients: 16, the default when_full and connect rates."""
+    stop = threading.Event()
+    connects = [0]
+
+    def churn(source):
+        held = []
+        while not stop.is_set():
+            s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            s.setblocking(False)
+            try:
+                s.bind((source, 0))
+                s.connect_ex(("127.0.0.1", d.port))
+                connects[0] += 1
+            except OSError:
+                s.close()
+                time.sleep(0.01)
+                continue
+            held.append(s)
+            if len(held) > 5:
+                held.pop(0).close()
+            time.sleep(0.015)  # about 60 connects/s per address, 450-500/s in all
+        for s in held:
+            s.close()
+
+    threads = [threading.Thread(target=churn, args=(f"127.0.0.{i}",)) for i in range(2, 10)]
+    for t in threads:
+        t.start()
+    time.sleep(0.3)
+    plc = connect(d.port)
+    polls, failed = 150, 0
+    for i in range(polls):
+        for j in range(2):
+            tid = (2 * i + j) & 0xFFFF
+            plc.sendall(adu(tid, 1, read_pdu(0, 2, 4)))
+            reply = read_reply(plc)
+            if not (reply and reply[0] == tid and reply[2][0] in (0x04, 0x84)):
+                failed += 1
+                plc.close()
+                plc = connect(d.port)
+        time.sleep(0.05)
+    stop.set()
+    for t in threads:
+        t.join()
+    print(f"     silent connects from 8 addresses meanwhile: {connects[0]}")
+    check(failed == 0, f"polling PLC beside silent churn: {2 * polls - failed} of {2 * polls} "
+          "reads answered")
+    check(connects[0] > 2 * polls, "the churn outpaced the PLC's polls")
+    check(d.alive(), "daemon still running")
+
+
 def idle_timer(d):
     idle = connect(d.port)
     active = connect(d.port)
@@ -470,6 +523,7 @@ SCENARIOS = {
         "  max_clients: 4\n  when_full: refuse\n  request_timeout: 60s\n  idle_timeout: 60s\n",
         lambda d: reconnecting_plc(d, False)),
     "idle_timer": ("  idle_timeout: 2s\n  request_timeout: 2s\n", idle_timer),
+    "silent_churn": ("  max_clients: 16\n", silent_churn),
     "allow_list": ("  allow: [10.0.0.0/8]\n", allow_list),
     "per_address": ("  max_clients_per_address: 2\n", per_address),
     "device_identification": ("", device_identification),

@@ -180,5 +180,90 @@ TEST(AxisProfileModels, Cia402ResetsOnlyInErrorStop) {
   EXPECT_FALSE(library.find("copley-amplifier")->profile_axes.at(0).reset_only_in_error_stop);
 }
 
+// Two axes of one node commanded in the same scan: a setpoint that axis y's command sets and
+// axis x's action sends, without x setting it, would go out with y's value.
+constexpr const char* kTwoAxisModel = R"(model: m
+family: techno-c
+poll_classes: {fast: 100ms}
+points:
+  px: {type: int32, read: "@0P", poll: fast}
+  py: {type: int32, read: {request: "@0P", field: 1}, poll: fast}
+  fsx: {type: int32, read: "FSX?", write: "FSX{value}", poll: fast, min: 0, none: 0}
+setpoints:
+  tx: {type: int32}
+  ty: {type: int32}
+  speed: {type: int32, default: 100, none: 0}
+actions:
+  move: {code: 1, steps: ["M{tx},{speed},{ty},{speed}"]}
+axis_profile:
+  x:
+    position: px
+    reset_count: py
+    position_tolerance: 3
+    status: {enabled: true, moving: {point: px, bit: 0}}
+    setpoints: {target: tx}
+    hold: {ty: py}
+    commands: {move_absolute: move}
+    unsupported: [power_on, power_off, home, move_relative, jog_positive, jog_negative, stop, halt, reset]
+  y:
+    position: py
+    status: {enabled: true, moving: {point: py, bit: 0}}
+    setpoints: {target: ty, velocity: speed}
+    hold: {tx: px}
+    commands: {move_absolute: move}
+    unsupported: [power_on, power_off, home, move_relative, jog_positive, jog_negative, stop, halt, reset]
+)";
+
+TEST(AxisProfileModels, ASetpointOneAxisSendsAndOnlyAnotherSetsIsRefusedWhereItIsUsed) {
+  Diagnostics d;
+  load_model_text(kTwoAxisModel, "m.yaml", d);
+  EXPECT_FALSE(d.ok());
+  const std::string text = d.to_text();
+  EXPECT_NE(text.find("axis_profile x commands move_absolute: action move sends setpoint "
+                      "'speed', which axis y's commands set and axis x's do not"),
+            std::string::npos)
+      << text;
+  // At the line of x's commands (line 22 of the text above), with its column.
+  EXPECT_NE(text.find("m.yaml:22:"), std::string::npos) << text;
+  EXPECT_EQ(text.find("axis_profile y commands"), std::string::npos) << text;
+}
+
+TEST(AxisProfileModels, ASetpointEveryAxisSetsItselfIsAccepted) {
+  std::string text = kTwoAxisModel;
+  text.replace(text.find("    hold: {ty: py}"), 18, "    hold: {ty: py}\n    fixed: {speed: 50}");
+  Diagnostics d;
+  const auto model = load_model_text(text, "m.yaml", d);
+  ASSERT_TRUE(d.ok()) << d.to_text();
+  const auto& x = model->profile_axes.at(0);
+  EXPECT_EQ(x.position_tolerance, 3);
+  EXPECT_EQ(x.reset_count, "py");
+  EXPECT_EQ(model->find_setpoint("speed")->none, 0);
+  EXPECT_EQ(model->find_point("fsx")->none, 0);
+  EXPECT_FALSE(model->find_setpoint("tx")->none);
+}
+
+TEST(AxisProfileModels, ANegativeToleranceOrAnUnpolledResetCountIsAnError) {
+  std::string text = kTwoAxisModel;
+  text.replace(text.find("position_tolerance: 3"), 21, "position_tolerance: -1");
+  text.replace(text.find("reset_count: py"), 15, "reset_count: nothing");
+  Diagnostics d;
+  load_model_text(text, "m.yaml", d);
+  EXPECT_NE(d.to_text().find("position_tolerance"), std::string::npos) << d.to_text();
+  EXPECT_NE(d.to_text().find("reset_count: unknown point 'nothing'"), std::string::npos)
+      << d.to_text();
+}
+
+// Every shipped model passes the check: the axes of the Techno and Whedco models fill every
+// setpoint their commands send (the others' speeds are fixed: an axis that stays put ignores
+// its speed).
+TEST(AxisProfileModels, ShippedMultiAxisModelsFillWhatTheirCommandsSend) {
+  Diagnostics d;
+  ModelLibrary library;
+  library.load_directory(std::string(FIELDGATE_SOURCE_DIR) + "/config/models", d);
+  ASSERT_TRUE(d.ok()) << d.to_text();
+  EXPECT_EQ(library.find("whedco-cmc-xy")->find_point("x_jog_speed")->none, 0);
+  EXPECT_EQ(library.find("centent-cn0170")->profile_axes.at(0).reset_count, "resets");
+}
+
 }  // namespace
 }  // namespace fieldgate

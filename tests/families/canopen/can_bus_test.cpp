@@ -397,6 +397,85 @@ TEST_F(CanBusTest, HeartbeatLossAndReturn) {
   EXPECT_TRUE(stays_online(1, 600ms));
 }
 
+// Issue 49: a node that boots while a probe to it is on its way. Literal order: the probe goes
+// out to the powered-off node (lost), the node powers on and sends its boot-up, the probe times
+// out. Online by the boot-up, the node stays online: the probe was sent before the boot-up, so
+// its timeout says nothing about the node now. offline_after: 1, so one counted timeout would
+// take it offline.
+TEST_F(CanBusTest, ProbeLostToABootUpDoesNotTakeTheNodeOffline) {
+  start("2,3", kTwoDrives,
+        "reply_timeout: 50ms, retries: 0, offline_after: 1, probe_interval: 100ms, "
+        "heartbeat_timeout: 300ms, start_nodes: true");
+  ASSERT_TRUE(run_until([&] { return online(1) && point(1, "nmt_state") == 5; }));
+  sim_->execute("power-off 3");
+  ASSERT_TRUE(run_until([&] { return offline(1); }, 2s));
+  const auto resets = image(1).controller_resets;
+  const std::string probe = "603#4000100000000000";
+  std::size_t probe_at = std::string::npos;
+  sim_->after_delivery = [&](const CanFrame& f) {
+    if (probe_at != std::string::npos || to_string(f) != probe) return;
+    probe_at = wire_->wire.size() - 1;
+    sim_->execute("power-on 3");
+  };
+  ASSERT_TRUE(run_until([&] { return probe_at != std::string::npos; }, 2s)) << wire_text();
+  ASSERT_TRUE(run_until([&] { return online(1); }, 1s)) << wire_text();
+  // The probe's timeout came after the boot-up: the client aborted it (0x05040000).
+  ASSERT_TRUE(run_until([&] { return wire_count("603#8000100000000405", probe_at) == 1; }, 1s))
+      << wire_text();
+  EXPECT_EQ(wire_count("703#00", probe_at), 1u);  // boot-up between the probe and its abort
+  EXPECT_TRUE(stays_online(1, 1s)) << image(1).counters.last_error_text << "\n" << wire_text();
+  EXPECT_EQ(image(1).controller_resets, resets + 1);
+  EXPECT_EQ(image(1).counters.consecutive_timeouts, 0u);
+  EXPECT_GE(image(1).counters.timeouts, 1u);  // counted, just not toward offline
+  EXPECT_TRUE(run_until([&] { return point(1, "nmt_state") == 5; }));
+}
+
+// The same for a poll on its way while the node restarts (power cycle between the request and
+// its answer): online all along, configured and started again after its boot-up.
+TEST_F(CanBusTest, PollLostToARestartDoesNotTakeTheNodeOffline) {
+  start("2", "      - {name: axis2, address: 2, model: canopen-cia402, unit_id: 1}\n",
+        "reply_timeout: 50ms, retries: 0, offline_after: 1, probe_interval: 100ms, "
+        "heartbeat_timeout: 300ms, start_nodes: true");
+  ASSERT_TRUE(run_until([&] { return online(0) && point(0, "nmt_state") == 5; }));
+  const auto resets = image(0).controller_resets;
+  int stage = 0;  // 1: the request is on its way to the powered-off node; 2: it powered on
+  std::size_t lost_at = 0;
+  sim_->before_delivery = [&](const CanFrame& f) {
+    if (stage != 0 || f.id != 0x602 || f.data[0] != 0x40) return;  // an upload request
+    stage = 1;
+    lost_at = wire_->wire.size() - 1;
+    sim_->execute("power-off 2");
+  };
+  sim_->after_delivery = [&](const CanFrame&) {
+    if (stage != 1) return;
+    stage = 2;
+    sim_->execute("power-on 2");
+  };
+  ASSERT_TRUE(run_until([&] { return stage == 2; }, 3s)) << wire_text();
+  EXPECT_TRUE(stays_online(0, 1s)) << image(0).counters.last_error_text << "\n" << wire_text();
+  EXPECT_EQ(wire_count("602#80.{6}00000405", lost_at), 1u) << wire_text();  // it timed out
+  EXPECT_EQ(image(0).controller_resets, resets + 1);
+  EXPECT_GE(wire_count("602#2B17100064000000", lost_at), 1u);  // configured again
+  EXPECT_TRUE(run_until([&] { return point(0, "nmt_state") == 5; }));
+}
+
+// Every boot-up the bus sees is a controller reset on the node's image (an action running
+// across one does not end done).
+TEST_F(CanBusTest, BootUpCountsAControllerReset) {
+  start("2", "      - {name: axis2, address: 2, model: canopen-cia402, unit_id: 1}\n");
+  ASSERT_TRUE(run_until([&] { return online(0) && point(0, "nmt_state") == 5; }));
+  const auto resets = image(0).controller_resets;
+  EXPECT_EQ(submit(0, "nmt reset").status, Reply::Status::ok);
+  ASSERT_TRUE(run_until([&] { return image(0).controller_resets == resets + 1; }, 1s))
+      << wire_text();
+  sim_->execute("power-off 2");
+  sim_->execute("power-on 2");
+  ASSERT_TRUE(run_until([&] { return image(0).controller_resets == resets + 2; }, 1s))
+      << wire_text();
+  EXPECT_TRUE(run_until([&] { return point(0, "nmt_state") == 5; }));
+  EXPECT_EQ(image(0).controller_resets, resets + 2);
+}
+
 TEST_F(CanBusTest, EmergencyReachesDiagnostics) {
   start("2,3", kTwoDrives);
   ASSERT_TRUE(run_until([&] { return online(0) && point(0, "statusword"); }));
@@ -654,6 +733,56 @@ TEST_F(CanBusTest, NodeGuardingStopsWhenAHeartbeatIsConfiguredAgain) {
   EXPECT_TRUE(stays_online(0, 1s)) << image(0).counters.last_error_text;
   EXPECT_EQ(wire_count("702#R"), guards) << wire_text();
   EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::heartbeat);
+  EXPECT_EQ(point(0, "nmt_state"), 5);
+}
+
+// Issue 49: a node watched by SDO (a PLC set its producer time to 0) whose heartbeat another
+// tool turns on: node guarding stops while the heartbeat comes, whoever set it, and starts
+// again once it stops. Its plain heartbeats (no toggle bit) are no guard replies.
+TEST_F(CanBusTest, NodeGuardingStopsWhenAnotherToolTurnsTheHeartbeatOn) {
+  auto nc = as_shipped();
+  nc.node_guarding = false;  // its only state frames are heartbeats
+  capture_log();
+  start("2", kCia301Node, kTiming, nc);
+  ASSERT_TRUE(run_until([&] {
+    return point(0, "nmt_state") == 5 &&
+           bus_->node_status(0).liveness == CanBus::Liveness::heartbeat;
+  }));
+  ASSERT_EQ(submit(0, "write heartbeat_time 0").status, Reply::Status::ok);
+  ASSERT_TRUE(run_until([&] { return wire_count("702#R") >= 1; }, 1s)) << wire_text();
+  // Another tool sets 0x1017 = 100 ms, unknown to the gateway (guarding gives up after 300 ms
+  // without a reply: the heartbeat comes before that).
+  std::size_t from = wire_->wire.size();
+  ASSERT_TRUE(sim_->from_other_tool("602#2B17100064000000"));
+  ASSERT_TRUE(run_until([&] { return wire_count("702#05", from) >= 3; }, 1s)) << wire_text();
+  const auto guards = wire_count("702#R");
+  EXPECT_TRUE(stays_online(0, 1s)) << image(0).counters.last_error_text;
+  EXPECT_EQ(wire_count("702#R"), guards) << wire_text();
+  EXPECT_EQ(bus_->node_status(0).guard_replies, 0u);
+  EXPECT_EQ(bus_->node_status(0).liveness, CanBus::Liveness::sdo);
+  EXPECT_EQ(point(0, "nmt_state"), 5);
+  // The other tool turns it off again: guarding resumes a consumer time later.
+  from = wire_->wire.size();
+  ASSERT_TRUE(sim_->from_other_tool("602#2B17100000000000"));
+  EXPECT_TRUE(run_until([&] { return wire_count("702#R", from) >= 1; }, 1s)) << wire_text();
+  EXPECT_TRUE(online(0));
+  test::expect_contains(captured_log(),
+                        {"node dev (2) sends heartbeats the gateway did not set up: node guarding "
+                         "stops while they come",
+                         "node dev (2) sent no heartbeat within 300 ms: node guarding again"});
+}
+
+// A node that guards and produces no heartbeat of its own: each reply carries the toggle bit
+// expected, and each is taken.
+TEST_F(CanBusTest, GuardRepliesWithTheirToggleAreTaken) {
+  auto nc = as_shipped();
+  nc.heartbeat_object = sim::canopen::HeartbeatObject::absent;
+  start("2", kCia301Node, kTiming, nc);
+  ASSERT_TRUE(run_until([&] { return bus_->node_status(0).guard_replies >= 4; }, 2s))
+      << wire_text();
+  EXPECT_GE(wire_count("702#85"), 1u);  // the toggle bit alternates
+  EXPECT_GE(wire_count("702#05"), 1u);
+  EXPECT_TRUE(stays_online(0, 500ms));
   EXPECT_EQ(point(0, "nmt_state"), 5);
 }
 

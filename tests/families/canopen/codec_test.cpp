@@ -109,7 +109,10 @@ TEST(Nmt, FramesAndStates) {
   ASSERT_TRUE(hb);
   EXPECT_EQ(hb->node, 3);
   EXPECT_EQ(hb->state, nmt_state::pre_operational);
+  EXPECT_FALSE(hb->toggle);
   EXPECT_EQ(parse_heartbeat(*parse_frame("702#85"))->state, nmt_state::operational);  // toggle
+  EXPECT_TRUE(parse_heartbeat(*parse_frame("702#85"))->toggle);
+  EXPECT_FALSE(parse_heartbeat(*parse_frame("702#05"))->toggle);
   EXPECT_EQ(parse_heartbeat(*parse_frame("77F#00"))->state, nmt_state::boot_up);
   EXPECT_FALSE(parse_heartbeat(*parse_frame("700#00")));
   EXPECT_FALSE(parse_heartbeat(*parse_frame("702#")));

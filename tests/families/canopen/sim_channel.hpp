@@ -9,6 +9,7 @@
 #include <boost/asio/use_awaitable.hpp>
 
 #include <deque>
+#include <functional>
 #include <set>
 
 #include "drivers/transport/can_frame.hpp"
@@ -35,6 +36,10 @@ class SimChannel final : public CanChannel {
     const auto now = simco::Clock::now();
     for (const auto id : simco::parse_node_ids(nodes)) network_.add_node(id, now);
   }
+
+  // Called with each frame the bus sends, before and after the nodes received it: a test can
+  // power a node off or on at that point of the exchange.
+  std::function<void(const CanFrame&)> before_delivery, after_delivery;
 
   simco::Network& network() { return network_; }
   std::string execute(const std::string& line) {
@@ -87,19 +92,35 @@ class SimChannel final : public CanChannel {
     if (shared_->down) co_return std::make_error_code(std::errc::network_down);
     ++stats_.frames_sent;
     shared_->wire.push_back(to_string(frame));
-    simco::CanFrame f;
-    f.id = frame.id;
-    f.len = frame.len;
-    f.rtr = frame.rtr;
-    f.data = frame.data;
-    network_.receive(f, simco::Clock::now());
+    if (before_delivery) before_delivery(frame);
+    network_.receive(to_sim(frame), simco::Clock::now());
+    if (after_delivery) after_delivery(frame);
     co_return std::error_code{};
+  }
+
+  // A frame (candump text) another tool on the bus sends to the nodes, e.g. an SDO request; the
+  // nodes' answers reach the bus like any frame of theirs.
+  bool from_other_tool(const std::string& candump) {
+    const auto frame = simco::parse_frame(candump);
+    if (!frame) return false;
+    shared_->wire.push_back(candump);
+    network_.receive(*frame, simco::Clock::now());
+    return true;
   }
 
   std::string describe() const override { return "simulated CAN"; }
   const CanChannelStats& stats() const override { return stats_; }
 
  private:
+  static simco::CanFrame to_sim(const CanFrame& frame) {
+    simco::CanFrame f;
+    f.id = frame.id;
+    f.len = frame.len;
+    f.rtr = frame.rtr;
+    f.data = frame.data;
+    return f;
+  }
+
   void from_nodes(const simco::CanFrame& f) {
     CanFrame frame;
     frame.id = f.id;

@@ -155,7 +155,15 @@ class Client {
 // A plain socket for sending what libmodbus never would: half requests, bad headers, pipelines.
 class RawClient {
  public:
-  explicit RawClient(std::uint16_t port) : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
+  // `source`: a loopback address to connect from (127.0.0.2, ...), for per-address limits.
+  explicit RawClient(std::uint16_t port, const char* source = nullptr)
+      : fd_(::socket(AF_INET, SOCK_STREAM, 0)) {
+    if (source) {
+      sockaddr_in from{};
+      from.sin_family = AF_INET;
+      ::inet_pton(AF_INET, source, &from.sin_addr);
+      ::bind(fd_, reinterpret_cast<sockaddr*>(&from), sizeof from);
+    }
     sockaddr_in address{};
     address.sin_family = AF_INET;
     address.sin_port = htons(port);
@@ -581,6 +589,131 @@ TEST_F(ModbusTcpServerTest, WhenFullTheIdlestIsEvictedButNeverOneBeingAnswered) 
   });
   EXPECT_EQ(server_->stats().clients_evicted, 1u);
   EXPECT_EQ(server_->stats().clients_refused, 0u);
+}
+
+// Peers that connect and say nothing, from 8 addresses, keep every slot changing hands while a
+// client polls on one connection: it is never the one evicted (it has been answered; they have
+// not completed a request), so it keeps every read. Counts, no timing.
+TEST_F(ModbusTcpServerTest, SilentChurnNeverEvictsAPollingClient) {
+  auto options = loopback_options();
+  options.max_clients = 4;  // when_full: evict_idle; no connect rate limit
+  start_server(options);
+  std::atomic<bool> polling{true};
+  std::atomic<int> reads{0}, failed{0};
+  std::atomic<int> churned{0};
+  constexpr int wanted = 300;
+  auto churn = [&](int first) {
+    return [&, first] {
+      const std::string sources[] = {"127.0.0." + std::to_string(first),
+                                     "127.0.0." + std::to_string(first + 1)};
+      std::vector<std::unique_ptr<RawClient>> open;
+      for (int i = 0; polling; ++i) {
+        open.push_back(std::make_unique<RawClient>(port_, sources[i % 2].c_str()));
+        ++churned;
+        if (open.size() > 10) open.erase(open.begin());  // keeps at most 10 open
+      }
+    };
+  };
+  auto poller = [&] {
+    Client plc(port_);
+    ASSERT_TRUE(plc.connect());
+    // Until the churn has gone round the slots many times over, and at least `wanted` reads.
+    while (reads + failed < wanted || churned < 2000) {
+      (plc.read_one(7) == 7 ? reads : failed)++;
+      std::this_thread::sleep_for(1ms);
+    }
+    polling = false;
+  };
+  run_clients({poller, churn(2), churn(4), churn(6), churn(8)});
+  EXPECT_EQ(failed, 0) << "of " << reads + failed << " reads";
+  EXPECT_GE(reads, wanted);
+  const auto& stats = server_->stats();
+  EXPECT_GT(stats.evicted.never_spoke, 0u);
+  EXPECT_EQ(stats.evicted.overdue, 0u);
+  EXPECT_EQ(stats.clients_evicted, stats.evicted.never_spoke);
+}
+
+// Full of clients that have been answered and still poll: a newcomer is let in on probation
+// and, at its first request, closed unanswered; nobody working is pushed out for it.
+TEST_F(ModbusTcpServerTest, FullOfWorkingClientsANewcomerIsRefusedAtItsFirstRequest) {
+  auto options = loopback_options();
+  options.max_clients = 2;
+  start_server(options);
+  run_client([&] {
+    Client a(port_), b(port_);
+    ASSERT_TRUE(a.connect());
+    ASSERT_TRUE(b.connect());
+    EXPECT_EQ(a.read_one(1), 1);
+    EXPECT_EQ(b.read_one(2), 2);
+    Client c(port_);
+    c.connect();
+    EXPECT_EQ(c.read_one(3), -1);
+    EXPECT_EQ(a.read_one(4), 4);
+    EXPECT_EQ(b.read_one(5), 5);
+  });
+  EXPECT_EQ(server_->stats().refused.no_idle_client, 1u);
+  EXPECT_EQ(server_->stats().clients_evicted, 0u);
+}
+
+// A client gone silent well beyond its own rhythm (a PLC whose old connection is half-open
+// after a restart) makes room for the newcomer once the newcomer has spoken.
+TEST_F(ModbusTcpServerTest, AnOverdueClientMakesRoomForANewcomerThatSpoke) {
+  auto options = loopback_options();
+  options.max_clients = 2;
+  options.overdue_floor = 50ms;
+  start_server(options);
+  run_client([&] {
+    Client gone(port_), polling(port_);
+    ASSERT_TRUE(gone.connect());
+    ASSERT_TRUE(polling.connect());
+    for (int i = 0; i < 3; ++i) {
+      EXPECT_EQ(gone.read_one(1), 1);
+      EXPECT_EQ(polling.read_one(2), 2);
+    }
+    // `gone` falls silent; `polling` keeps its rhythm of a read every 20 ms.
+    for (int i = 0; i < 20; ++i) {
+      EXPECT_EQ(polling.read_one(2), 2);
+      std::this_thread::sleep_for(20ms);
+    }
+    Client plc(port_);
+    ASSERT_TRUE(plc.connect());
+    EXPECT_EQ(plc.read_one(3), 3);
+    EXPECT_EQ(polling.read_one(4), 4);
+    EXPECT_EQ(gone.read_one(5), -1);
+  });
+  EXPECT_EQ(server_->stats().evicted.overdue, 1u);
+  EXPECT_EQ(server_->stats().evicted.never_spoke, 0u);
+}
+
+// Beyond the connect rates, newcomers are closed at once: the open client is not even looked
+// at, and a flood from one address does not use up the total for others.
+TEST_F(ModbusTcpServerTest, ConnectRatesRefuseNewcomersBeforeAnyOpenClientIsTouched) {
+  auto options = loopback_options();
+  options.max_clients = 2;
+  options.max_connects_per_second_per_address = 5;  // a burst of 10
+  options.max_connects_per_second = 20;             // a burst of 40
+  start_server(options);
+  run_client([&] {
+    Client plc(port_);
+    ASSERT_TRUE(plc.connect());
+    EXPECT_EQ(plc.read_one(1), 1);
+    std::vector<std::unique_ptr<RawClient>> flood;
+    for (int i = 0; i < 30; ++i) flood.push_back(std::make_unique<RawClient>(port_, "127.0.0.2"));
+    for (int i = 0; i < 60; ++i)
+      flood.push_back(
+          std::make_unique<RawClient>(port_, ("127.0.0." + std::to_string(3 + i % 6)).c_str()));
+    EXPECT_EQ(plc.read_one(2), 2);
+    ASSERT_TRUE(wait_until([&] {
+      return on_io([&] {
+               return server_->stats().clients_accepted + server_->stats().clients_refused;
+             }) >= 91;
+    }));
+  });
+  const auto& stats = server_->stats();
+  EXPECT_GE(stats.refused.rate_per_address, 20u);  // 127.0.0.2: at most 10 + refill let in
+  EXPECT_GT(stats.refused.rate, 0u);               // the others together: beyond 40 + refill
+  EXPECT_EQ(stats.clients_refused,
+            stats.refused.rate_per_address + stats.refused.rate + stats.refused.no_idle_client);
 }
 
 TEST_F(ModbusTcpServerTest, PerAddressLimitRefusesTheExtraConnectionFromThatAddress) {

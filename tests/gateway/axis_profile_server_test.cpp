@@ -1,0 +1,171 @@
+// Issue 49, "done means arrived", on the axis profile of a three-axis Techno C142 over a bus that
+// answers every command at once: the axes of one node commanded in the same scan each send their
+// own target, and a move is done only on a position read after it at its target, with no reset
+// of the controller since it was accepted.
+#include <gtest/gtest.h>
+
+#include <boost/asio/co_spawn.hpp>
+#include <boost/asio/detached.hpp>
+
+#include <algorithm>
+
+#include "control_table_test.hpp"
+#include "gateway/register_map/axis_profile_server.hpp"
+
+namespace fieldgate {
+namespace {
+
+using namespace std::chrono_literals;
+namespace asio = boost::asio;
+namespace ap = axis_profile;
+
+class AxisProfileDone : public test::ControlTableTest {
+ protected:
+  void SetUp() override {
+    ConfigFileTest::SetUp();
+    start_control();
+    server_ =
+        std::make_unique<AxisProfileServer>(image_, *actions_, *control_, config_->gateway.modbus);
+    // The controller as the first polls found it: every axis at 0, standing still.
+    image_.node(0).state = NodeState::online;
+    for (const char* p :
+         {"position_x", "position_y", "position_z", "in_motion", "motion_fault", "motion_error"})
+      poll(p, 0);
+  }
+  void TearDown() override {
+    server_.reset();
+    ControlTableTest::TearDown();
+  }
+
+  ProfileUnit axis(int index) const {
+    const auto& node = config_->gateway.buses[0].nodes[0];
+    return ProfileUnit{0, &node, node.model, index};
+  }
+  // A fresh reading of a point, as a poll brings it: the poll's reply (the controller's `P`)
+  // refreshes every point of its class, the others with their values as they were.
+  void poll(const std::string& name, int64_t value) {
+    const PointDef* point = model().find_point(name);
+    const auto now = std::chrono::steady_clock::now();
+    auto& points = image_.node(0).points;
+    for (std::size_t i = 0; i < model().points.size(); ++i)
+      if (model().points[i].poll_class == point->poll_class) {
+        points[i].updated = now;
+        points[i].valid = true;
+      }
+    points[static_cast<std::size_t>(point - model().points.data())].value = value;
+    actions_->node_updated(0);
+  }
+  // The PLC's writes of the target (holding 0-1) and then of command and sequence (holding
+  // 8-9); velocity and the rest stay as the model's defaults.
+  void command(int axis_index, int64_t target, ProfileCommand c, uint16_t sequence) {
+    asio::co_spawn(
+        io_,
+        [this, axis_index, target, c, sequence]() -> asio::awaitable<void> {
+          const uint16_t position[2] = {static_cast<uint16_t>((target >> 16) & 0xffff),
+                                        static_cast<uint16_t>(target & 0xffff)};
+          const uint16_t handshake[2] = {static_cast<uint16_t>(c), sequence};
+          auto result = co_await server_->write(axis(axis_index), ap::target_position, position,
+                                                WordOrder::high_first);
+          EXPECT_TRUE(result.ok()) << "exception " << static_cast<int>(result.exception());
+          result = co_await server_->write(axis(axis_index), ap::command_code, handshake,
+                                           WordOrder::high_first);
+          EXPECT_TRUE(result.ok()) << "exception " << static_cast<int>(result.exception());
+        },
+        asio::detached);
+  }
+  void run(std::chrono::milliseconds how_long) {
+    io_.run_for(how_long);
+    io_.restart();
+  }
+  uint16_t input(int axis_index, uint16_t address) {
+    const auto r = server_->read(axis(axis_index), modbus::RegisterTable::input_registers, address,
+                                 1, WordOrder::high_first);
+    return r.ok() ? r.values().front() : 0xdead;
+  }
+  CommandStatus status(int axis_index) {
+    return static_cast<CommandStatus>(input(axis_index, ap::command_status));
+  }
+  std::vector<std::string> moves() const {
+    std::vector<std::string> m;
+    std::copy_if(bus_.sent.begin(), bus_.sent.end(), std::back_inserter(m),
+                 [](const std::string& s) { return !s.empty() && s.front() == 'M'; });
+    return m;
+  }
+
+  std::unique_ptr<AxisProfileServer> server_;
+};
+
+TEST_F(AxisProfileDone, TwoAxesCommandedInOneScanEachSendTheirOwnTarget) {
+  command(0, 511, ProfileCommand::move_absolute, 1);
+  command(1, 2022, ProfileCommand::move_absolute, 1);
+  run(50ms);
+  // X's move went out with X's target and Y where it stood; Y's waits for a reading of X taken
+  // after X's move (it names every axis).
+  ASSERT_EQ(moves().size(), 1u) << ::testing::PrintToString(bus_.sent);
+  EXPECT_EQ(moves()[0], "M511,2000,0,2000,0,2000,0,2000");
+  poll("position_x", 511);
+  run(50ms);
+  ASSERT_EQ(moves().size(), 2u) << ::testing::PrintToString(bus_.sent);
+  EXPECT_EQ(moves()[1], "M511,2000,2022,2000,0,2000,0,2000");
+  // The polls after both moves: standing still, each axis at its own target.
+  for (int i = 0; i < 5; ++i) {
+    poll("position_y", 2022);
+    poll("in_motion", 0);
+    run(50ms);
+  }
+  EXPECT_EQ(status(0), CommandStatus::done);
+  EXPECT_EQ(status(1), CommandStatus::done);
+}
+
+TEST_F(AxisProfileDone, AnAxisThatStopsAwayFromItsTargetEndsFailedNotDone) {
+  command(0, 511, ProfileCommand::move_absolute, 1);
+  run(50ms);
+  ASSERT_EQ(moves().size(), 1u);
+  // Standing still where it started: the controller never ran the move to its end.
+  for (int i = 0; i < 15 && status(0) == CommandStatus::busy; ++i) {
+    poll("in_motion", 0);
+    poll("position_x", 0);
+    run(100ms);
+  }
+  EXPECT_EQ(status(0), CommandStatus::error);
+  EXPECT_EQ(input(0, ap::command_error), kProfileErrorNotAtTarget);
+  EXPECT_EQ(static_cast<PlcopenState>(input(0, ap::plcopen_state)), PlcopenState::error_stop);
+}
+
+TEST_F(AxisProfileDone, ADoneNeedsAPositionReadAfterTheMove) {
+  poll("position_x", 511);  // already there before the move: no proof of this command
+  command(0, 511, ProfileCommand::move_absolute, 1);
+  run(200ms);
+  EXPECT_EQ(status(0), CommandStatus::busy);
+  for (int i = 0; i < 5; ++i) {
+    poll("position_x", 511);
+    run(50ms);
+  }
+  EXPECT_EQ(status(0), CommandStatus::done);
+}
+
+TEST_F(AxisProfileDone, AControllerResetDuringTheMoveEndsItFailed) {
+  command(0, 511, ProfileCommand::move_absolute, 1);
+  poll("in_motion", 1);
+  run(50ms);
+  ASSERT_EQ(status(0), CommandStatus::busy);
+  ++image_.node(0).controller_resets;
+  poll("position_x", 511);  // even at the target: the reset makes nothing of the move provable
+  poll("in_motion", 0);
+  run(100ms);
+  EXPECT_EQ(status(0), CommandStatus::error);
+  EXPECT_EQ(input(0, ap::command_error), kActionErrorControllerReset);
+}
+
+TEST_F(AxisProfileDone, APageWhoseStatusWasNeverReadAnswersTargetFailed) {
+  const auto moving =
+      static_cast<std::size_t>(model().find_point("in_motion") - model().points.data());
+  image_.node(0).points[moving].valid = false;
+  const auto r =
+      server_->read(axis(0), modbus::RegisterTable::input_registers, 0, 12, WordOrder::high_first);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.exception(), modbus::ExceptionCode::gateway_target_failed);
+}
+
+}  // namespace
+}  // namespace fieldgate
