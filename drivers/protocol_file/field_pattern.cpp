@@ -489,7 +489,8 @@ std::optional<std::string> format_field(const Field& f, int64_t value, std::stri
       break;
     case FieldType::character:
       if (!is_printable(value)) {
-        why = fmt::format("{{{}:char}}: {} is not a printable character", f.name, value);
+        why = fmt::format("{{{}:char}}: {} is not the code of a printable character (32..126)",
+                          f.name, value);
         return std::nullopt;
       }
       s = std::string(1, static_cast<char>(value));

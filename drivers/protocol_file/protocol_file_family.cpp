@@ -128,6 +128,10 @@ std::shared_ptr<const CompiledProtocolCommand> ProtocolFileFamily::compile(
     } else if (const auto v = parse_integer_text(w.text)) {
       a.constant = true;
       a.value = *v;
+      if (const auto why = argument_problem(*command, i - 1, *v)) {
+        error = fmt::format("'{}': {}", text.source(), *why);
+        return nullptr;
+      }
     } else {
       error = fmt::format("'{}': argument '{}' of {} is neither a {{placeholder}} nor an integer",
                           text.source(), w.text, command->name);
@@ -136,6 +140,24 @@ std::shared_ptr<const CompiledProtocolCommand> ProtocolFileFamily::compile(
     compiled->arguments.push_back(a);
   }
   return compiled;
+}
+
+// A point is a number on the register map; a text capture has no number (its value would be
+// served as 0, with good quality).
+void ProtocolFileFamily::check_capture_fills_point(const PointDef& point,
+                                                   const CommandSpec& command,
+                                                   Diagnostics& diagnostics) const {
+  const auto captures = command.reply->named_fields();
+  const auto field = static_cast<std::size_t>(point.read->field);
+  if (field >= captures.size() || captures[field]->type != FieldType::text) return;
+  const Field& f = *captures[field];
+  diagnostics.error(
+      point.mark,
+      fmt::format("point {} read: value {} of {} is {{{}:text}} ({}: '{}'), which no {} point "
+                  "can hold: capture a number there in the protocol file (int, decimal(S), hex, "
+                  "char or bits(N)), or read another value of {}",
+                  point.name, field, command.name, f.name, to_string(command.capture_mark(f)),
+                  command.reply->source(), to_string(point.type), command.name));
 }
 
 void ProtocolFileFamily::validate_model(const Model& model, Diagnostics& diagnostics) const {
@@ -164,6 +186,8 @@ void ProtocolFileFamily::validate_model(const Model& model, Diagnostics& diagnos
                                                 "gives {} value(s): {}",
                                                 p.name, p.read->field, c->command->name,
                                                 values.size(), fmt::join(values, ", ")));
+        else
+          check_capture_fills_point(p, *c->command, diagnostics);
       }
     }
     if (p.write) {

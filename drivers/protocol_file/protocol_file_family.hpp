@@ -63,6 +63,8 @@ class ProtocolFileFamily final : public ProtocolFamily {
     std::string refusal;  // not empty: refused, and why
   };
   Resolved resolve(const NodeAddress& node, const Request& request) const;
+  void check_capture_fills_point(const PointDef& point, const CommandSpec& command,
+                                 Diagnostics& diagnostics) const;
   // One command and its confirmations, as the device must answer them.
   asio::awaitable<Reply> run(Link& link, const CommandSpec& command,
                              const std::vector<int64_t>& arguments, std::string_view address,

@@ -3,7 +3,9 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
+#include <fstream>
 #include <initializer_list>
 #include <set>
 #include <utility>
@@ -118,6 +120,7 @@ class ProtocolParser {
     }
     if (spec.reply_length == 0 && spec.reply_terminator.empty())
       r_.error(node, "framing: a reply needs a reply_terminator or a fixed reply_length");
+    if (node["error_terminator"]) check_error_terminator(node["error_terminator"], spec);
     if (auto e = node["echo"])
       spec.echo = choice<ProtocolSpec::Echo>(e, "echo",
                                              {{"none", ProtocolSpec::Echo::none},
@@ -129,6 +132,35 @@ class ProtocolParser {
     if (node["max_reply"])
       spec.max_reply = static_cast<std::size_t>(
           r_.integer(node["max_reply"], "max_reply", 8, 65536).value_or(256));
+  }
+
+  // The reply splitter ends a reply at whichever terminator comes first, so each must be told
+  // from the other as the bytes arrive.
+  void check_error_terminator(const YAML::Node& node, const ProtocolSpec& spec) {
+    const std::string& error = spec.error_terminator;
+    const std::string& reply = spec.reply_terminator;
+    if (error.empty() || reply.empty()) return;
+    constexpr std::string_view what_to_do =
+        "give the ending only a refused reply has (Parker 6K: reply_terminator '\\r\\n> ', "
+        "error_terminator '\\r\\n? ')";
+    const auto e = printable_bytes(error);
+    const auto r = printable_bytes(reply);
+    if (error == reply) {
+      r_.error(node, fmt::format("framing: error_terminator '{}' is the reply_terminator, so every "
+                                 "reply would read as refused: {}",
+                                 e, what_to_do));
+    } else if (reply.find(error) != std::string::npos) {
+      r_.error(node, fmt::format("framing: error_terminator '{}' is part of the reply_terminator "
+                                 "'{}', so a reply would read as refused once that much of its "
+                                 "end arrived: {}",
+                                 e, r, what_to_do));
+    } else if (const auto at = error.find(reply);
+               at != std::string::npos && at + reply.size() != error.size()) {
+      r_.error(node, fmt::format("framing: error_terminator '{}' holds the reply_terminator '{}' "
+                                 "before its end, so a refusal would be cut there and read as a "
+                                 "reply: {}",
+                                 e, r, what_to_do));
+    }
   }
 
   void parse_address(const YAML::Node& node, const YAML::Node& root, ProtocolSpec& spec) {
@@ -341,6 +373,7 @@ class ProtocolParser {
         // No reply: the confirmation below must prove the command was taken.
       } else if (auto p = pattern(rep, where + " reply")) {
         cmd.reply = *p;
+        cmd.reply_mark = at(rep, 0);
       } else {
         ok = false;
       }
@@ -494,6 +527,13 @@ class ProtocolParser {
         for (const Field* f : q->reply->named_fields()) {
           if (f->name != step.capture) continue;
           found = true;
+          if (!step.in.empty() && f->type == FieldType::text)
+            r_.diagnostics().error(
+                step.mark, fmt::format("command {} confirm: {}'s {{{}:text}} is text, which 'in:' "
+                                       "cannot compare with numbers: capture the state as a number "
+                                       "(int, hex, char, bits(N)) or confirm with the command "
+                                       "alone",
+                                       cmd.name, q->name, f->name));
           if (!step.equals.empty())
             for (const auto& piece : cmd.request.pieces())
               if (piece.field && piece.field->name == step.equals &&
@@ -564,6 +604,10 @@ class ProtocolParser {
           r_.error(item,
                    fmt::format("startup: {} takes {} argument(s) ('{}'), {} given", c->name,
                                c->parameters().size(), c->request.source(), step.arguments.size()));
+        else
+          for (std::size_t i = 0; i < step.arguments.size(); ++i)
+            if (const auto why = argument_problem(*c, i, step.arguments[i]))
+              r_.error(item["arguments"][i], fmt::format("startup: {}", *why));
       } else if (!step.command.empty()) {
         r_.error(name_node, fmt::format("startup: no command '{}' in this file", step.command));
       }
@@ -601,6 +645,11 @@ class ProtocolParser {
                                 d.to, d.from));
       return false;
     }
+    for (const auto& [bound, value] : {std::pair{node["from"], d.from}, std::pair{*to, d.to}})
+      if (const auto why = argument_problem(*c, 0, value)) {
+        r_.error(bound ? bound : *to, fmt::format("discover: {}", *why));
+        return false;
+      }
     d.until_error = r_.integer(*until, "discover until_error", INT64_MIN, INT64_MAX).value_or(0);
     if (node["error_query"]) {
       d.error_query = r_.string(node["error_query"], "discover error_query").value_or("");
@@ -692,7 +741,41 @@ class ProtocolParser {
 }  // namespace
 
 ProtocolSpecPtr load_protocol_file(const std::string& path, Diagnostics& diagnostics) {
-  return parse_yaml_file<ProtocolParser>(path, diagnostics);
+  Diagnostics found;
+  auto spec = parse_yaml_file<ProtocolParser>(path, found);
+  for (const auto& e : found.errors()) {
+    std::string message = e.message;
+    if (message.starts_with("YAML syntax:") && e.mark.line > 0) {
+      std::ifstream in(path);
+      std::string line;
+      for (int n = 0; n < e.mark.line && std::getline(in, line);) ++n;
+      message += flow_collection_hint(message, line);
+    }
+    diagnostics.error(e.mark, std::move(message));
+  }
+  return spec;
+}
+
+std::string flow_collection_hint(std::string_view yaml_message, std::string_view line) {
+  const bool list = yaml_message.find("sequence flow") != std::string_view::npos;
+  const bool map = yaml_message.find("map flow") != std::string_view::npos;
+  if (!list && !map) return {};
+  // A {placeholder}: a name in braces, as in a template or a model's step.
+  bool placeholder = false;
+  for (auto open = line.find('{'); open != std::string_view::npos && !placeholder;
+       open = line.find('{', open + 1)) {
+    auto i = open + 1;
+    while (i < line.size() &&
+           (std::isalnum(static_cast<unsigned char>(line[i])) || line[i] == '_' || line[i] == ':' ||
+            line[i] == '(' || line[i] == ')'))
+      ++i;
+    placeholder = i > open + 1 && i < line.size() && line[i] == '}';
+  }
+  if (!placeholder) return {};
+  return list ? "; a {placeholder} inside a YAML flow list [...] starts a mapping there: quote the "
+                "step or use a block list (one '- ' line per step)"
+              : "; a {placeholder} inside a YAML flow mapping {...} starts a mapping there: quote "
+                "the text or use a block mapping";
 }
 
 void ProtocolLibrary::load_directory(const std::string& directory, Diagnostics& diagnostics) {

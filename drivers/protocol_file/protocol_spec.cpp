@@ -1,5 +1,7 @@
 #include "drivers/protocol_file/protocol_spec.hpp"
 
+#include <fmt/format.h>
+
 namespace fieldgate::protocol_file {
 
 bool capture_equals(const Capture& capture, const CaptureValue& value) {
@@ -19,6 +21,21 @@ std::vector<std::string> CommandSpec::value_names() const {
     for (const Field* f : reply->named_fields()) out.push_back(f->name);
   if (!flags.empty()) out.push_back("flags");
   return out;
+}
+
+SourceMark CommandSpec::capture_mark(const Field& capture) const {
+  SourceMark m = reply_mark;
+  if (m.line > 0) m.column += static_cast<int>(capture.offset);
+  return m;
+}
+
+std::optional<std::string> argument_problem(const CommandSpec& command, std::size_t index,
+                                            int64_t value) {
+  const auto fields = command.request.named_fields();
+  if (index >= fields.size()) return std::nullopt;
+  std::string why;
+  if (format_field(*fields[index], value, why)) return std::nullopt;
+  return fmt::format("{} argument {} ({}) cannot be sent: {}", command.name, index + 1, value, why);
 }
 
 const CommandSpec* ProtocolSpec::find(std::string_view command) const {

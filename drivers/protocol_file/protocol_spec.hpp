@@ -68,11 +68,20 @@ struct CommandSpec {
   std::vector<ConfirmStep> confirm;
   std::chrono::microseconds timeout{0};  // 0: the bus's reply timeout
   SourceMark mark;
+  // Where the reply's template text starts: a capture stands at this column plus its offset.
+  SourceMark reply_mark;
   // The parameters the request carries, in order (its named fields).
   std::vector<std::string> parameters() const;
   // The values a read of this command yields: its reply's named captures, then the flags word.
   std::vector<std::string> value_names() const;
+  // Where one of the reply's captures is written, for error marks.
+  SourceMark capture_mark(const Field& capture) const;
 };
+
+// Why the command's parameter `index` (0-based) can never be sent with `value` (a char
+// argument of 300, a width too small), or nullopt when it can.
+std::optional<std::string> argument_problem(const CommandSpec& command, std::size_t index,
+                                            int64_t value);
 
 struct StartupStep {
   std::string command;

@@ -1,5 +1,6 @@
 // Protocol files as fieldgate check reads them: every shipped file loads, and a broken one is
 // refused at the file:line:column of what is wrong, with what is wrong.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -9,7 +10,9 @@
 #include <sstream>
 #include <vector>
 
+#include "drivers/protocol_file/protocol_file_family.hpp"
 #include "drivers/protocol_file/protocol_loader.hpp"
+#include "mapping/model_loader.hpp"
 
 namespace fieldgate::protocol_file {
 namespace {
@@ -155,6 +158,191 @@ TEST(ProtocolFiles, ANameTakenByABuiltInFamilyIsRefused) {
   Diagnostics d;
   EXPECT_FALSE(load_protocol_text(with(kGood, "test-line", "copley-ascii"), "p.yaml", d));
   EXPECT_NE(d.to_text().find("built-in family"), std::string::npos) << d.to_text();
+}
+
+// Issue 50's defects: what check accepted and must not. Each is refused where it is written, with
+// what to do.
+
+// The one error a broken text gives, as "LINE:COLUMN: MESSAGE" (the file name checked apart).
+std::string only_error(const Diagnostics& d, const std::string& file) {
+  if (d.errors().size() != 1) return "not one error: " + d.to_text();
+  const auto& e = d.errors().front();
+  EXPECT_EQ(std::filesystem::path(e.mark.file).filename().string(), file);
+  return std::to_string(e.mark.line) + ":" + std::to_string(e.mark.column) + ": " + e.message;
+}
+
+std::string with_framing(const std::string& reply_terminator, const std::string& error_terminator) {
+  return with(kGood, "address:",
+              "framing:\n  reply_terminator: \"" + reply_terminator + "\"\n  error_terminator: \"" +
+                  error_terminator + "\"\naddress:");
+}
+
+TEST(ProtocolFileDefects, AnErrorTerminatorThatIsTheReplyTerminatorIsRefusedAtItsLine) {
+  Diagnostics d;
+  EXPECT_FALSE(load_protocol_text(with_framing("\\r\\n", "\\r\\n"), "same.yaml", d));
+  EXPECT_EQ(only_error(d, "same.yaml"),
+            "4:21: framing: error_terminator '\\r\\n' is the reply_terminator, so every reply "
+            "would read as refused: give the ending only a refused reply has (Parker 6K: "
+            "reply_terminator '\\r\\n> ', error_terminator '\\r\\n? ')");
+}
+
+TEST(ProtocolFileDefects, TerminatorsThatCannotBeToldApartAsTheyArriveAreRefused) {
+  Diagnostics part;
+  EXPECT_FALSE(load_protocol_text(with_framing("\\r\\n> ", "\\r\\n"), "part.yaml", part));
+  EXPECT_NE(only_error(part, "part.yaml")
+                .find("4:21: framing: error_terminator '\\r\\n' is part of the reply_terminator "
+                      "'\\r\\n> ', so a reply would read as refused"),
+            std::string::npos)
+      << part.to_text();
+  Diagnostics holds;
+  EXPECT_FALSE(load_protocol_text(with_framing("\\r\\n", "\\r\\nERR\\r\\n"), "holds.yaml", holds));
+  EXPECT_NE(only_error(holds, "holds.yaml")
+                .find("4:21: framing: error_terminator '\\r\\nERR\\r\\n' holds the "
+                      "reply_terminator '\\r\\n' before its end, so a refusal would be cut there"),
+            std::string::npos)
+      << holds.to_text();
+}
+
+TEST(ProtocolFileDefects, TerminatorsThatCanBeToldApartLoad) {
+  for (const auto& [reply, error] : {std::pair{"\\r\\n> ", "\\r\\n? "},  // Parker 6K
+                                     std::pair{"\\r\\n", "?\\r\\n"}}) {  // a refusal ends in '?'
+    Diagnostics d;
+    EXPECT_TRUE(load_protocol_text(with_framing(reply, error), "apart.yaml", d)) << d.to_text();
+  }
+}
+
+// A protocol file with a char parameter (the axis letter a controller is switched to).
+std::string with_axis_command(const std::string& startup) {
+  return with(
+      kGood, "alignment:",
+      "  axis:\n    send: \"{addr}AX{letter:char}\"\n    reply: \"\"\n" + startup + "alignment:");
+}
+
+TEST(ProtocolFileDefects, AStartUpCharArgumentOf300IsRefusedAtTheArgument) {
+  Diagnostics d;
+  EXPECT_FALSE(load_protocol_text(
+      with_axis_command("startup:\n  - {command: axis, arguments: [300]}\n"), "char.yaml", d));
+  EXPECT_EQ(only_error(d, "char.yaml"),
+            "15:33: startup: axis argument 1 (300) cannot be sent: {letter:char}: 300 is not the "
+            "code of a printable character (32..126)");
+  Diagnostics good;
+  EXPECT_TRUE(load_protocol_text(
+      with_axis_command("startup:\n  - {command: axis, arguments: [0x41]}\n"), "a.yaml", good))
+      << good.to_text();
+}
+
+TEST(ProtocolFileDefects, ADiscoverCountItsFieldCannotCarryIsRefused) {
+  Diagnostics d;
+  EXPECT_FALSE(load_protocol_text(
+      with(kGood, "alignment:",
+           "  probe:\n    send: \"{n:int(1)}MO?\"\n    reply: \"{on:int}\"\n"
+           "startup:\n  - discover: {command: probe, to: 12, until_error: 9}\nalignment:"),
+      "count.yaml", d));
+  EXPECT_EQ(only_error(d, "count.yaml"),
+            "15:36: discover: probe argument 1 (12) cannot be sent: {n:int(1)}: 12 needs 2 "
+            "characters");
+}
+
+TEST(ProtocolFileDefects, AConfirmationThatComparesATextCaptureWithNumbersIsRefused) {
+  Diagnostics d;
+  EXPECT_FALSE(load_protocol_text(
+      with(kGood, "alignment:",
+           "  message:\n    send: \"{addr}MS\"\n    reply: \"{addr}MS{m:text}\"\n"
+           "  go:\n    send: \"{addr}GO\"\n    reply: none\n"
+           "    confirm: {command: message, capture: m, in: [0]}\nalignment:"),
+      "in.yaml", d));
+  EXPECT_EQ(only_error(d, "in.yaml"),
+            "17:14: command go confirm: message's {m:text} is text, which 'in:' cannot compare "
+            "with numbers: capture the state as a number (int, hex, char, bits(N)) or confirm "
+            "with the command alone");
+}
+
+TEST(ProtocolFileDefects, APlaceholderInAFlowListGetsAHint) {
+  Diagnostics d;
+  EXPECT_FALSE(load_protocol_text(with(kGood, "alignment:",
+                                       "  go:\n    send: \"{addr}GO\"\n    reply: none\n"
+                                       "    confirm: [error, {addr}TE]\nalignment:"),
+                                  "flow.yaml", d));
+  EXPECT_EQ(only_error(d, "flow.yaml"),
+            "14:28: YAML syntax: end of sequence flow not found; a {placeholder} inside a YAML "
+            "flow list [...] starts a mapping there: quote the step or use a block list (one '- ' "
+            "line per step)");
+}
+
+TEST(ProtocolFileDefects, OtherYamlSyntaxErrorsGetNoHint) {
+  EXPECT_EQ(flow_collection_hint("YAML syntax: end of sequence flow not found", "  x: [a, b"), "");
+  EXPECT_EQ(flow_collection_hint("YAML syntax: illegal map value", "  steps: [move {target}]"), "");
+  EXPECT_NE(flow_collection_hint("YAML syntax: end of map flow not found",
+                                 "  read: {send: {addr}TP, reply: none}"),
+            "");
+}
+
+// A protocol file with a reply of a number and a text, and a char parameter, and models of it.
+constexpr const char* kVersionCommands = R"(  version:
+    send: "{addr}VE"
+    reply: "{addr}VE{release:int} {model:text}"
+  axis:
+    send: "{addr}AX{letter:char}"
+    reply: ""
+)";
+
+Diagnostics validated(const std::string& model_text) {
+  Diagnostics d;
+  const auto spec = load_protocol_text(
+      with(kGood, "alignment:", kVersionCommands + std::string("alignment:")), "text.yaml", d);
+  EXPECT_TRUE(spec) << d.to_text();
+  const auto model = load_model_text(model_text, "m.yaml", d);
+  EXPECT_TRUE(model) << d.to_text();
+  if (spec && model) ProtocolFileFamily(spec).validate_model(*model, d);
+  return d;
+}
+
+TEST(ProtocolFileDefects, ATextCaptureFeedingANumericPointIsALoadError) {
+  const auto d = validated(R"(model: m
+family: test-line
+poll_classes: {slow: 1s}
+points:
+  release: {type: uint16, read: {request: version, field: 0}, poll: slow}
+  firmware: {type: int32, read: {request: version, field: 1}, poll: slow}
+)");
+  const std::string error = only_error(d, "m.yaml");
+  EXPECT_EQ(error.substr(0, error.find('(')),
+            "6:13: point firmware read: value 1 of version is {model:text} ");
+  EXPECT_NE(error.find("text.yaml:13:35: '{addr}VE{release:int} {model:text}'), which no int32 "
+                       "point can hold: capture a number there in the protocol file (int, "
+                       "decimal(S), hex, char or bits(N)), or read another value of version"),
+            std::string::npos)
+      << error;
+}
+
+TEST(ProtocolFileDefects, ATextCaptureFeedsNoPointOfAnyType) {
+  for (const char* type : {"bool", "int16", "uint16", "uint32"}) {
+    const auto d = validated(fmt::format(R"(model: m
+family: test-line
+poll_classes: {{slow: 1s}}
+points:
+  firmware: {{type: {}, read: {{request: version, field: 1}}, poll: slow}}
+)",
+                                         type));
+    EXPECT_NE(only_error(d, "m.yaml").find(fmt::format("which no {} point can hold", type)),
+              std::string::npos)
+        << d.to_text();
+  }
+}
+
+TEST(ProtocolFileDefects, AModelCharArgumentOf300IsALoadErrorAtTheStep) {
+  const auto d = validated(R"(model: m
+family: test-line
+actions:
+  select_a: {code: 1, steps: [axis 65]}
+  select:
+    code: 2
+    steps:
+      - axis 300
+)");
+  EXPECT_EQ(only_error(d, "m.yaml"),
+            "8:9: action select: 'axis 300': axis argument 1 (300) cannot be sent: "
+            "{letter:char}: 300 is not the code of a printable character (32..126)");
 }
 
 }  // namespace
