@@ -4,6 +4,7 @@
 
 #include <boost/asio/co_spawn.hpp>
 #include <boost/asio/detached.hpp>
+#include <boost/asio/execution.hpp>
 #include <boost/asio/ip/address.hpp>
 
 #include "gateway/console/fleet_watch.hpp"
@@ -13,6 +14,100 @@
 #include "gateway/sparkplug/edge_node.hpp"
 
 namespace fieldgate {
+
+namespace {
+
+using namespace std::chrono_literals;
+
+// How often a reload's replaced configuration is looked at again while something still runs on it.
+constexpr auto kSweepInterval = 1s;
+
+// The io_context's executor, counting the work tracked through it in `work`. An ActionRunner
+// given it counts its own coroutines: co_spawn tracks work for each coroutine until it ends (its
+// steps in the background, its completion watch), and every wait of its timers is tracked too.
+//
+// Stand-in for a count of its own (ActionRunner::in_flight(), asked of the register map's
+// owner): this sees the coroutines it spawns, not an action run inline in a caller's coroutine
+// (a Modbus request, which holds its generation through its handler, or a profile axis's
+// follow-up, see Gateway::idle).
+class WorkCountingExecutor {
+ public:
+  WorkCountingExecutor(asio::any_io_executor inner, std::shared_ptr<std::size_t> work) noexcept
+      : inner_(std::move(inner)), work_(std::move(work)) {}
+  WorkCountingExecutor(const WorkCountingExecutor& other) noexcept
+      : inner_(other.inner_), work_(other.work_), tracked_(other.tracked_) {
+    if (tracked_) ++*work_;
+  }
+  WorkCountingExecutor& operator=(const WorkCountingExecutor& other) noexcept {
+    if (this == &other) return *this;
+    release();
+    inner_ = other.inner_;
+    work_ = other.work_;
+    tracked_ = other.tracked_;
+    if (tracked_) ++*work_;
+    return *this;
+  }
+  ~WorkCountingExecutor() { release(); }
+
+  asio::execution_context& query(asio::execution::context_t) const noexcept {
+    return asio::query(inner_, asio::execution::context_as<asio::execution_context&>);
+  }
+  asio::execution::outstanding_work_t query(asio::execution::outstanding_work_t) const noexcept {
+    if (tracked_) return asio::execution::outstanding_work.tracked;
+    return asio::execution::outstanding_work.untracked;
+  }
+  WorkCountingExecutor require(asio::execution::blocking_t::never_t p) const {
+    return with(asio::require(inner_, p), tracked_);
+  }
+  WorkCountingExecutor require(asio::execution::blocking_t::possibly_t p) const {
+    return with(asio::prefer(inner_, p), tracked_);
+  }
+  WorkCountingExecutor require(asio::execution::outstanding_work_t::tracked_t p) const {
+    return with(asio::prefer(inner_, p), true);
+  }
+  WorkCountingExecutor require(asio::execution::outstanding_work_t::untracked_t p) const {
+    return with(asio::prefer(inner_, p), false);
+  }
+  template <typename F>
+  void execute(F&& f) const {
+    inner_.execute(std::forward<F>(f));
+  }
+  friend bool operator==(const WorkCountingExecutor& a, const WorkCountingExecutor& b) noexcept {
+    return a.inner_ == b.inner_ && a.work_ == b.work_ && a.tracked_ == b.tracked_;
+  }
+  friend bool operator!=(const WorkCountingExecutor& a, const WorkCountingExecutor& b) noexcept {
+    return !(a == b);
+  }
+
+ private:
+  WorkCountingExecutor with(asio::any_io_executor inner, bool tracked) const {
+    WorkCountingExecutor e(std::move(inner), work_);
+    e.tracked_ = tracked;
+    if (tracked) ++*work_;
+    return e;
+  }
+  void release() {
+    if (tracked_) --*work_;
+    tracked_ = false;
+  }
+
+  asio::any_io_executor inner_;
+  std::shared_ptr<std::size_t> work_;
+  bool tracked_ = false;
+};
+
+static_assert(asio::execution::is_executor<WorkCountingExecutor>::value);
+
+template <typename Stats>
+HttpServerCounts plus(HttpServerCounts counts, const Stats& stats) {
+  counts.refused += stats.refused;
+  counts.evicted += stats.evicted;
+  counts.denied += stats.denied;
+  counts.bad_requests += stats.bad_requests;
+  return counts;
+}
+
+}  // namespace
 
 Gateway::Gateway(asio::io_context& io, std::shared_ptr<const LoadedConfig> config) : io_(io) {
   current_ = build(std::move(config), nullptr, pending_start_);
@@ -28,7 +123,10 @@ std::shared_ptr<Gateway::Generation> Gateway::build(std::shared_ptr<const Loaded
   auto g = std::make_shared<Generation>();
   g->config = config;
   Generation* raw = g.get();
-  const auto on_update = [raw](int node_index) { raw->actions->node_updated(node_index); };
+  // A bus a reload stopped may still finish a poll after its generation was freed.
+  const auto on_update = [weak = std::weak_ptr<Generation>(g)](int node_index) {
+    if (const auto live = weak.lock()) live->actions->node_updated(node_index);
+  };
   std::vector<std::shared_ptr<NodeImage>> images;
   PreviousNodes previous_nodes;  // node names are unique in a configuration
   if (previous) {
@@ -68,7 +166,8 @@ std::shared_ptr<Gateway::Generation> Gateway::build(std::shared_ptr<const Loaded
     return *raw->buses.at(
         static_cast<std::size_t>(raw->bus_of_node.at(static_cast<std::size_t>(n))));
   };
-  g->actions = std::make_unique<ActionRunner>(io_.get_executor(), g->image, bus_of);
+  g->actions = std::make_unique<ActionRunner>(
+      WorkCountingExecutor(io_.get_executor(), g->action_work), g->image, bus_of);
   g->control = std::make_shared<ControlService>(config, g->image, *g->actions, bus_of);
   for (std::size_t l = 0; l < config->gateway.listener_count(); ++l)
     g->handlers.push_back(make_handler(*g, l));
@@ -116,10 +215,19 @@ std::vector<WritePolicy> Gateway::node_policies(const Generation& g) {
   return policies;
 }
 
+std::shared_ptr<RegisterMapHandler> Gateway::handler_of(const std::shared_ptr<Generation>& g,
+                                                        std::size_t listener) {
+  return {g, g->handlers.at(listener).get()};
+}
+
+std::shared_ptr<ControlService> Gateway::control_of(const std::shared_ptr<Generation>& g) {
+  return {g, g->control.get()};
+}
+
 std::shared_ptr<modbus::RequestHandler> Gateway::handler(std::string_view listener) const {
   const auto index = current_->config->gateway.find_listener(std::string(listener));
   if (!index) return nullptr;
-  return current_->handlers.at(*index);
+  return handler_of(current_, *index);
 }
 
 modbus::ModbusTcpServerOptions Gateway::server_options(const GatewayConfig& config,
@@ -147,10 +255,10 @@ modbus::ModbusTcpServerOptions Gateway::server_options(const GatewayConfig& conf
   return options;
 }
 
-std::shared_ptr<modbus::RequestHandler> Gateway::rtu_handler(const Generation& g) const {
-  const auto& rtu = g.config->gateway.modbus_rtu;
+std::shared_ptr<modbus::RequestHandler> Gateway::rtu_handler(const std::shared_ptr<Generation>& g) {
+  const auto& rtu = g->config->gateway.modbus_rtu;
   if (!rtu) return nullptr;
-  return g.handlers.at(rtu->listener);
+  return handler_of(g, rtu->listener);
 }
 
 void Gateway::spawn(const std::shared_ptr<Bus>& bus) {
@@ -159,25 +267,25 @@ void Gateway::spawn(const std::shared_ptr<Bus>& bus) {
       io_, [bus]() -> asio::awaitable<void> { co_await bus->run(); }, asio::detached);
 }
 
-std::unique_ptr<modbus::ModbusTcpServer> Gateway::open_listener(const Generation& g,
-                                                                std::size_t listener) {
-  const auto& config = g.config->gateway;
+std::unique_ptr<modbus::ModbusTcpServer> Gateway::open_listener(
+    const std::shared_ptr<Generation>& g, std::size_t listener) {
+  const auto& config = g->config->gateway;
   auto server = std::make_unique<modbus::ModbusTcpServer>(
-      io_.get_executor(), server_options(config, listener), g.handlers.at(listener));
+      io_.get_executor(), server_options(config, listener), handler_of(g, listener));
   server->start();
   const auto ep = server->local_endpoint();
   if (listener == 0)  // as with a single listener, which scripts and tests look for
     log::notice("modbus: listening on {}:{}", ep.address().to_string(), ep.port());
   else
     log::notice("modbus {}: listening on {}:{} ({} unit(s))", config.listener_name(listener),
-                ep.address().to_string(), ep.port(), g.config->map_of(listener).units().size());
+                ep.address().to_string(), ep.port(), g->config->map_of(listener).units().size());
   return server;
 }
 
 void Gateway::start() {
   for (std::size_t l = 0; l < current_->config->gateway.listener_count(); ++l)
-    listeners_.push_back({current_->config->gateway.listener_name(l), open_listener(*current_, l)});
-  rtu_.apply(*current_->config, rtu_handler(*current_));
+    listeners_.push_back({current_->config->gateway.listener_name(l), open_listener(current_, l)});
+  rtu_.apply(*current_->config, rtu_handler(current_));
   start_metrics();
   start_console();
   start_sparkplug();
@@ -191,7 +299,8 @@ void Gateway::start_sparkplug() {
   const auto& s = current_->config->gateway.sparkplug;
   if (!s.enabled) return;
   sparkplug_ = std::make_unique<sparkplug::EdgeNode>(io_.get_executor(), s);
-  sparkplug_->bind(current_->config, current_->image, current_->control, node_policies(*current_));
+  sparkplug_->bind(current_->config, current_->image, control_of(current_),
+                   node_policies(*current_));
   sparkplug_->start();
 }
 
@@ -199,8 +308,17 @@ const sparkplug::SessionStats* Gateway::sparkplug_stats() const {
   return sparkplug_ ? &sparkplug_->stats() : nullptr;
 }
 
+HttpServerCounts Gateway::metrics_http_counts() const {
+  return metrics_ ? plus(metrics_before_, metrics_->stats()) : metrics_before_;
+}
+
+HttpServerCounts Gateway::console_http_counts() const {
+  return console_ ? plus(console_before_, console_->stats()) : console_before_;
+}
+
 void Gateway::start_metrics() {
   const auto& m = current_->config->gateway.metrics;
+  metrics_before_ = metrics_http_counts();
   if (metrics_) metrics_->stop();
   metrics_.reset();
   if (!m.enabled) return;
@@ -219,6 +337,7 @@ void Gateway::start_metrics() {
 
 void Gateway::start_console() {
   const auto& c = current_->config->gateway.console;
+  console_before_ = console_http_counts();
   if (console_) console_->stop();
   console_.reset();
   if (fleet_) fleet_->stop();
@@ -261,14 +380,14 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
       ++stopped;
     }
   }
-  const std::string listener_summary = apply_listeners(*next);
-  rtu_.apply(*next->config, rtu_handler(*next));
+  const std::string listener_summary = apply_listeners(next);
+  rtu_.apply(*next->config, rtu_handler(next));
   const auto& old_metrics = current_->config->gateway.metrics;
   const auto& new_metrics = next->config->gateway.metrics;
   const bool metrics_changed = old_metrics.enabled != new_metrics.enabled ||
                                old_metrics.address != new_metrics.address ||
                                old_metrics.port != new_metrics.port;
-  retired_.push_back(current_);
+  retired_.push_back(std::move(current_));
   current_ = next;
   if (metrics_changed) start_metrics();
   // Its allow list or token may have changed; open pages reconnect on their own.
@@ -276,9 +395,10 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
   if (!sparkplug_ || sparkplug_->config() != current_->config->gateway.sparkplug)
     start_sparkplug();
   else
-    sparkplug_->bind(current_->config, current_->image, current_->control,
+    sparkplug_->bind(current_->config, current_->image, control_of(current_),
                      node_policies(*current_));
   for (auto& bus : fresh) spawn(bus);
+  sweep_retired();
   const std::string in_place =
       next->reconfigured == 0
           ? ""
@@ -289,9 +409,9 @@ std::string Gateway::apply(std::shared_ptr<const LoadedConfig> config) {
 
 // A listener of the same name keeps its socket and clients (new requests get the new handler);
 // one whose address changed is reopened; a new one is opened, a removed one closed.
-std::string Gateway::apply_listeners(const Generation& next) {
+std::string Gateway::apply_listeners(const std::shared_ptr<Generation>& next) {
   if (listeners_.empty()) return "";  // not started
-  const auto& config = next.config->gateway;
+  const auto& config = next->config->gateway;
   std::vector<Listener> kept;
   std::size_t opened = 0, closed = 0;
   for (std::size_t l = 0; l < config.listener_count(); ++l) {
@@ -299,7 +419,7 @@ std::string Gateway::apply_listeners(const Generation& next) {
     auto old = std::find_if(listeners_.begin(), listeners_.end(),
                             [&](const Listener& x) { return x.name == name && x.server; });
     if (old != listeners_.end()) {
-      old->server->set_handler(next.handlers.at(l));
+      old->server->set_handler(handler_of(next, l));
       if (old->server->reconfigure(server_options(config, l))) {
         kept.push_back(std::move(*old));
         continue;
@@ -344,6 +464,30 @@ void Gateway::stop() {
     current_->actions->stop();
   }
   for (auto& g : retired_) g->actions->stop();
+  sweep_timer_.cancel();
+}
+
+bool Gateway::idle(const Generation& g) {
+  if (*g.action_work != 0) return false;
+  // A profile axis's follow-up runs on the handler that accepted its command and ends, its
+  // command left busy, when that handler is freed. Stand-in for a query of the handler
+  // (RegisterMapHandler::idle()): no command of the generation's nodes is busy.
+  for (std::size_t n = 0; n < g.image.size(); ++n)
+    for (const auto& axis : g.image.node(static_cast<int>(n)).profile_axes)
+      if (axis.status == CommandStatus::busy) return false;
+  return true;
+}
+
+void Gateway::sweep_retired() {
+  std::erase_if(retired_, [](const std::shared_ptr<Generation>& g) {
+    // Ours is the only reference: no request, command or server holds any part of it.
+    return g.use_count() == 1 && idle(*g);
+  });
+  if (retired_.empty()) return;
+  sweep_timer_.expires_after(kSweepInterval);
+  sweep_timer_.async_wait([this](const boost::system::error_code& ec) {
+    if (!ec) sweep_retired();
+  });
 }
 
 std::string Gateway::status_line() const {

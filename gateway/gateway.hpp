@@ -1,6 +1,7 @@
 #pragma once
 
 #include <boost/asio/io_context.hpp>
+#include <boost/asio/steady_timer.hpp>
 
 #include <memory>
 #include <string>
@@ -26,6 +27,15 @@ namespace sparkplug {
 class EdgeNode;
 struct SessionStats;
 }  // namespace sparkplug
+
+// What the metrics and console HTTP servers turned away, since the daemon started: a reload that
+// restarts a server (the console, at every reload) carries its counts over.
+struct HttpServerCounts {
+  std::uint64_t refused = 0;       // closed at once: every slot held, none to evict
+  std::uint64_t evicted = 0;       // closed before its request had come, to make room
+  std::uint64_t denied = 0;        // metrics: connections not on the allow list; console: 403s
+  std::uint64_t bad_requests = 0;  // answered 400, 413 or 431
+};
 
 // The running gateway: buses, process image, actions and the Modbus listeners (one TCP server
 // per listener, each with its own unit-ID space) on one io_context.
@@ -63,11 +73,18 @@ class Gateway {
   std::string status_line() const;
   // Every bus has finished its first attempt to open its link (READY=1 waits for this).
   bool all_buses_attempted() const;
+  // Configurations a reload replaced that something still runs on (a Modbus request, a
+  // Sparkplug command, an action or its completion watch); each is freed once nothing does.
+  std::size_t retired_generations() const { return retired_.size(); }
+  HttpServerCounts metrics_http_counts() const;
+  HttpServerCounts console_http_counts() const;
   // The Sparkplug B session, when enabled.
   const sparkplug::SessionStats* sparkplug_stats() const;
 
  private:
   struct Generation {
+    // Work the generation's ActionRunner has under way (see build()).
+    std::shared_ptr<std::size_t> action_work = std::make_shared<std::size_t>(0);
     std::shared_ptr<const LoadedConfig> config;
     std::vector<std::shared_ptr<Bus>> buses;
     std::vector<int> bus_of_node;
@@ -78,6 +95,11 @@ class Gateway {
     std::size_t reconfigured = 0;  // buses a reload kept with their nodes changed in place
   };
 
+  // A generation's handler and control service as handed out: each copy keeps the whole
+  // generation alive, so a request or command under way finishes on the one it started with.
+  static std::shared_ptr<RegisterMapHandler> handler_of(const std::shared_ptr<Generation>& g,
+                                                        std::size_t listener);
+  static std::shared_ptr<ControlService> control_of(const std::shared_ptr<Generation>& g);
   // Builds a generation, taking buses from `previous` whose signature is unchanged.
   std::shared_ptr<Generation> build(std::shared_ptr<const LoadedConfig> config,
                                     Generation* previous, std::vector<std::shared_ptr<Bus>>& fresh);
@@ -90,11 +112,16 @@ class Gateway {
   // What DCMD may change on each node: what the Modbus listener that owns the node allows.
   static std::vector<WritePolicy> node_policies(const Generation& g);
   // The handler of the listener whose unit-ID space the RTU port serves (null without one).
-  std::shared_ptr<modbus::RequestHandler> rtu_handler(const Generation& g) const;
+  static std::shared_ptr<modbus::RequestHandler> rtu_handler(const std::shared_ptr<Generation>& g);
   static modbus::ModbusTcpServerOptions server_options(const GatewayConfig& config,
                                                        std::size_t listener);
-  std::unique_ptr<modbus::ModbusTcpServer> open_listener(const Generation& g, std::size_t listener);
-  std::string apply_listeners(const Generation& next);
+  std::unique_ptr<modbus::ModbusTcpServer> open_listener(const std::shared_ptr<Generation>& g,
+                                                         std::size_t listener);
+  std::string apply_listeners(const std::shared_ptr<Generation>& next);
+  // Whether anything still runs on a generation that nobody else holds.
+  static bool idle(const Generation& g);
+  // Frees the retired generations nothing runs on; looks again later while some remain.
+  void sweep_retired();
   void spawn(const std::shared_ptr<Bus>& bus);
   void start_metrics();
   void start_console();
@@ -102,12 +129,15 @@ class Gateway {
 
   asio::io_context& io_;
   std::shared_ptr<Generation> current_;
-  // Older generations whose action watches may still run; kept until the daemon stops.
+  // Replaced generations something still runs on (sweep_retired).
   std::vector<std::shared_ptr<Generation>> retired_;
+  asio::steady_timer sweep_timer_{io_};
   std::vector<Listener> listeners_;
   ModbusRtuPort rtu_{io_};
   std::unique_ptr<MetricsServer> metrics_;
   std::unique_ptr<ConsoleServer> console_;
+  HttpServerCounts metrics_before_;  // of the metrics servers a reload replaced
+  HttpServerCounts console_before_;
   std::unique_ptr<FleetWatch> fleet_;  // the console's view of the Sparkplug group
   std::unique_ptr<sparkplug::EdgeNode> sparkplug_;
   std::vector<std::shared_ptr<Bus>> pending_start_;

@@ -55,13 +55,18 @@ inline std::optional<http::status> status_for(const beast::error_code& ec, const
   }
 }
 
+// The limits every request is read under.
+inline void set_limits(Parser& parser) {
+  parser.header_limit(header_limit);
+  parser.body_limit(body_limit);
+}
+
 // Reads one request within `timeout`. On failure returns the error; `parser` tells how far it
 // got.
 inline asio::awaitable<beast::error_code> read(beast::tcp_stream& stream,
                                                beast::flat_buffer& buffer, Parser& parser,
                                                std::chrono::steady_clock::duration timeout) {
-  parser.header_limit(header_limit);
-  parser.body_limit(body_limit);
+  set_limits(parser);
   stream.expires_after(timeout);
   auto [ec, n] =
       co_await http::async_read(stream, buffer, parser, asio::as_tuple(asio::use_awaitable));

@@ -7,6 +7,8 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "gateway/config/config_loader.hpp"
 #include "gateway/gateway.hpp"
@@ -19,6 +21,8 @@ namespace fieldgate {
 // stop; SIGHUP reloads the configuration file (validated in full first; on any error the old
 // configuration stays in force); SIGUSR2 toggles the wire trace of every bus. With a runtime
 // directory, every reload's verdict is written there for `fieldgate reload` (reload_verdict.hpp).
+// A reload reads and checks the file on a thread of its own and puts it in force on the event
+// loop, so Modbus answers wait only for the swap; a SIGHUP during a load is taken once it ends.
 class Daemon {
  public:
   Daemon(std::string config_path, std::shared_ptr<const LoadedConfig> config,
@@ -29,7 +33,14 @@ class Daemon {
 
  private:
   void wait_for_signal();
+  // What a reload's loading thread hands to the event loop.
+  struct Loaded {
+    std::string fingerprint;
+    std::optional<LoadedConfig> config;
+    std::vector<std::string> errors;  // file:line:column: message
+  };
   void reload();
+  void put_in_force(Loaded loaded);
   void publish_verdict();
   std::string status_line() const;
 
@@ -41,6 +52,10 @@ class Daemon {
   std::unique_ptr<Gateway> gateway_;
   ServiceNotifier notifier_;
   asio::signal_set signals_;
+  bool loading_ = false;
+  bool reload_again_ = false;  // a SIGHUP came while a file was being loaded
+  // Last: joined before the io_context it posts to goes.
+  std::jthread loader_;
 };
 
 // Loads a configuration and prints every error (file:line:column) to stderr.

@@ -256,6 +256,34 @@ std::string render_metrics(const Gateway& gateway) {
     w.sample("fieldgate_modbus_clients_evicted_total", l + ",reason=\"overdue\"",
              static_cast<double>(stats->evicted.overdue));
   }
+  // The metrics and console HTTP servers, whichever are enabled (counts carried over restarts).
+  const std::pair<const char*, HttpServerCounts> http[] = {
+      {"metrics", gateway.metrics_http_counts()}, {"console", gateway.console_http_counts()}};
+  struct HttpCounter {
+    const char* name;
+    const char* help;
+    uint64_t HttpServerCounts::*field;
+  };
+  const HttpCounter http_counters[] = {
+      {"fieldgate_http_connections_refused_total",
+       "HTTP connections closed at once: every slot held, none to evict.",
+       &HttpServerCounts::refused},
+      {"fieldgate_http_connections_evicted_total",
+       "HTTP connections closed before their request had come, to make room for a new one.",
+       &HttpServerCounts::evicted},
+      {"fieldgate_http_denied_total",
+       "Denied by the allow list (metrics: connections closed unanswered) or, on the console, "
+       "requests answered 403 (address or token).",
+       &HttpServerCounts::denied},
+      {"fieldgate_http_bad_requests_total",
+       "HTTP requests that could not be parsed, answered 400, 413 or 431.",
+       &HttpServerCounts::bad_requests},
+  };
+  for (const auto& c : http_counters) {
+    w.family(c.name, "counter", c.help);
+    for (const auto& [server, counts] : http)
+      w.sample(c.name, fmt::format("server=\"{}\"", server), static_cast<double>(counts.*c.field));
+  }
   if (const auto* rtu = gateway.rtu_server()) {
     const auto& r = rtu->stats();
     const std::string port = fmt::format("port=\"{}\"", label(rtu->options().serial.device));

@@ -33,6 +33,26 @@ std::map<std::string, double> parse_exposition(const std::string& body) {
   return samples;
 }
 
+// Sends `request` to the loopback port and returns what came back until the server closed.
+std::string raw_exchange(int port, const std::string& request) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::string reply;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
+      ::send(fd, request.data(), request.size(), MSG_NOSIGNAL) ==
+          static_cast<ssize_t>(request.size())) {
+    ::shutdown(fd, SHUT_WR);
+    char buffer[4096];
+    ssize_t n;
+    while ((n = ::recv(fd, buffer, sizeof buffer, 0)) > 0) reply.append(buffer, std::size_t(n));
+  }
+  ::close(fd);
+  return reply;
+}
+
 TEST(Metrics, ScrapedAndParsed) {
   SimulatedBus bus;
   bus.name = "copley";
@@ -64,6 +84,9 @@ TEST(Metrics, ScrapedAndParsed) {
   })) << plant.daemon().log();
   for (int i = 0; i < 7; ++i) client.read_input(1, 0, 2);
   client.read_input(1, 600, 1);  // one exception
+
+  // A request line that is not HTTP: answered 400, and counted.
+  EXPECT_NE(raw_exchange(port, "BOGUS\r\n\r\n").find(" 400 "), std::string::npos);
 
   const std::string response = http_get(port, "/metrics");
   ASSERT_NE(response.find("HTTP/1.1 200 OK"), std::string::npos) << response;
@@ -121,6 +144,10 @@ TEST(Metrics, ScrapedAndParsed) {
     previous = v;
   }
   EXPECT_EQ(previous, s.at("fieldgate_bus_transaction_seconds_count{bus=\"copley\"}"));
+  EXPECT_EQ(s.at("fieldgate_http_bad_requests_total{server=\"metrics\"}"), 1);
+  EXPECT_EQ(s.at("fieldgate_http_denied_total{server=\"metrics\"}"), 0);
+  EXPECT_EQ(s.at("fieldgate_http_connections_evicted_total{server=\"metrics\"}"), 0);
+  EXPECT_EQ(s.at("fieldgate_http_connections_refused_total{server=\"console\"}"), 0);
 
   EXPECT_NE(http_get(port, "/").find("404"), std::string::npos);
 }
