@@ -67,6 +67,9 @@ struct Reply {
   std::vector<int64_t> values;
   int64_t device_code = 0;
   std::string text;  // error text, or the offending bytes for garbled replies
+  // The exchange found the controller in its power-up state after the gateway had set it up (a
+  // power cycle or reset it could only infer): whatever ran on it before is lost.
+  bool controller_reset = false;
 
   // A reply without values: how it came out, why, and the device's own code where it gave one.
   static Reply of(Status status, std::string text = {}, int64_t device_code = 0) {

@@ -281,6 +281,7 @@ asio::awaitable<Reply> TechnoFamily::transact_node(Link& link, NodeContext& cont
       node.number, request.command,
       lost_definition ? ", the controller lost its definition (power cycle?)" : " at first contact",
       init.command));
+  reply.controller_reset = lost_definition;
   if (lost_definition && techno::is_motion(c.kind)) {
     // Its positions restarted from 0 with the power: a motion would go somewhere else.
     reply.text += "; the axes are defined again, but positions were lost: home before moving";
@@ -288,6 +289,7 @@ asio::awaitable<Reply> TechnoFamily::transact_node(Link& link, NodeContext& cont
   }
   Reply again = co_await exchange(link, bound, request, timing);
   co_await await_motion_position(link, bound, request, again, timing);
+  again.controller_reset = lost_definition;
   co_return again;
 }
 

@@ -19,6 +19,8 @@ namespace fieldgate {
 namespace {
 constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
 using Clock = std::chrono::steady_clock;
+// Rounds of proofs of alignment that failed in a row before the link is reopened.
+constexpr int kReopenAfterFailedProofRounds = 5;
 // A link that lived less than this (or two probe intervals) before it was reopened was reopened
 // because nothing answered on it.
 constexpr auto kBriefLink = std::chrono::seconds(60);
@@ -371,6 +373,12 @@ asio::awaitable<Reply> SerialBus::transact(NodeRuntime& n, const Request& reques
     log_notes(false);
     ++counters_.transactions;
     ++(*n.image).counters.transactions;
+    if (reply.controller_reset) {
+      // Every command that ran on the controller before is lost (ActionRunner, the profile).
+      ++(*n.image).controller_resets;
+      log::warning("bus {}: node {} ({}): the controller reset (found in its power-up state)",
+                   config_->name, n.config->name, n.config->address.text);
+    }
     if (link_.buffered() > 0 && reply.status != Reply::Status::timeout &&
         reply.status != Reply::Status::link_down) {
       // Bytes behind a reply: the line was in step before this exchange, so something else is
@@ -553,6 +561,7 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
                   result.attempts);
       aligned_ = true;
       alignment_failure_logged_ = false;
+      failed_proof_rounds_ = 0;
       debt_.clear();
       co_return;
     }
@@ -563,6 +572,17 @@ asio::awaitable<void> SerialBus::prove_aligned(NodeRuntime& failed, bool heard) 
     if (result.never_quiet) break;
   }
   aligned_ = false;
+  if (++failed_proof_rounds_ >= kReopenAfterFailedProofRounds && transport_->is_open()) {
+    // A device that re-powered while the line stayed open is back in its power-up settings (an
+    // echo the start-up had switched off): only the family's start-up, run when the link
+    // opens, brings it back.
+    log::error(
+        "bus {}: the line could not be proven in step in {} rounds ({}); reopening the "
+        "link, so that the start-up runs again",
+        config_->name, failed_proof_rounds_, why);
+    failed_proof_rounds_ = 0;
+    transport_->close();
+  }
   // Nothing is sent before a later proof passes. A command that has already waited through
   // proofs learns it now, rather than after the proofs of the polls ahead of it: a Modbus
   // client's timeout is near. A newer one keeps its place and gets a proof of its own.

@@ -153,6 +153,7 @@ class SerialBus final : public Bus {
   SteadyTime open_noticed_at_{};
   // False from a failed exchange until a proof of alignment passed: no reply is trusted meanwhile.
   bool aligned_ = true;
+  int failed_proof_rounds_ = 0;  // calls of prove_aligned() that failed in a row
   bool alignment_failure_logged_ = false;
   // Replies the line may still owe: requests that got none (drivers/alignment_proof.hpp).
   AlignmentDebt debt_;

@@ -146,7 +146,7 @@ asio::awaitable<ControlResult> ControlService::apply(ControlWrite w) {
         co_return result;
       }
       // The confirmed value until the next poll; for a write-only point, its only readback.
-      store_polled_value(image_.node(w.node).points[index], w.value, Clock::now());
+      store_confirmed_value(image_.node(w.node).points[index], w.value, Clock::now());
       co_return result;
     }
     case ControlWrite::Kind::action: {

@@ -25,6 +25,8 @@ std::chrono::microseconds point_age_bound(const NodeImage& node, const Model& mo
   if (period.count() <= 0)
     if (const auto* c = model.find_poll_class(def.poll_class)) period = c->period;
   if (period.count() <= 0) return microseconds{0};
+  if (point_index < node.points.size())
+    period = std::max(period, node.points[point_index].interval);
   return std::max(period * policy.periods, policy.at_least);
 }
 

@@ -16,7 +16,8 @@ namespace fieldgate {
 bool point_is_fresh(const NodeImage& node, const Model& model, std::size_t point_index,
                     SteadyTime now);
 
-// How old a polled point's value may be: node.freshness.periods of its poll period, at least
+// How old a polled point's value may be: node.freshness.periods of its poll period (or of the
+// time the bus took between its last two values, where the line stretches the periods), at least
 // node.freshness.at_least; zero when it has no bound (not polled, or periods 0).
 std::chrono::microseconds point_age_bound(const NodeImage& node, const Model& model,
                                           std::size_t point_index);

@@ -25,11 +25,29 @@ struct PointValue {
   // the total across a good value with store_polled_value().
   uint32_t failed_polls = 0;
   uint64_t failed_polls_total = 0;
+  // How long the bus took between its last two good polls of the point, and when the last one
+  // was: a line that cannot keep up with the configured periods (the poll budget's "periods
+  // will stretch") polls a point less often, and its age bound stretches with it. A confirmed
+  // write refreshes the value, not these.
+  std::chrono::microseconds interval{0};
+  SteadyTime polled{};
 };
 
 // A polled value arrived: fresh again, its failure total kept.
 inline void store_polled_value(PointValue& point, int64_t value, SteadyTime at) {
-  point = {value, at, true, 0, point.failed_polls_total};
+  const auto interval =
+      point.polled != SteadyTime{} && at > point.polled
+          ? std::chrono::duration_cast<std::chrono::microseconds>(at - point.polled)
+          : std::chrono::microseconds{0};
+  point = {value, at, true, 0, point.failed_polls_total, interval, at};
+}
+
+// The controller confirmed a write of the point: its value until the next poll.
+inline void store_confirmed_value(PointValue& point, int64_t value, SteadyTime at) {
+  point.value = value;
+  point.updated = at;
+  point.valid = true;
+  point.failed_polls = 0;
 }
 
 // When a polled point's value is stale, so never served (gateway/image/point_freshness.hpp): its

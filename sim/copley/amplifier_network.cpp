@@ -217,10 +217,13 @@ std::optional<std::string> AmplifierNetwork::control(std::string_view verb,
                                                      std::optional<std::uint32_t>& link_baud) {
   const bool node_verb = verb == "node-off" || verb == "node-on" || verb == "reset";
   const bool axis_verb = verb == "fault" || verb == "inputs";
-  if (!node_verb && !axis_verb) return std::nullopt;
-  const std::string usage =
-      "error: usage: " + std::string(verb) + (node_verb ? " NODE" : " NODE[.AXIS] BITS");
-  if (arguments.size() != (node_verb ? 1u : 2u)) return usage;
+  const bool query_verb = verb == "position";
+  if (!node_verb && !axis_verb && !query_verb) return std::nullopt;
+  const std::string usage = "error: usage: " + std::string(verb) +
+                            (node_verb    ? " NODE"
+                             : query_verb ? " NODE[.AXIS]"
+                                          : " NODE[.AXIS] BITS");
+  if (arguments.size() != (axis_verb ? 2u : 1u)) return usage;
 
   const std::string_view target = arguments[0];
   const std::size_t dot = target.find('.');
@@ -245,6 +248,12 @@ std::optional<std::string> AmplifierNetwork::control(std::string_view verb,
   }
   AmplifierAxis* a = axis(static_cast<int>(*id), letter);
   if (a == nullptr) return "error: no axis " + name;
+  if (query_verb) {
+    // The event status's in-motion bit (27), as the amplifier reports it on the wire.
+    const bool moving = (a->event_status(now) >> 27) & 1u;
+    return "ok position " + name + " " + std::to_string(a->motor_position(now)) +
+           " moving=" + (moving ? "1" : "0");
+  }
   const auto bits = parse_control_integer(arguments[1]);
   if (!bits || *bits < 0 || *bits > std::numeric_limits<std::uint32_t>::max()) return usage;
   if (verb == "fault") {
@@ -259,6 +268,7 @@ std::string AmplifierNetwork::control_help() {
   return "node-off N       node N stops answering (e 32 via the gateway; node 0: total silence)\n"
          "node-on N        node N answers again\n"
          "reset N          power-cycle node N (node 0 also drops the link to 9600 baud)\n"
+         "position N[.x]   motor position (0x32) and in-motion bit: ok position N P moving=0|1\n"
          "fault N[.x] BITS latch fault register (0xa4) bits, e.g. fault 3 512\n"
          "inputs N[.x] MASK set the digital inputs (0xa6)\n";
 }

@@ -2,7 +2,7 @@
 """Centent CN0170 two-axis controllers in a daisy chain, written from the CN0170 software
 manual (shared/seeds/000, digest shared/protocols/centent-cn0170.md) only.
 
-  centent_unit.py --link PATH [--units 0]
+  centent_unit.py --link PATH [--units 0] [--control SOCKET]
 
 Each unit powers up as after a reset (p.1): waiting for the auto-baud <CR>. The first character
 it receives must be CR; it then answers `U<n>` (one line per unit, in chain order). Anything
@@ -33,6 +33,12 @@ Readings of the manual where it leaves room:
   before power-off was M3 (power-up resumes it, p.5). Read: instructions the host sends in M3
   are discarded (a program would run them on `G`); only `M?` and the mode changes `M1`, `M2`,
   `M3` are obeyed.
+- A power cycle (`power-cycle [N]` on --control, unit_common.Control; default the whole chain):
+  the motors stop at once, queues and the selection are gone, outputs off, the mode in effect at
+  power-off kept (p.5), motor parameters kept (battery-backed, p.7), position registers 0; the
+  unit waits for its auto-baud CR again and answers it `U<n>` (p.1); any other first character
+  leaves it at a wrong baud rate until the next power cycle. The 2-3 s before RTS goes active
+  are not modelled (a PTY has no RTS): the unit listens at once.
 """
 import argparse
 import re
@@ -143,11 +149,18 @@ class Motor:
 class Unit:
     def __init__(self, number, mode=1):
         self.number = number
+        self.motors = {"X": Motor("X"), "Y": Motor("Y")}
         self.power_up(mode)
 
     def power_up(self, mode):
+        """Power applied (p.1, 5, 7): waits for the auto-baud CR; the mode in effect at power-off
+        (`mode`), outputs off (p.42), motions and queues gone. Motor parameters are
+        battery-backed (p.7) and stay. The position registers come up at 0 (the manual does not
+        say; the register's reset value); the motors stay where they stopped."""
         self.baud_state = "waiting"  # waiting for the auto-baud CR, "ok" or "wrong"
-        self.motors = {"X": Motor("X"), "Y": Motor("Y")}
+        for motor in self.motors.values():
+            motor.kill()
+            motor.axis.power_up(0.0)
         self.mode = mode
         self.outputs = {3: 0, 4: 0}
         self.replies = []
@@ -158,6 +171,8 @@ class Unit:
 
     def execute(self, text):
         """One instruction (terminators stripped)."""
+        if self.baud_state != "ok":
+            return  # not auto-bauded (or at a wrong rate): it understands nothing
         s = text.replace(" ", "")
         up = s.upper()
         m = self.motors
@@ -305,18 +320,19 @@ class Chain:
 
     def on_bytes(self, data, now):
         for b in data:
-            first = self.units[0]
-            if first.baud_state == "waiting":
+            waiting = [u for u in self.units if u.baud_state == "waiting"]
+            if waiting:
                 if b == 0x0D:
-                    for u in self.units:  # the CR is forwarded; each unit measures it
+                    for u in waiting:  # the CR is forwarded; each unit measures it
                         u.baud_state = "ok"
                         u.say("U%d" % u.number if u.number else "U0")
                 else:
-                    for u in self.units:
+                    for u in waiting:
                         u.baud_state = "wrong"
                     uc.log("centent: first character 0x%02x is not CR: wrong baud rate" % b)
-                continue
-            if first.baud_state == "wrong":
+                if len(waiting) == len(self.units):
+                    continue
+            if all(u.baud_state == "wrong" for u in self.units):
                 continue
             if b in (0x0D, 0x0A, 0x3B):
                 if self.buf:
@@ -352,16 +368,46 @@ class Chain:
                 self.pty.send(r.encode() + b"\r")
             u.replies.clear()
 
+    def control(self, line, now):
+        """The test's requests (unit_common.Control); WHO is a unit number (default: the chain's
+        supply, every unit)."""
+        def power_cycle(who):
+            units = [u for u in self.units if who is None or str(u.number) == who]
+            if not units:
+                return None
+            for u in units:
+                u.tick(now)  # the motion up to this instant
+                was = {k: m.axis.position() for k, m in u.motors.items()}
+                u.power_up(u.mode)
+                uc.log("centent: unit %d power-cycled at X %.0f Y %.0f: waiting for the "
+                       "auto-baud CR, mode M%d kept, positions 0" % (u.number, was["X"],
+                                                                      was["Y"], u.mode))
+            if len(units) == len(self.units):
+                self.buf.clear()
+                self.selected = 0
+            return ",".join(str(u.number) for u in units)
+
+        def state():
+            out = {}
+            for u in self.units:
+                for k, m in u.motors.items():
+                    raw = m.raw_position()
+                    out["%d%s" % (u.number, k)] = (raw - SPAN if raw >= SPAN // 2 else raw,
+                                                   m.axis.moving())
+            return out
+        return uc.control_request(self, line.split(), power_cycle, state)
+
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--link", required=True)
     ap.add_argument("--units", default="0")
     ap.add_argument("--power-up-mode", type=int, default=1, choices=[1, 3])
+    uc.control_argument(ap)
     args = ap.parse_args()
     numbers = [int(n) for n in args.units.split(",") if n]
     uc.serve(args.link, 9600, lambda pty: Chain(pty, numbers, args.power_up_mode),
-             "centent: units %s on %s" % (args.units, args.link))
+             "centent: units %s on %s" % (args.units, args.link), args.control)
 
 
 if __name__ == "__main__":

@@ -3,7 +3,7 @@
 are reached over CAN by a node-ID prefix), written from the Copley ASCII Interface Programmer's
 Guide (shared/seeds/002, digest shared/protocols/copley-ascii.md) only.
 
-  copley_unit.py --link PATH [--nodes 0,3]
+  copley_unit.py --link PATH [--nodes 0,3] [--control SOCKET]
 
 Each amp powers up as a commissioned amp does: RAM reloaded from flash, so the desired state
 0x24 comes up as flash holds it (21, programmed position: an amp whose flash holds 0 is
@@ -27,6 +27,9 @@ Readings of the manual where it leaves room:
   absent node's `e 32` after the CAN timeout, --can-timeout-ms, holds back what follows).
 - --pause-ms P --pause-every-ms E: every E ms the amp stops answering for P ms (a busy CPU, a USB
   adapter's buffer) and then answers its backlog in order (issue 26).
+- A power cycle (`power-cycle [NODE]` on --control, unit_common.Control; default every amp) is
+  `r` for that amp: RAM from flash, 9600 baud, 0xa0 bit 20, not referenced, motion stopped, the
+  position counting from 0; it answers nothing for 0.3 s (boot time undocumented).
 """
 import argparse
 import re
@@ -54,13 +57,18 @@ SETTLE = 0.02  # s the amp stays "in motion" (0xa0 bit 27) after the profile end
 class Amp:
     def __init__(self, node):
         self.node = node
+        self.flash = dict(RF_DEFAULTS)
+        self.axis = uc.Axis(limit_neg=-2e6, limit_pos=2e6, home_switch=8000.0)
         self.power_up()
 
     def power_up(self):
-        self.flash = dict(RF_DEFAULTS)
+        """`r` or a power cycle (1.1, 1.2, 2.5): RAM reloaded from flash (what `c r…` saved
+        stays), RAM-only variables clear, 9600 baud, 0xa0 bit 20 "amplifier has been reset",
+        not referenced; the motor stops (no power) and the position counts from 0 where it
+        stopped (the switches do not move)."""
         self.ram = dict(self.flash)
         self.ram.update({0x90: 9600, 0xa4: 0, 0xab: 0})
-        self.axis = uc.Axis(limit_neg=-2e6, limit_pos=2e6, home_switch=8000.0)
+        self.axis.power_up(0.0)
         self.referenced = self.homing_error = self.aborted = False
         self.homing = None
         self.reset_seen = True
@@ -376,6 +384,32 @@ class Bus:
     def reply(self, text):
         self.pty.send(text.encode() + b"\r")
 
+    def control(self, line, now):
+        """The test's requests (unit_common.Control); WHO is a node number (default: every amp
+        behind the port). The gateway amp's power cycle drops the line to 9600 baud and loses
+        the replies it still owed."""
+        def power_cycle(who):
+            amps = [a for n, a in self.amps.items() if who is None or str(n) == who]
+            if not amps:
+                return None
+            for amp in amps:
+                amp.tick(now)  # the motion up to this instant
+                was = amp.axis.position()
+                amp.power_up()
+                amp.booting_until = now + 0.3
+                uc.log("copley: node %d power-cycled at position %.0f: 9600 baud, reset event "
+                       "bit 20, RAM from flash" % (amp.node, was))
+            if self.gateway in amps:
+                self.later.clear()
+                self.buf.clear()
+                self.set_baud(9600)
+            return ",".join(str(a.node) for a in amps)
+
+        def state():
+            return {str(n): (round(a.axis.position()), a.axis.moving())
+                    for n, a in self.amps.items()}
+        return uc.control_request(self, line.split(), power_cycle, state)
+
     def on_tick(self, now):
         for amp in self.amps.values():
             amp.tick(now)
@@ -392,12 +426,13 @@ def main():
     ap.add_argument("--can-timeout-ms", type=float, default=10.0)
     ap.add_argument("--pause-ms", type=float, default=0.0)
     ap.add_argument("--pause-every-ms", type=float, default=0.0)
+    uc.control_argument(ap)
     args = ap.parse_args()
     nodes = [int(n) for n in args.nodes.split(",") if n]
     uc.serve(args.link, 9600,
              lambda pty: Bus(pty, nodes, args.can_timeout_ms / 1000, args.pause_ms / 1000,
                              args.pause_every_ms / 1000),
-             "copley: nodes %s on %s" % (args.nodes, args.link))
+             "copley: nodes %s on %s" % (args.nodes, args.link), args.control)
 
 
 if __name__ == "__main__":

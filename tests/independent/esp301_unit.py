@@ -125,6 +125,16 @@ class EspAxis:
         self.home_dir = 0
         self.set_ramp()
 
+    def power_up(self):
+        """Power removed and restored: the stage stops where it is (no power to ramp it down)
+        and stays there with its switches; the axis is as at power-up, motor off, not homed,
+        position 0, parameters at their defaults."""
+        axis = self.axis
+        axis.power_up(0.0)
+        self.__init__(self.n)
+        self.axis = axis
+        self.set_ramp()
+
     def set_ramp(self):
         self.axis.accel = self.ac * SCALE
         self.axis.decel = self.ag * SCALE
@@ -163,6 +173,26 @@ class Esp301:
         if self.fifo:
             return self.fifo.popleft()
         return 0, int((now - self.t0) / TICK)
+
+    def control(self, line, now):
+        """The test's requests (unit_common.Control). A power cycle concerns the whole
+        controller (WHO, an axis number, must be one of its axes): every axis as at power-up,
+        the error FIFO and any half-received line gone."""
+        def power_cycle(who):
+            if who is not None and (not who.isdigit() or int(who) not in self.axes):
+                return None
+            self.on_tick(now)  # the motion up to this instant
+            was = " ".join("%d %s" % (n, self.fmt(ax.pos())) for n, ax in self.axes.items())
+            for ax in self.axes.values():
+                ax.power_up()
+            self.fifo.clear()
+            self.buf = bytearray()
+            uc.log("esp301: power-cycled at %s mm: motors off, not homed, positions 0" % was)
+            return "controller"
+
+        def state():
+            return {str(n): (ax.pos(), ax.axis.moving()) for n, ax in self.axes.items()}
+        return uc.control_request(self, line.split(), power_cycle, state)
 
     def fmt(self, v):
         if self.decimals is not None:
@@ -495,6 +525,7 @@ def main():
     ap.add_argument("--axes", default="1,2", help="axes with a stage, of 1..3")
     ap.add_argument("--decimals", type=int, default=None,
                     help="print TP? etc. with exactly N decimals (default: trimmed)")
+    uc.control_argument(ap)
     args = uc.parse_unit_arguments(ap, self_test)
     axes = [int(a) for a in args.axes.split(",") if a]
     if any(not 1 <= a <= 3 for a in axes):
@@ -502,7 +533,8 @@ def main():
     pty = uc.Pty(args.link, args.baud)
     unit = Esp301(pty, axes, args.decimals)
     uc.log("esp301: axes %s at %d baud on %s" % (args.axes, args.baud, args.link))
-    uc.run(pty, uc.heard_only_at(pty, args.baud, "esp301", unit.on_bytes), unit.on_tick)
+    uc.run(pty, uc.heard_only_at(pty, args.baud, "esp301", unit.on_bytes), unit.on_tick,
+           control=uc.Control.open(args.control, unit))
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 """IMS microstepper indexer units on one RS-422 party line, written from the software reference
 manual (shared/seeds/003, digest shared/protocols/ims-indexer.md) only.
 
-  ims_unit.py --link PATH [--axes A,B]
+  ims_unit.py --link PATH [--axes A,B] [--control SOCKET]
 
 Each unit powers up in Party Line mode with its origin at 0 (power-up, p.8), not homed, idle.
 Readings of the manual where it leaves room (section numbers are the manual's pages):
@@ -17,6 +17,10 @@ Readings of the manual where it leaves room (section numbers are the manual's pa
 - `]0` reports a limit bit as 1 while that limit switch is active (the switch level, whatever
   the `l` polarity).
 - `O` while moving is refused (no change) but still answers CR LF.
+- ^C and a power cycle (`power-cycle` on --control, unit_common.Control) do the same (p.8): the
+  motion aborts at once, the parameters last saved by `S` (I, V, K here; the factory values until
+  an `S`) are loaded, the origin is set to 0; in Party mode nothing is sent (no sign-on, p.10).
+  The motor stays where it stopped: the home switch does not move with the origin.
 """
 import argparse
 import re
@@ -38,12 +42,18 @@ class Unit:
     def __init__(self, name, bus):
         self.name = name
         self.bus = bus
+        self.axis = uc.Axis(home_switch=-1500.0)
+        # The parameters last saved by `S` (nonvolatile): the factory values until then.
+        self.saved = {"init_vel": 400.0, "slew": 3004.0, "k": (10, 10)}
         self.power_up()
 
     def power_up(self):
-        self.axis = uc.Axis(home_switch=-1500.0)
-        self.init_vel, self.slew = 400.0, 3004.0
-        self.k_up, self.k_down = 10, 10
+        """^C or a power cycle (p.8): every motion aborts, the saved parameters are loaded, the
+        origin is set to 0, then idle. In Party mode there is no sign-on (p.10): nothing goes out
+        on the line. The motor stays where it stopped (the switches do not move)."""
+        self.axis.power_up(0.0)
+        self.init_vel, self.slew = self.saved["init_vel"], self.saved["slew"]
+        self.k_up, self.k_down = self.saved["k"]
         self.apply_ramp()
         self.awake = False
         self.skipping = False
@@ -219,6 +229,11 @@ class Unit:
                 self.result()
         elif cmd == "X":
             self.bus.send(b'"32.\r\n')  # Party mode: [X]
+        elif cmd == "S":
+            # Save the working parameters to nonvolatile memory: a power-up loads them.
+            self.saved = {"init_vel": self.init_vel, "slew": self.slew,
+                          "k": (self.k_up, self.k_down)}
+            self.result()
         else:
             # D E H Y B l S C T d e ... : accepted; the manual defines no error reply.
             self.result()
@@ -285,18 +300,37 @@ class Bus:
         for u in self.units:
             u.tick(now)
 
+    def control(self, line, now):
+        """The test's requests (unit_common.Control); WHO is a party-line name."""
+        def power_cycle(who):
+            units = [u for u in self.units if who is None or u.name == who]
+            if not units:
+                return None
+            for u in units:
+                u.tick(now)  # the motion up to this instant
+                was = u.axis.position()
+                u.power_up()
+                uc.log("ims: %s power-cycled at position %.0f: origin 0, saved parameters "
+                       "loaded, no sign-on (party mode)" % (u.name, was))
+            return ",".join(u.name for u in units)
+
+        def state():
+            return {u.name: (round(u.axis.position()), u.axis.moving()) for u in self.units}
+        return uc.control_request(self, line.split(), power_cycle, state)
+
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--link", required=True)
     ap.add_argument("--axes", default="A,B")
+    uc.control_argument(ap)
     args = ap.parse_args()
     names = [n for n in args.axes.split(",") if n]
     for n in names:
         if len(n) != 1 or not NAME_RE.fullmatch(n.encode()):
             raise SystemExit("invalid party-line name %r (p.10)" % n)
     uc.serve(args.link, 9600, lambda pty: Bus(pty, names),
-             "ims: units %s on %s" % (",".join(names), args.link))
+             "ims: units %s on %s" % (",".join(names), args.link), args.control)
 
 
 if __name__ == "__main__":

@@ -135,6 +135,17 @@ class Axis6K:
         self.prev_speed = 0.0
         self.accelerating = False
 
+    def power_up(self):
+        """Power removed and restored: the motor stops where it is (no power to ramp it down)
+        and stays there with its switches; the axis is as at power-up, drive off, not homed,
+        TPC and TPE 0, parameters at their defaults."""
+        axis = self.axis
+        axis.power_up(0.0)
+        self.__init__(self.n)
+        self.axis = axis
+        self.enc_offset = -axis.pos
+        self.apply_limits()
+
     def apply_limits(self):
         self.axis.limit_neg = -LIMIT if self.lh & 1 else -1e15
         self.axis.limit_pos = LIMIT if self.lh & 2 else 1e15
@@ -189,6 +200,37 @@ class Unit:
         self.queue = collections.deque()  # lines waiting (COMEXC0): lists of commands
         self.hold = set()  # axes whose GO/HOM holds the queue
         self.ter = set()
+
+    def power_up(self):
+        """The controller's power-up (as at start): ECHO1, COMEXC0, ERRLVL4 and the default
+        EOT, EOL, BOT and prompts; waiting lines and the half-received line gone."""
+        self.echo, self.comexc, self.errlvl = 1, 0, 4
+        self.eot, self.eol, self.bot = [13, 0, 0], [13, 10, 0], [0, 0, 0]
+        self.errok, self.errbad = [13, 10, 62, 32], [13, 10, 63, 32]
+        self.buf = bytearray()
+        self.queue.clear()
+        self.hold = set()
+        self.ter = set()
+
+    def control(self, line, now):
+        """The test's requests (unit_common.Control). A power cycle concerns the whole
+        controller (WHO, an axis number, must be one of its axes): every axis and the
+        communication settings as at power-up."""
+        def power_cycle(who):
+            if who is not None and (not who.isdigit() or not 1 <= int(who) <= len(self.axes)):
+                return None
+            self.on_tick(now)  # the motion up to this instant
+            was = " ".join("%d %+d" % (ax.n, ax.tpc()) for ax in self.axes)
+            for ax in self.axes:
+                ax.power_up()
+            self.power_up()
+            uc.log("parker6k: power-cycled at %s steps: drives off, not homed, TPC 0, ECHO1, "
+                   "COMEXC0" % was)
+            return "controller"
+
+        def state():
+            return {str(ax.n): (ax.tpc(), ax.axis.moving()) for ax in self.axes}
+        return uc.control_request(self, line.split(), power_cycle, state)
 
     # -- output
     @staticmethod
@@ -593,13 +635,15 @@ def main():
     ap.add_argument("--axes", type=int, default=2, help="number of axes (6K2: 2, 6K4: 4)")
     ap.add_argument("--home-zeroes-encoder", action="store_true",
                     help="a successful HOM zeroes TPE as well as TPC")
+    uc.control_argument(ap)
     args = uc.parse_unit_arguments(ap, self_test)
     if not 1 <= args.axes <= 8:
         ap.error("--axes is 1..8")
     pty = uc.Pty(args.link, args.baud)
     unit = Unit(pty, args.axes, args.home_zeroes_encoder)
     uc.log("parker6k: %d axes at %d baud on %s" % (args.axes, args.baud, args.link))
-    uc.run(pty, uc.heard_only_at(pty, args.baud, "6k", unit.on_bytes), unit.on_tick)
+    uc.run(pty, uc.heard_only_at(pty, args.baud, "6k", unit.on_bytes), unit.on_tick,
+           control=uc.Control.open(args.control, unit))
 
 
 if __name__ == "__main__":

@@ -385,6 +385,30 @@ class Line:
         self.chaos = chaos
         self.journal = journal or Journal(None)
 
+    def control(self, line, now):
+        """The test's requests (unit_common.Control); WHO is a controller address. A power cycle
+        is the manual's power-on: the motor stops where it is (no power to ramp it down), the
+        controller boots (deaf for RESET_TIME, as after RS), then NOT REFERENCED at position 0,
+        parameters at their defaults. The stage and its switches stay where they are."""
+        def power_cycle(who):
+            if who is not None and not who.isdigit():
+                return None
+            chosen = [c for a, c in self.controllers.items() if who is None or a == int(who)]
+            if not chosen:
+                return None
+            for c in chosen:
+                c.tick(now)  # the motion up to this instant
+                was = c.position()
+                c.axis.hard_stop()
+                c.booting_until = now + RESET_TIME
+                uc.log("smc100: %d power-cycled at %s mm: booting, then NOT REFERENCED at 0"
+                       % (c.address, c.fmt(was)))
+            return ",".join(str(c.address) for c in chosen)
+
+        def state():
+            return {str(a): (c.position(), c.axis.moving()) for a, c in self.controllers.items()}
+        return uc.control_request(self, line.split(), power_cycle, state)
+
     def set_chaos(self, on):
         if self.chaos is not None and self.chaos.active != on:
             self.chaos.active = on
@@ -569,6 +593,7 @@ def main():
                     help="start with the chaos off (SIGUSR1 on, SIGUSR2 off)")
     ap.add_argument("--journal", default=None, metavar="PATH",
                     help="journal of executed commands, replies sent and faults injected")
+    uc.control_argument(ap)
     args = uc.parse_unit_arguments(ap, self_test)
     pty = uc.Pty(args.link, args.baud)
     line = make_line(pty, args)
@@ -578,7 +603,8 @@ def main():
         line.journal.write("chaos seed %d %s" % (args.chaos, "paused" if args.chaos_paused
                                                  else "on"))
     uc.log("smc100: addresses %s at %d baud on %s" % (args.addresses, args.baud, args.link))
-    uc.run(pty, uc.heard_only_at(pty, args.baud, "smc100", line.on_bytes), line.on_tick)
+    uc.run(pty, uc.heard_only_at(pty, args.baud, "smc100", line.on_bytes), line.on_tick,
+           control=uc.Control.open(args.control, line))
 
 
 if __name__ == "__main__":

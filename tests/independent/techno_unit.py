@@ -3,7 +3,7 @@
 "Wiring, Setup & ASCII Programming for C-Series Controllers" (shared/seeds/001, digest
 shared/protocols/techno-cseries.md) only.
 
-  techno_unit.py --link PATH [--variant c142|it116g] [--baud 19200]
+  techno_unit.py --link PATH [--variant c142|it116g] [--baud 19200] [--control SOCKET]
 
 The card powers up with no axes defined (every command but `@0<A>` answers `4`), positions 0,
 not homed, acceleration from the jumpers (C142 75 Hz/ms, IT116G 25 Hz/ms, p.6).
@@ -25,6 +25,9 @@ Readings of the manual where it leaves room:
 - A move that would run into the home switch (travel toward the motor past home) stops there
   and answers `2` ("emergency stop or limit switch encountered", p.90); the far end of travel
   is 1,000,000 steps out.
+- A power cycle (`power-cycle` on --control, unit_common.Control): the card powers up as above
+  (no axes defined: `4` to everything but `@0<A>`), the running motion stops at once and is never
+  acknowledged, the input buffer is lost; positions count from 0 where the motors stopped.
 """
 import argparse
 import re
@@ -47,6 +50,15 @@ class Card:
         for letter in ORDER:
             a = uc.Axis(accel=accel, limit_neg=-3000.0, limit_pos=1e6, home_switch=-3000.0)
             self.axes[letter] = a
+        self.power_up()
+
+    def power_up(self):
+        """Power applied: no axes defined (every command but `@0<A>` answers `4`, p.69), the
+        motion and the input buffer gone (no acknowledge of a command that was running), positions
+        0, immediate mode, plane XY, home speeds at this module's default. The motors stay where
+        they stopped (the home switches do not move)."""
+        for a in self.axes.values():
+            a.power_up(0.0)
         self.mask = 0
         self.home_speed = {k: 2000.0 for k in ORDER}
         self.plane = 0
@@ -54,6 +66,21 @@ class Card:
         self.job = None  # running command: {"legs": [...], "ack_at_end": bool, ...}
         self.line = bytearray()
         self.stop_pending = False
+
+    def control(self, line, now):
+        """The test's requests (unit_common.Control): one card per line, so WHO is ignored."""
+        def power_cycle(who):
+            self.tick(now)  # the motion up to this instant
+            was = " ".join("%s %.0f" % (k, self.axes[k].position()) for k in ORDER)
+            running = self.job is not None
+            self.power_up()
+            uc.log("techno: power-cycled at %s%s: no axes defined" %
+                   (was, ", the running command not acknowledged" if running else ""))
+            return "card"
+
+        def state():
+            return {k: (round(self.axes[k].position()), self.axes[k].moving()) for k in ORDER}
+        return uc.control_request(self, line.split(), power_cycle, state)
 
     def defined(self):
         return [k for i, k in enumerate(ORDER) if self.mask >> i & 1]
@@ -300,11 +327,13 @@ def main():
     ap.add_argument("--p-reply-cr", action="store_true",
                     help="the `@0P` reply ends with a CR after its 18 digits (the manual leaves "
                     "the terminator of the P reply open; issue 26)")
+    uc.control_argument(ap)
     args = ap.parse_args()
     pty = uc.Pty(args.link, args.baud)
     card = Card(args.variant, pty, args.queries == "live", args.p_reply_cr)
     uc.log("techno: %s at %d baud on %s" % (args.variant, args.baud, args.link))
-    uc.run(pty, uc.heard_only_at(pty, args.baud, "card", card.on_bytes), card.tick)
+    uc.run(pty, uc.heard_only_at(pty, args.baud, "card", card.on_bytes), card.tick,
+           control=uc.Control.open(args.control, card))
 
 
 if __name__ == "__main__":

@@ -4,9 +4,11 @@ an event loop with timed output (characters leave at the line's baud rate), and 
 Written from the manuals only; nothing here is taken from sim/ or drivers/.
 """
 import argparse
+import json
 import math
 import os
 import select
+import socket
 import sys
 import termios
 import time
@@ -87,13 +89,101 @@ class Pty:
             return b""
 
 
-def serve(link, baud, make, what):
+def serve(link, baud, make, what, control=None):
     """A PTY at `baud` on `link` for the unit make(pty) (with on_bytes and on_tick): logs `what`
-    once the unit is made, then serves until killed."""
+    once the unit is made, then serves until killed. With `control` (a socket path), the unit's
+    control(line, now) answers the lines of Control."""
     pty = Pty(link, baud)
     unit = make(pty)
     log(what)
-    run(pty, unit.on_bytes, unit.on_tick)
+    run(pty, unit.on_bytes, unit.on_tick, control=Control.open(control, unit))
+
+
+class Control:
+    """The test's hand on the unit: a Unix stream socket at `path` (--control PATH). Each line a
+    client sends gets one line back, from handler(line, now):
+
+      power-cycle [WHO]  remove and restore the power of the unit(s) on the line (WHO: one
+                         controller, as the unit names it; default every one): exactly what the
+                         vendor's manual says a power-up does, any motion aborted
+      state              JSON: {"axes": {NAME: {"position": p, "moving": b}}, "power_cycles": n},
+                         the position as the controller would report it on the wire
+
+    A unit without a control line leaves it out; the test then has no hand on it."""
+
+    @staticmethod
+    def open(path, unit):
+        if not path:
+            return None
+        return Control(path, unit.control)
+
+    def __init__(self, path, handler):
+        if os.path.lexists(path):
+            os.unlink(path)
+        self.listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.listener.bind(path)
+        self.listener.listen(4)
+        self.listener.setblocking(False)
+        self.handler = handler
+        self.clients = {}  # socket -> bytearray (the line being received)
+
+    def sockets(self):
+        return [self.listener] + list(self.clients)
+
+    def ready(self, sock, now):
+        if sock is self.listener:
+            try:
+                client, _ = self.listener.accept()
+            except OSError:
+                return
+            client.setblocking(True)
+            self.clients[client] = bytearray()
+            return
+        try:
+            data = sock.recv(4096)
+        except OSError:
+            data = b""
+        if not data:
+            self.clients.pop(sock, None)
+            sock.close()
+            return
+        buf = self.clients[sock]
+        buf += data
+        while b"\n" in buf:
+            line, _, rest = bytes(buf).partition(b"\n")
+            buf[:] = rest
+            text = line.decode(errors="replace").strip()
+            try:
+                answer = self.handler(text, now)
+            except Exception as e:  # a bad request must not stop the unit
+                answer = "error %s" % e
+            if text != "state":  # state is polled: it would flood the log
+                log("%.3f control %r -> %s" % (time.monotonic() - _t0, text, answer[:200]))
+            try:
+                sock.sendall(answer.encode() + b"\n")
+            except OSError:
+                self.clients.pop(sock, None)
+                sock.close()
+
+
+def control_request(unit, parts, power_cycle, state):
+    """The common grammar of a unit's control(line, now): `power-cycle [WHO]` calls
+    power_cycle(who or None) (which returns a text, or None for an unknown WHO), `state` returns
+    json of state() (a dict of axis name -> (position, moving))."""
+    if not parts:
+        return "error empty request"
+    if parts[0] == "power-cycle":
+        who = parts[1] if len(parts) > 1 else None
+        unit.power_cycles = getattr(unit, "power_cycles", 0) + 1
+        done = power_cycle(who)
+        if done is None:
+            unit.power_cycles -= 1
+            return "error no controller %r" % who
+        return "ok " + done
+    if parts[0] == "state":
+        axes = {name: {"position": p, "moving": bool(m)} for name, (p, m) in state().items()}
+        return json.dumps({"axes": axes, "power_cycles": getattr(unit, "power_cycles", 0)})
+    return "error unknown request %r" % parts[0]
 
 
 def heard_only_at(pty, baud, unit, on_bytes):
@@ -108,14 +198,21 @@ def heard_only_at(pty, baud, unit, on_bytes):
     return filtered
 
 
-def run(pty, on_bytes, on_tick, tick=0.005):
-    """Serves until killed: bytes in go to on_bytes(data, now), on_tick(now) runs every tick."""
+def run(pty, on_bytes, on_tick, tick=0.005, control=None):
+    """Serves until killed: bytes in go to on_bytes(data, now), on_tick(now) runs every tick;
+    `control` (a Control, or None) answers the test's requests between them."""
     last = time.monotonic()
     while True:
         due = pty.next_due()
         timeout = tick if due is None else max(0.0, min(tick, due - time.monotonic()))
-        r, _, _ = select.select([pty.master], [], [], timeout)
+        watched = [pty.master] + (control.sockets() if control else [])
+        r, _, _ = select.select(watched, [], [], timeout)
         now = time.monotonic()
+        if control:
+            for sock in r:
+                if sock is not pty.master:
+                    control.ready(sock, now)
+            r = [x for x in r if x is pty.master]
         if not r:
             pty.sample_rate(now)
         if r:
@@ -183,6 +280,14 @@ class Axis:
 
     def hard_stop(self):
         self.mode, self.v = "idle", 0.0
+
+    def power_up(self, position=0.0):
+        """Power removed and restored: the motor stops where it is (no ramp: the drive has no
+        power to decelerate it), and the controller counts from `position` again. The physical
+        position, and so the switches, stay where they are."""
+        self.hard_stop()
+        self.hit_limit = 0
+        self.set_position(position)
 
     def _approach(self, want, dt):
         rate = self.accel if abs(want) > abs(self.v) and want * self.v >= 0 else self.decel
@@ -351,6 +456,12 @@ def parse_unit_arguments(ap, self_test):
     if not args.link:
         ap.error("--link is required")
     return args
+
+
+def control_argument(ap):
+    """--control PATH: the socket of Control (the test's power-cycle and state requests)."""
+    ap.add_argument("--control", help="Unix socket for the test's requests: power-cycle [WHO], "
+                    "state (see unit_common.Control)")
 
 
 def unit_arguments(doc, baud):

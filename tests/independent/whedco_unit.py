@@ -4,6 +4,7 @@ written from the CMC manual excerpt (shared/seeds/004, digest shared/protocols/w
 only.
 
   whedco_unit.py --link PATH [--units 4] [--axes XY] [--baud 38400] [--non-echo]
+                 [--control SOCKET]
 
 The excerpt lacks sections 1-4 (frame format, reply layouts, status words), so this module has
 to pick readings where the manual is silent; each is a guess a firmware engineer of a 1990s
@@ -41,6 +42,10 @@ terminal-oriented controller would plausibly make, and each is listed here:
 - `RAd` answers the counts as a decimal number; `RDI`/`RDB` a decimal bit mask (bit n-1 = pin
   or variable n); all 0 here.
 - Trajectory velocity default 0 is below the 10 pp/s minimum: moves then run at 10 pp/s.
+- A power cycle (`power-cycle [ADDRESS]` on --control, unit_common.Control; default every unit):
+  as at power-up, Power Failure on the CMC-0 and every axis until `WB`; parameters kept
+  (battery-backed); motion stops at once; positions count from 0 where the motors stopped; a
+  line being received is lost.
 """
 import argparse
 import re
@@ -296,6 +301,17 @@ class Controller:
                 v |= 1 << i | 1 << (i + 4)
         return v
 
+    def power_up(self):
+        """Power applied (6.1.2): the CMC-0 and every axis report Power Failure until `WB`;
+        parameters and profiles stay (battery-backed RAM, 5.3.1); any motion stops at once (jog
+        equations off, searches abandoned, not homed); the position counters start from 0 where
+        the motors stopped (the excerpt does not say; the counters' reset value)."""
+        self.fault = "Power Failure"
+        for ax in self.axes.values():
+            ax.fault = 0
+            ax.ae = ax.homing = ax.homed = False
+            ax.axis.power_up(0.0)
+
     def tick(self, now):
         for ax in self.axes.values():
             ax.axis.tick(now)
@@ -355,6 +371,29 @@ class Line:
         for c in self.controllers.values():
             c.tick(now)
 
+    def control(self, line, now):
+        """The test's requests (unit_common.Control); WHO is a unit address (default: every unit
+        on the line)."""
+        def power_cycle(who):
+            units = [c for a, c in self.controllers.items() if who is None or a == who]
+            if not units:
+                return None
+            for c in units:
+                c.tick(now)  # the motion up to this instant
+                was = " ".join("%s %d" % (k, ax.position()) for k, ax in c.axes.items())
+                c.power_up()
+                uc.log("whedco: unit %s power-cycled at %s: Power Failure until WB" %
+                       (c.address, was))
+                if self.addressed is c:  # the line it was hearing is lost
+                    self.buf.clear()
+                    self.addressed = None
+            return ",".join(c.address for c in units)
+
+        def state():
+            return {c.address + k: (float(fmt_user(ax.position(), ax.ur)), ax.moving())
+                    for c in self.controllers.values() for k, ax in c.axes.items()}
+        return uc.control_request(self, line.split(), power_cycle, state)
+
 
 def main():
     ap = argparse.ArgumentParser()
@@ -364,6 +403,7 @@ def main():
     ap.add_argument("--baud", type=int, default=38400)
     ap.add_argument("--non-echo", action="store_true", help="SW2-5 set to non-echo")
     ap.add_argument("--status-bits", default="outputs", choices=["outputs", "busy-first", "busy-first-homed"])
+    uc.control_argument(ap)
     args = ap.parse_args()
     pty = uc.Pty(args.link, args.baud)
     controllers = [Controller(a, args.axes, not args.non_echo, args.status_bits)
@@ -371,7 +411,8 @@ def main():
     line = Line(pty, controllers)
     uc.log("whedco: units %s axes %s %s at %d baud on %s" % (
         args.units, args.axes, "non-echo" if args.non_echo else "echo", args.baud, args.link))
-    uc.run(pty, uc.heard_only_at(pty, args.baud, "unit", line.on_bytes), line.on_tick)
+    uc.run(pty, uc.heard_only_at(pty, args.baud, "unit", line.on_bytes), line.on_tick,
+           control=uc.Control.open(args.control, line))
 
 
 if __name__ == "__main__":
