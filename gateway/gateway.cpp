@@ -75,9 +75,6 @@ class WorkCountingExecutor {
   friend bool operator==(const WorkCountingExecutor& a, const WorkCountingExecutor& b) noexcept {
     return a.inner_ == b.inner_ && a.work_ == b.work_ && a.tracked_ == b.tracked_;
   }
-  friend bool operator!=(const WorkCountingExecutor& a, const WorkCountingExecutor& b) noexcept {
-    return !(a == b);
-  }
 
  private:
   WorkCountingExecutor with(asio::any_io_executor inner, bool tracked) const {
