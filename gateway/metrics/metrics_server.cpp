@@ -17,10 +17,6 @@ namespace fieldgate {
 namespace beast = boost::beast;
 namespace http = beast::http;
 
-namespace {
-constexpr auto use_tuple = asio::as_tuple(asio::use_awaitable);
-}
-
 struct MetricsServer::State {
   State(asio::any_io_executor ex, asio::ip::tcp::endpoint ep, Render r, ClientAllowList a)
       : acceptor(ex, ep), accept_retry(ex), render(std::move(r)), allow(std::move(a)) {}
