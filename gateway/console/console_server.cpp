@@ -174,17 +174,10 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& 
                                HttpConnection& connection) {
   beast::flat_buffer buffer;
   http_request::Parser parser;
-  const auto ec =
-      co_await http_request::read(stream, buffer, parser, ConsoleServer::exchange_timeout);
-  if (ec) {
-    if (const auto status = http_request::status_for(ec, parser)) {
-      ++state.stats.bad_requests;
-      auto res = http_request::error_response(*status);
-      common_headers(res);
-      co_await http_request::reply_and_finish(stream, res, ConsoleServer::exchange_timeout);
-    }
-    co_return;
-  }
+  const bool request = co_await http_request::read_or_answer(
+      stream, buffer, parser, ConsoleServer::exchange_timeout, state.stats.bad_requests,
+      [](http::response<http::string_body>& res) { common_headers(res); });
+  if (!request) co_return;
   ++state.stats.requests;
   const auto& req = parser.get();
   const std::string_view target(req.target().data(), req.target().size());

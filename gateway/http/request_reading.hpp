@@ -13,6 +13,7 @@
 #include <array>
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string>
 
@@ -110,6 +111,24 @@ asio::awaitable<void> reply_and_finish(beast::tcp_stream& stream, http::response
   auto [ec, n] = co_await http::async_write(stream, res, asio::as_tuple(asio::use_awaitable));
   (void)n;
   if (!ec) co_await finish(stream);
+}
+
+// Reads one request within `timeout`; true when there is one to serve. A request the parser
+// refused gets the status its error stands for (counted in `bad_requests`, with the headers
+// `decorate` adds) and the connection ends; false then, as when there is nothing to answer.
+template <typename Decorate>
+asio::awaitable<bool> read_or_answer(beast::tcp_stream& stream, beast::flat_buffer& buffer,
+                                     Parser& parser, std::chrono::steady_clock::duration timeout,
+                                     std::uint64_t& bad_requests, Decorate decorate) {
+  const auto ec = co_await read(stream, buffer, parser, timeout);
+  if (!ec) co_return true;
+  if (const auto status = status_for(ec, parser)) {
+    ++bad_requests;
+    auto res = error_response(*status);
+    decorate(res);
+    co_await reply_and_finish(stream, res, timeout);
+  }
+  co_return false;
 }
 
 }  // namespace fieldgate::http_request

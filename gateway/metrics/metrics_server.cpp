@@ -39,16 +39,10 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, MetricsServer::State& 
   beast::flat_buffer buffer;
   http_request::Parser parser;
   // One deadline for the whole exchange, reading and writing: a scraper is local and quick.
-  const auto ec =
-      co_await http_request::read(stream, buffer, parser, MetricsServer::exchange_timeout);
-  if (ec) {
-    if (const auto status = http_request::status_for(ec, parser)) {
-      ++state.stats.bad_requests;
-      auto res = http_request::error_response(*status);
-      co_await http_request::reply_and_finish(stream, res, MetricsServer::exchange_timeout);
-    }
-    co_return;
-  }
+  const bool request =
+      co_await http_request::read_or_answer(stream, buffer, parser, MetricsServer::exchange_timeout,
+                                            state.stats.bad_requests, [](auto&) {});
+  if (!request) co_return;
   connection.admitted = true;
   const auto& req = parser.get();
   http::response<http::string_body> res;

@@ -56,15 +56,20 @@ bool status_bit(const Model& model, const NodeImage& node, const ProfileAxisDef&
   return (observed == s.value) != s.negate;
 }
 
+// Whether the point with index `i` (none: -1) was read after `since`.
+bool read_since(const NodeImage& node, int i, std::chrono::steady_clock::time_point since) {
+  if (i < 0) return false;
+  const auto& v = node.points[static_cast<std::size_t>(i)];
+  return v.valid && v.updated > since;
+}
+
 // Whether the point behind a status bit was read after `since` (a constant always is).
 bool status_read_since(const Model& model, const NodeImage& node, const ProfileAxisDef& axis,
                        StatusBit bit, std::chrono::steady_clock::time_point since) {
   const auto it = axis.status.find(bit);
   if (it == axis.status.end() || it->second.constant) return true;
   const int i = point_index(model, it->second.point);
-  if (i < 0) return true;
-  const auto& v = node.points[static_cast<std::size_t>(i)];
-  return v.valid && v.updated > since;
+  return i < 0 || read_since(node, i, since);
 }
 
 // The profile values a command passes to the model, and from which register.
@@ -109,10 +114,7 @@ bool is_speed(ProfileSetpoint which) {
 // Whether a point was read after `since`.
 bool read_since(const Model& model, const NodeImage& node, const std::string& name,
                 std::chrono::steady_clock::time_point since) {
-  const int i = point_index(model, name);
-  if (i < 0) return false;
-  const auto& v = node.points[static_cast<std::size_t>(i)];
-  return v.valid && v.updated > since;
+  return read_since(node, point_index(model, name), since);
 }
 
 // Why the controller is known to have reset since the command was accepted, if it has: the
