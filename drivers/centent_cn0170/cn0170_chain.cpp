@@ -117,6 +117,7 @@ void Chain::absorb(const Message& m) {
       const auto subject = static_cast<std::size_t>(m.subject);
       auto& reset = units[subject];
       ++reset.counters.resets;
+      reset.reset_unreported = true;
       owed[subject].clear();  // its queues are gone: nothing it owed will come
       ++reset.counters.unsolicited;
       reset.set_up = false;

@@ -89,10 +89,11 @@ struct UnitCounters {
 
 struct UnitState {
   bool configured = false;
-  int mode = 0;             // last M? answer, 0 unknown
-  bool set_up = false;      // overflow mode applied since the link opened or the unit reset
-  bool queue_full = false;  // Q* seen and no *Q yet
-  bool answering = false;   // the last exchange with it got its reply
+  int mode = 0;                   // last M? answer, 0 unknown
+  bool set_up = false;            // overflow mode applied since the link opened or the unit reset
+  bool queue_full = false;        // Q* seen and no *Q yet
+  bool answering = false;         // the last exchange with it got its reply
+  bool reset_unreported = false;  // a U<n> came that no reply of this unit has carried yet
   UnitCounters counters;
 };
 

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <map>
 #include <mutex>
+#include <utility>
 
 #include "drivers/printable_bytes.hpp"
 
@@ -510,6 +511,10 @@ asio::awaitable<Reply> CententFamily::transact(Link& link, const NodeAddress& no
       reply = co_await run(link, unit, std::move(plan), request.command, timing);
     }
   }
+  // The next reply of a unit that reset (its U<n> may have come during another unit's exchange)
+  // tells the bus: every command the unit ran before is lost.
+  auto& state = chain_.units[static_cast<std::size_t>(unit)];
+  reply.controller_reset = std::exchange(state.reset_unreported, false);
   flush_log(link);
   co_return reply;
 }

@@ -125,7 +125,7 @@ techno::MotionContext TechnoFamily::motion_context(const BoundNode& node) {
 
 asio::awaitable<void> TechnoFamily::on_link_open(Link&, const LinkTiming&) {
   // The controller may have been power-cycled or moved by hand while the port was closed.
-  // defined_by_us is kept: it is evidence about the controller, not about the port, and a `4`
+  // seen_defined is kept: it is evidence about the controller, not about the port, and a `4`
   // after a reopen must still read as a lost definition (a motion is then not repeated).
   for (const auto& weak : bound_)
     if (const auto b = weak.lock()) {
@@ -267,7 +267,7 @@ asio::awaitable<Reply> TechnoFamily::transact_node(Link& link, NodeContext& cont
     co_return reply;
   }
   // The controller powered up (p.69: the axes definition comes before any other operation).
-  const bool lost_definition = bound.defined_by_us;
+  const bool lost_definition = bound.seen_defined;
   const Request init{std::to_string(p.axes), Request::Expect::ack, NumberFormat::decimal};
   const Reply defined = co_await exchange(link, bound, init, timing);
   if (defined.status != Reply::Status::ok) {
@@ -484,8 +484,7 @@ asio::awaitable<Reply> TechnoFamily::exchange(Link& link, BoundNode& bound, cons
     }
   }
   after_reply(bound, c, values, reply, answered_after_motion);
-  if (c.kind == CommandKind::specify_axes && reply.status == Reply::Status::ok)
-    bound.defined_by_us = true;
+  if (reply.status == Reply::Status::ok) bound.seen_defined = true;
   co_return reply;
 }
 

@@ -77,9 +77,10 @@ class TechnoFamily final : public ProtocolFamily {
     techno::Profile profile;
     NodeState state;
     bool active = false;  // addressed since the link opened (a stop's ramp concerns it)
-    // The family sent it the axes definition since the link opened: a later `4` means the
-    // controller lost it (power cycle) and its positions with it.
-    bool defined_by_us = false;
+    // The controller was seen with its axes defined: it took the family's axes definition, or
+    // answered any other command (an undefined card answers only `4`, p.69). A later `4` means
+    // it lost the definition (power cycle) and its positions with it.
+    bool seen_defined = false;
   };
 
   struct Waited {

@@ -432,7 +432,9 @@ asio::awaitable<Reply> WhedcoFamily::transact_node(Link& link, NodeContext& cont
   std::string error;
   const auto prepared = whedco::prepare_command(request.command, error);
   if (!prepared) co_return refused(error);
-  if (!contacted_[node.number]) co_await first_contact(link, bound, timing);
+  const bool was_contacted = contacted_[node.number];
+  bool power_cycled = false;
+  if (!was_contacted) power_cycled = co_await first_contact(link, bound, timing);
 
   std::optional<int> known = known_unit_ratio(node.number, *prepared);
   if (!known) {
@@ -455,6 +457,8 @@ asio::awaitable<Reply> WhedcoFamily::transact_node(Link& link, NodeContext& cont
   const std::string wire = whedco::wire_command(*prepared, ratio);
   Reply r = co_await exchange(link, bound, wire, request.expect, request.format, prepared->kind,
                               prepared->scaled_reply ? ratio : 1, timing);
+  if (was_contacted) note_power_failure(link, node.number, *prepared, r);
+  if (power_cycled) r.controller_reset = true;
   if (r.status == Reply::Status::ok && prepared->unit_ratio_axis) {
     const auto key = std::make_pair(node.number, *prepared->unit_ratio_axis);
     if (prepared->unit_ratio_written) {
@@ -467,7 +471,36 @@ asio::awaitable<Reply> WhedcoFamily::transact_node(Link& link, NodeContext& cont
   co_return r;
 }
 
-asio::awaitable<void> WhedcoFamily::first_contact(Link& link, const BoundNode& bound,
+// Power Failure read from a unit whose power-up state was cleared at first contact: the unit
+// was power-cycled since, and every command it ran is lost. Reported once per power failure;
+// the unit stays faulted until clear_faults (WB), as the PLC's reset sends it.
+void WhedcoFamily::note_power_failure(Link& link, int unit, const whedco::PreparedCommand& prepared,
+                                      Reply& reply) {
+  if (reply.status != Reply::Status::ok || reply.values.empty()) return;
+  bool power_failure = false;
+  if (prepared.kind == whedco::QueryKind::axis_fault)
+    power_failure = reply.values[0] == 0;  // §6.2 code 0 in either reading
+  else if (prepared.kind == whedco::QueryKind::unit_fault && !findings_.unit_fault_number)
+    power_failure = reply.values[0] >> 8 == whedco::kUnitPowerFailure >> 8;  // echo text
+  else
+    return;  // a non-echo FC number: its Power Failure base is not in the excerpt
+  bool& reported = power_failure_reported_[unit];
+  if (!power_failure) {
+    if (prepared.kind == whedco::QueryKind::unit_fault ||
+        reply.values[0] == whedco::kAxisFunctional)
+      reported = false;
+    return;
+  }
+  if (reported) return;
+  reported = true;
+  reply.controller_reset = true;
+  link.note(
+      fmt::format("whedco-cmc unit {}: '{}' reads Power Failure after first contact: the unit was "
+                  "power-cycled (clear_faults sends WB)",
+                  unit, prepared.text));
+}
+
+asio::awaitable<bool> WhedcoFamily::first_contact(Link& link, const BoundNode& bound,
                                                   const LinkTiming& timing) {
   const NodeAddress& node = bound.address();
   // Named commands: exchange() keeps a reference to its command across suspensions.
@@ -478,9 +511,16 @@ asio::awaitable<void> WhedcoFamily::first_contact(Link& link, const BoundNode& b
                     QueryKind::unit_fault, 1, timing);
   };
   const Reply fc = co_await read_fc();
-  if (fc.status != Reply::Status::ok || fc.values.size() != 2) co_return;  // try again later
+  if (fc.status != Reply::Status::ok || fc.values.size() != 2) co_return false;  // try again later
   contacted_[node.number] = true;
-  if (fc.values[1] == 0) co_return;
+  // A unit met before (the link was reopened since) that reads its power-up state again was
+  // power-cycled while the gateway could not see it.
+  const auto before = power_failure_reported_.find(node.number);
+  const bool known = before != power_failure_reported_.end() && !before->second;
+  if (fc.values[1] == 0) {
+    power_failure_reported_[node.number] = false;
+    co_return false;
+  }
   const int64_t code = fc.values[0];
   const bool number = findings_.unit_fault_number;
   // Power-up: "Power Failure" (echo text, or base 1 in the high byte). A non-echo number of
@@ -499,19 +539,22 @@ asio::awaitable<void> WhedcoFamily::first_contact(Link& link, const BoundNode& b
       power_up = axis.status == Reply::Status::ok && !axis.values.empty() && axis.values[0] == 0;
     }
   }
+  // The power-up state found here is the one first contact clears, not a power cycle since.
+  power_failure_reported_[node.number] = power_up;
+  const bool power_cycled = known && power_up;
   if (!power_up) {
     link.note(
         fmt::format("whedco-cmc unit {}: faulted at first contact (FC {}); not cleared: "
                     "clear_faults sends WB",
                     node.number, code));
-    co_return;
+    co_return false;
   }
   const Reply wb = co_await exchange(link, bound, wb_command, Request::Expect::ack,
                                      NumberFormat::decimal, QueryKind::plain, 1, timing);
   if (wb.status != Reply::Status::ok) {
     link.note(fmt::format("whedco-cmc unit {}: power-up state (FC {}); WB failed: {}", node.number,
                           code, wb.text.empty() ? to_string(wb.status) : wb.text));
-    co_return;
+    co_return power_cycled;
   }
   const Reply after = co_await read_fc();
   std::string learned;
@@ -526,6 +569,7 @@ asio::awaitable<void> WhedcoFamily::first_contact(Link& link, const BoundNode& b
           ? fmt::format(", still faulted (FC {})", after.values[0])
           : std::string(),
       learned));
+  co_return power_cycled;
 }
 
 std::size_t WhedcoFamily::estimate_wire_chars(const NodeAddress& node,

@@ -60,13 +60,17 @@ class WhedcoFamily final : public ProtocolFamily {
   asio::awaitable<void> resync(Link& link, const LinkTiming& timing);
   // The first exchange with a unit since the port opened: reads FC, and clears the power-up
   // state (Power Failure, every axis faulted) with WB, as the manual asks after power-up.
-  asio::awaitable<void> first_contact(Link& link, const BoundNode& node, const LinkTiming& timing);
+  // True when the unit was met before this link opening and reads its power-up state again.
+  asio::awaitable<bool> first_contact(Link& link, const BoundNode& node, const LinkTiming& timing);
+  void note_power_failure(Link& link, int unit, const whedco::PreparedCommand& prepared,
+                          Reply& reply);
   // The unit ratio a command's wire form is scaled by: 1 if it carries no quantity, the ratio
   // read from the unit before, or nullopt if UR? must be read first.
   std::optional<int> known_unit_ratio(int unit, const whedco::PreparedCommand& prepared) const;
 
   std::map<std::pair<int, char>, int> unit_ratios_;  // (unit, axis) -> pulses per user unit
   std::map<int, bool> contacted_;
+  std::map<int, bool> power_failure_reported_;  // since the unit's FC last read functional
   std::map<int, whedco::StatusForm> status_forms_;
   std::map<int, int64_t> unit_functional_;
   WhedcoFindings findings_;  // of the last exchange

@@ -27,6 +27,9 @@ constexpr auto kJogStartPatience = std::chrono::seconds(2);
 // How long an axis may stand still away from its target after its actions ended before the
 // command fails (a controller reporting its final steps a poll late).
 constexpr auto kArrivalPatience = std::chrono::seconds(1);
+// How long a command whose step got no reply waits for the controller's next answer, which shows
+// whether it was reset (a card that lost power mid-move never acknowledges the move).
+constexpr auto kResetEvidencePatience = std::chrono::seconds(2);
 constexpr std::size_t kTarget = 0, kVelocity = 1, kAcceleration = 2, kDeceleration = 3;
 
 int point_index(const Model& model, const std::string& name) {
@@ -158,6 +161,29 @@ void finish_with_error(ProfileAxisRuntime& rt, uint16_t code) {
   rt.command_error = code;
   rt.error_latched = true;
   rt.error_id = code;
+}
+
+// The controller did not answer a step: a power cycle may have cut it off, which only its next
+// answer shows.
+bool is_silence(uint16_t action_error) {
+  return action_error == kActionErrorNoReply || action_error == kActionErrorUnreachable ||
+         action_error == kActionErrorGarbled;
+}
+
+// Ends the command failed. A failure that a reset of the controller explains (a Techno card that
+// lost its axes definition refuses the move with 4) ends with the reset's own code.
+void fail_command(const ProfileUnit& unit, const NodeImage& node, ProfileAxisRuntime& rt,
+                  uint16_t code) {
+  const Model& model = *unit.model;
+  const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
+  if (rt.command != ProfileCommand::reset) {
+    if (const auto why = reset_since_accepted(model, node, axis, rt)) {
+      log::warning("unit {} axis {}: {} failed: the controller reset while it ran ({})",
+                   unit.node->name, axis.name, to_string(rt.command), *why);
+      code = kActionErrorControllerReset;
+    }
+  }
+  finish_with_error(rt, code);
 }
 
 }  // namespace
@@ -464,9 +490,10 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::run_command(
     const ControlResult written = co_await control_.apply(write);
     if (superseded()) co_return modbus::WriteResult::success();
     if (!written.ok()) {
-      finish_with_error(runtime(unit), written.status == ControlStatus::device_error
-                                           ? static_cast<uint16_t>(written.device_code)
-                                           : kActionErrorNoReply);
+      fail_command(unit, image_.node(unit.node_index), runtime(unit),
+                   written.status == ControlStatus::device_error
+                       ? static_cast<uint16_t>(written.device_code)
+                       : kActionErrorNoReply);
       co_return exception_for(written.status);
     }
   }
@@ -475,8 +502,15 @@ asio::awaitable<modbus::WriteResult> AxisProfileServer::run_command(
   const ControlResult started =
       co_await control_.start_action(unit.node_index, *first, slot, std::move(arguments));
   if (superseded()) co_return modbus::WriteResult::success();
+  if (!started.ok() && slot->generation == action_generation && is_silence(slot->error)) {
+    // The write is answered now; follow() ends the command once the controller's next answer
+    // shows whether a reset silenced it.
+    const auto executor = co_await asio::this_coro::executor;
+    asio::co_spawn(executor, follow(unit, generation, action_generation, 0, alive), asio::detached);
+    co_return exception_for(started.status);
+  }
   if (!started.ok()) {
-    finish_with_error(runtime(unit), slot->error);
+    fail_command(unit, image_.node(unit.node_index), runtime(unit), slot->error);
     co_return exception_for(started.status);
   }
   const auto executor = co_await asio::this_coro::executor;
@@ -521,6 +555,7 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
   asio::steady_timer timer(executor);
   std::optional<std::chrono::steady_clock::time_point> actions_ended;
   std::optional<std::chrono::steady_clock::time_point> off_target_since;
+  std::optional<std::chrono::steady_clock::time_point> silent_since;
   for (;;) {
     timer.expires_after(kFollowInterval);
     co_await timer.async_wait(asio::as_tuple(asio::use_awaitable));
@@ -535,19 +570,24 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
     const auto& node = image_.node(unit.node_index);
     const Model& model = *unit.model;
     const auto& axis = model.profile_axes[static_cast<std::size_t>(unit.axis)];
-    if (const auto why = rt.command == ProfileCommand::reset
-                             ? std::nullopt
-                             : reset_since_accepted(model, node, axis, rt)) {
-      log::warning("unit {} axis {}: {} failed: the controller reset while it ran ({})",
-                   unit.node->name, axis.name, to_string(rt.command), *why);
-      finish_with_error(rt, kActionErrorControllerReset);
+    if (rt.command != ProfileCommand::reset && reset_since_accepted(model, node, axis, rt)) {
+      fail_command(unit, node, rt, kActionErrorControllerReset);
       co_return;
     }
     if (!rt.reset_count && !axis.reset_count.empty())
       rt.reset_count = point_value(model, node, axis.reset_count);
     if (slot->status == ActionStatus::busy) continue;
     if (slot->status == ActionStatus::error) {
-      finish_with_error(rt, slot->error);
+      // Silence may be a reset that the controller's next answer shows (checked above on every
+      // turn): until the axis is read again, or for a moment if it is not, the silence waits.
+      if (is_silence(slot->error)) {
+        const auto now = std::chrono::steady_clock::now();
+        if (!silent_since) silent_since = now;
+        if (now < *silent_since + kResetEvidencePatience &&
+            !read_since(model, node, axis.position, *silent_since))
+          continue;
+      }
+      fail_command(unit, node, rt, slot->error);
       co_return;
     }
     const auto& names = axis.commands.at(rt.command);
@@ -560,7 +600,7 @@ asio::awaitable<void> AxisProfileServer::follow(ProfileUnit unit, uint64_t gener
       auto& again = runtime(unit);
       if (again.generation != generation) co_return;
       if (reply.status != Reply::Status::ok) {
-        finish_with_error(again, slot->error);
+        fail_command(unit, image_.node(unit.node_index), again, slot->error);
         co_return;
       }
       continue;

@@ -57,10 +57,12 @@ class AxisProfileDone : public test::ControlTableTest {
   }
   // The PLC's writes of the target (holding 0-1) and then of command and sequence (holding
   // 8-9); velocity and the rest stay as the model's defaults.
-  void command(int axis_index, int64_t target, ProfileCommand c, uint16_t sequence) {
+  // A command whose first action fails at once is answered with an exception (`refused`).
+  void command(int axis_index, int64_t target, ProfileCommand c, uint16_t sequence,
+               bool refused = false) {
     asio::co_spawn(
         io_,
-        [this, axis_index, target, c, sequence]() -> asio::awaitable<void> {
+        [this, axis_index, target, c, sequence, refused]() -> asio::awaitable<void> {
           const uint16_t position[2] = {static_cast<uint16_t>((target >> 16) & 0xffff),
                                         static_cast<uint16_t>(target & 0xffff)};
           const uint16_t handshake[2] = {static_cast<uint16_t>(c), sequence};
@@ -69,7 +71,7 @@ class AxisProfileDone : public test::ControlTableTest {
           EXPECT_TRUE(result.ok()) << "exception " << static_cast<int>(result.exception());
           result = co_await server_->write(axis(axis_index), ap::command_code, handshake,
                                            WordOrder::high_first);
-          EXPECT_TRUE(result.ok()) << "exception " << static_cast<int>(result.exception());
+          EXPECT_EQ(result.ok(), !refused);
         },
         asio::detached);
   }
@@ -89,6 +91,10 @@ class AxisProfileDone : public test::ControlTableTest {
   }
   CommandStatus status(int axis_index) {
     return static_cast<CommandStatus>(input(axis_index, ap::command_status));
+  }
+  bool ended(int axis_index) {
+    const CommandStatus s = status(axis_index);
+    return s == CommandStatus::done || s == CommandStatus::error || s == CommandStatus::aborted;
   }
   std::vector<std::string> moves() const {
     std::vector<std::string> m;
@@ -162,6 +168,57 @@ TEST_F(AxisProfileDone, AControllerResetDuringTheMoveEndsItFailed) {
   run_until([&] { return status(0) != CommandStatus::busy; });
   EXPECT_EQ(status(0), CommandStatus::error);
   EXPECT_EQ(input(0, ap::command_error), kActionErrorControllerReset);
+}
+
+// A Techno card power-cycled during a capital M never acknowledges it: the step gets no reply.
+// The card's next answer (a poll meets its `4`) shows the reset, which is why the move failed.
+TEST_F(AxisProfileDone, AMoveCutShortBySilenceEndsWithTheResetItsNextAnswerShows) {
+  bus_.replies = {Reply::of(Reply::Status::ok), Reply::of(Reply::Status::timeout, "no handshake")};
+  command(0, 511, ProfileCommand::move_absolute, 1, true);
+  run(300ms);
+  ASSERT_EQ(moves().size(), 1u);
+  EXPECT_EQ(status(0), CommandStatus::busy);  // waiting for the controller's next answer
+  ++image_.node(0).controller_resets;
+  poll("position_x", 0);
+  run_until([&] { return ended(0); });
+  EXPECT_EQ(status(0), CommandStatus::error);
+  EXPECT_EQ(input(0, ap::command_error), kActionErrorControllerReset);
+}
+
+// Silence with no reset behind it keeps its own code, once the axis was read again.
+TEST_F(AxisProfileDone, AMoveWithNoReplyAndNoResetEndsNoReply) {
+  bus_.replies = {Reply::of(Reply::Status::ok), Reply::of(Reply::Status::timeout, "no handshake")};
+  command(0, 511, ProfileCommand::move_absolute, 1, true);
+  run(300ms);
+  poll("position_x", 0);
+  run_until([&] { return ended(0); });
+  EXPECT_EQ(status(0), CommandStatus::error);
+  EXPECT_EQ(input(0, ap::command_error), kActionErrorNoReply);
+}
+
+// A step the controller refused because it reset (Techno's 4 to the move itself, the reply
+// reporting the reset, which the bus counts before it returns) ends with the reset's code.
+TEST_F(AxisProfileDone, AStepRefusedAfterAResetEndsWithTheResetsCode) {
+  bus_.replies = {Reply::of(Reply::Status::ok),
+                  Reply::of(Reply::Status::device_error, "axis not defined", '4')};
+  bus_.on_command = [this](const std::string& c) {
+    if (c.starts_with("M")) ++image_.node(0).controller_resets;
+  };
+  command(0, 511, ProfileCommand::move_absolute, 1, true);
+  run_until([&] { return ended(0); });
+  EXPECT_EQ(status(0), CommandStatus::error);
+  EXPECT_EQ(input(0, ap::command_error), kActionErrorControllerReset);
+}
+
+// A reset before the command was accepted is none of its business: the refusal keeps its code.
+TEST_F(AxisProfileDone, AStepRefusedAfterAnEarlierResetKeepsItsCode) {
+  ++image_.node(0).controller_resets;
+  bus_.replies = {Reply::of(Reply::Status::ok),
+                  Reply::of(Reply::Status::device_error, "axis not defined", '4')};
+  command(0, 511, ProfileCommand::move_absolute, 1, true);
+  run_until([&] { return ended(0); });
+  EXPECT_EQ(status(0), CommandStatus::error);
+  EXPECT_EQ(input(0, ap::command_error), '4');
 }
 
 TEST_F(AxisProfileDone, APageWhoseStatusWasNeverReadAnswersTargetFailed) {

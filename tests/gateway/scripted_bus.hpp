@@ -6,6 +6,7 @@
 
 #include <boost/asio/awaitable.hpp>
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,6 +22,7 @@ class ScriptedBus : public Bus {
   std::vector<std::string> sent;
   std::vector<int> sent_to;
   std::vector<Reply> replies;
+  std::function<void(const std::string&)> on_command;  // called as each command goes out
 
   ScriptedBus() = default;
   explicit ScriptedBus(std::vector<std::shared_ptr<NodeImage>> images)
@@ -36,6 +38,7 @@ class ScriptedBus : public Bus {
     sent.push_back(request.command);
     sent_to.push_back(node);
     if (options.on_sent) options.on_sent();
+    if (on_command) on_command(request.command);
     Reply reply;
     reply.status = Reply::Status::ok;
     if (!replies.empty()) {

@@ -16,6 +16,7 @@
 #include <regex>
 #include <sstream>
 #include <thread>
+#include <utility>
 
 #include "fault_property.hpp"
 
@@ -134,8 +135,8 @@ struct Command {
 
 class DoneRun {
  public:
-  DoneRun(Plant& plant, unsigned seed, const DoneProperty& property)
-      : plant_(plant), property_(property), random_(seed), seed_(seed) {
+  DoneRun(int port, unsigned seed, const DoneProperty& property)
+      : port_(port), property_(property), random_(seed), seed_(seed) {
     client_ = connect();
     for (const auto& a : property_.axes) clients_[a.unit] = connect();
   }
@@ -172,7 +173,7 @@ class DoneRun {
 
  private:
   std::unique_ptr<ModbusClient> connect() {
-    return std::make_unique<ModbusClient>("127.0.0.1", plant_.port());
+    return std::make_unique<ModbusClient>("127.0.0.1", port_);
   }
 
   uint16_t next_sequence(int unit) {
@@ -502,7 +503,7 @@ class DoneRun {
       ++counts_.interrupted;
     }
     wait_all(commands);
-    for (Command* c : running) interrupted_outcomes_.push_back(c->status);
+    for (Command* c : running) interrupted_outcomes_.push_back({c->status, c->error});
     std::vector<int> all;
     for (const auto& a : property_.axes)
       if (a.controller == controller) all.push_back(a.unit);
@@ -510,10 +511,11 @@ class DoneRun {
   }
 
  public:
-  std::vector<int> interrupted_outcomes_;  // command_status of each interrupted command
+  // command_status and command_error of each interrupted command
+  std::vector<std::pair<int, uint16_t>> interrupted_outcomes_;
 
  private:
-  Plant& plant_;
+  int port_;
   const DoneProperty& property_;
   std::mt19937 random_;
   unsigned seed_;
@@ -530,14 +532,19 @@ class DoneRun {
 }  // namespace
 
 DoneCounts run_done_property(Plant& plant, unsigned seed, const DoneProperty& property) {
-  DoneRun run(plant, seed, property);
+  return run_done_property(plant.port(), plant.daemon(), seed, property);
+}
+
+DoneCounts run_done_property(int port, ChildProcess& daemon, unsigned seed,
+                             const DoneProperty& property) {
+  DoneRun run(port, seed, property);
   bool finished = true;
   try {
     run.go();
   } catch (const std::exception& e) {
     // A connection refused: the daemon is gone (its log follows the failure).
     ADD_FAILURE() << e.what() << "; the daemon "
-                  << (plant.daemon().running() ? "still runs" : "is no longer running");
+                  << (daemon.running() ? "still runs" : "is no longer running");
     finished = false;
   }
   const DoneCounts& counts = run.counts();
@@ -545,7 +552,7 @@ DoneCounts run_done_property(Plant& plant, unsigned seed, const DoneProperty& pr
             << "\n";
   ::testing::Test::RecordProperty("done_property", ::testing::PrintToString(counts));
   if (std::getenv("FIELDGATE_DONE_VERBOSE") != nullptr)
-    std::cout << "--- daemon log ---\n" << plant.daemon().log();
+    std::cout << "--- daemon log ---\n" << daemon.log();
   if (!finished) return counts;
 
   EXPECT_EQ(counts.false_dones, 0);
@@ -559,8 +566,17 @@ DoneCounts run_done_property(Plant& plant, unsigned seed, const DoneProperty& pr
   EXPECT_GT(counts.interrupted, 0) << "no reset went in while a move ran";
   EXPECT_GT(counts.dones, 0);
   // An interrupted move ends failed (or aborted), never done nor busy.
+  // Failed with the reset's own code (docs/axis-profile.md), which tells the PLC why.
   int interrupted_failed = 0;
-  for (int status : run.interrupted_outcomes_) interrupted_failed += status == kError ? 1 : 0;
+  for (const auto& [status, error] : run.interrupted_outcomes_) {
+    if (status != kError) continue;
+    ++interrupted_failed;
+    if (property.reset_visible) {
+      EXPECT_EQ(error, kControllerReset)
+          << "a move interrupted by a reset ended failed with 0x" << std::hex << error
+          << ", not 0xfffa (controller reset during the command)";
+    }
+  }
   EXPECT_GT(interrupted_failed, 0) << "no move interrupted by a reset ended failed";
   return counts;
 }

@@ -73,6 +73,10 @@ struct DoneProperty {
   std::chrono::milliseconds command_timeout{20000};
   std::chrono::milliseconds fresh_timeout{20000};  // "within seconds", not the 10-minute timeout
   int rounds = 12;  // a third simultaneous, a third with a reset, a third single moves
+  // The family sees a reset on the line (a sign-on, a boot-up, a power-up state): a move a reset
+  // interrupted that ends failed carries 0xfffa. False where nothing on the line shows it (the
+  // move then fails on the position proof, 0xffec).
+  bool reset_visible = true;
 };
 
 // What a run saw.
@@ -97,6 +101,10 @@ unsigned done_seed(unsigned fallback);
 // The run: the fresh-axis phase, then `rounds` seeded rounds; returns what it saw. Adds gtest
 // failures for every false done, every hung command and a vacuous run.
 DoneCounts run_done_property(Plant& plant, unsigned seed, const DoneProperty& property);
+// The same against a daemon started otherwise (a CAN bus: tests/families/canopen), listening for
+// Modbus TCP on the loopback `port`.
+DoneCounts run_done_property(int port, ChildProcess& daemon, unsigned seed,
+                             const DoneProperty& property);
 
 // A simulator's answer to a control line: the log from the last `tag` on, its first line only.
 std::optional<std::string> control_line(ChildProcess& sim, const std::string& line,

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <memory>
@@ -236,8 +237,10 @@ Plant::Plant(std::vector<SimulatedBus> buses, std::string modbus_extra,
       throw std::runtime_error("simulator did not create its link: " + sims_.back()->log());
     config << "  - name: " << bus.name << "\n    protocol: " << bus.protocol << "\n"
            << "    serial: {device: " << link.string() << ", " << bus.serial << "}\n"
-           << "    timing: {" << bus.timing << "}\n"
-           << "    nodes:\n"
+           << "    timing: {" << bus.timing
+           << "}\n"
+           // FIELDGATE_PLANT_TRACE: every frame in the daemon's log (docs/wire-trace.md).
+           << (std::getenv("FIELDGATE_PLANT_TRACE") ? "    trace: true\n" : "") << "    nodes:\n"
            << bus.nodes;
   }
   std::ofstream(config_path()) << config.str();

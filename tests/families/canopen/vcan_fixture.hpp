@@ -136,6 +136,7 @@ class CanopenSim {
   void command(const std::string& line) { process_->send_line(line); }
   std::string log() const { return process_->log(); }
   bool running() { return process_->running(); }
+  ChildProcess& process() { return *process_; }  // for control_line (done_property.hpp)
 
  private:
   std::unique_ptr<ChildProcess> process_;

@@ -184,12 +184,18 @@ TEST_F(FamilyOnChain, ResetMessageResynchronisesTheSelection) {
   EXPECT_NE(lost.text.find("unit 1 answered 'XP?' meant for unit 2"), std::string::npos)
       << lost.text;
   EXPECT_EQ(family_.chain().units[1].counters.resets, 1u);
+  EXPECT_FALSE(lost.controller_reset);  // unit 2 did not reset
   const Reply again = call(2, "XP?");
   EXPECT_EQ(again.status, Reply::Status::ok) << again.text;
+  EXPECT_FALSE(again.controller_reset);
   EXPECT_EQ(selections() - sel, 1u);
-  // Unit 1 is set up again on its next contact.
+  // Unit 1 is set up again on its next contact, whose reply reports the reset (issue 49: the
+  // commands it ran are lost), once.
   wire_.clear();
-  EXPECT_EQ(call(1, "XP?").status, Reply::Status::ok);
+  const Reply reset = call(1, "XP?");
+  EXPECT_EQ(reset.status, Reply::Status::ok);
+  EXPECT_TRUE(reset.controller_reset);
+  EXPECT_FALSE(call(1, "XP?").controller_reset);
   EXPECT_NE(wire_.find("M1\\-"), std::string::npos) << wire_;
   EXPECT_NE(log().find("unit 1 reset (unsolicited 'U1')"), std::string::npos) << log();
 }

@@ -178,6 +178,39 @@ TEST_F(TechnoBench, PowerCycleAfterInitialisationFailsTheMoveButDefinesTheAxes) 
   EXPECT_EQ(transact(ack("M100,5000,0,30,0,30,0,30")).status, Reply::Status::ok);
 }
 
+// Issue 49: a card that powered up defined (or was defined before the gateway started) and
+// answered a poll was defined; its `4` after a power cycle is a controller reset, not a first
+// contact, so the move it interrupted is not taken as arrived.
+TEST_F(TechnoBench, PowerCycleOfACardDefinedBeforeTheGatewayIsAReset) {
+  start(defined());
+  const auto before = transact(query("P"));
+  ASSERT_EQ(before.status, Reply::Status::ok) << before.text;
+  EXPECT_FALSE(before.controller_reset);
+  controller_->control("power-cycle", {}, sim::SimClock::now());
+  const auto p = transact(query("P"));
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+  EXPECT_TRUE(p.controller_reset);
+  const auto notes = link_->take_notes();
+  ASSERT_FALSE(notes.empty());
+  EXPECT_NE(notes.back().text.find("lost its definition"), std::string::npos) << notes.back().text;
+  EXPECT_FALSE(transact(query("P")).controller_reset);  // reported once
+  controller_->control("power-cycle", {}, sim::SimClock::now());
+  const auto r = transact(ack("M100,5000,0,30,0,30,0,30"));
+  EXPECT_EQ(r.status, Reply::Status::device_error);
+  EXPECT_TRUE(r.controller_reset);
+  EXPECT_NE(r.text.find("home before moving"), std::string::npos) << r.text;
+}
+
+// A card met in its power-up state was not defined before: no reset.
+TEST_F(TechnoBench, PowerUpStateAtFirstContactIsNoReset) {
+  auto o = defined();
+  o.axes = 0;
+  start(o);
+  const auto p = transact(query("P"));
+  ASSERT_EQ(p.status, Reply::Status::ok) << p.text;
+  EXPECT_FALSE(p.controller_reset);
+}
+
 // Issue 26, item 4: the bus reopens the port while the node is offline (a cable pull); the
 // controller is power-cycled meanwhile. The definition the family sent before is evidence about
 // the controller, not the port: the move is still not repeated in the reset coordinates.

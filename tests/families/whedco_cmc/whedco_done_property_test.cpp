@@ -4,7 +4,8 @@
 // `power-cycle 4`: positions 0, Power Failure) while they move, and home and move before any
 // velocity was written (the model's FS0 is "no source": such a home is refused with 0x03).
 // Every done is checked against the simulator's own position (`position 4 AXIS`). A restarted
-// unit reads Power Failure, the actions' failed: condition (0xfffe, docs/axis-profile.md).
+// unit reads Power Failure: a controller reset, so a move it interrupted ends 0xfffa
+// (docs/axis-profile.md).
 #include <gtest/gtest.h>
 
 #include <map>

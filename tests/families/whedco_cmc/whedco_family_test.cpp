@@ -324,6 +324,29 @@ TEST_F(WhedcoOnSimulatedLine, FaultsInBothFormats) {
   EXPECT_EQ(transact("4", read("FCY")).values, (std::vector<int64_t>{8, 0}));
 }
 
+// Issue 49: Power Failure read from a unit whose power-up state was cleared is a controller
+// reset, reported once; the unit stays faulted for the PLC's reset (WB). Unit 4 echoes (FC as
+// text), unit 5 does not (FCa code 0 shows it).
+TEST_F(WhedcoOnSimulatedLine, PowerFailureAfterFirstContactIsAReset) {
+  for (const char* address : {"4", "5"}) {
+    SCOPED_TRACE(address);
+    const char* axis_fault = std::string(address) == "4" ? "FC" : "FCX";
+    const auto first = transact(address, read(axis_fault));
+    ASSERT_EQ(first.status, Status::ok) << first.text;
+    EXPECT_FALSE(first.controller_reset);  // the power-up state first contact cleared
+    line_.unit(std::stoi(address))->power_cycle(sim::SimClock::now());
+    const auto after = transact(address, read(axis_fault));
+    ASSERT_EQ(after.status, Status::ok) << after.text;
+    EXPECT_TRUE(after.controller_reset);
+    EXPECT_EQ(after.values.at(1), 1);  // still faulted: not cleared behind the PLC's back
+    EXPECT_FALSE(transact(address, read(axis_fault)).controller_reset);  // reported once
+    EXPECT_EQ(transact(address, write("WB")).status, Status::ok);
+    EXPECT_FALSE(transact(address, read(axis_fault)).controller_reset);
+    line_.unit(std::stoi(address))->power_cycle(sim::SimClock::now());
+    EXPECT_TRUE(transact(address, read(axis_fault)).controller_reset);  // the next one too
+  }
+}
+
 TEST_F(WhedcoOnSimulatedLine, AxisMaskExpandsAndBadMasksAreNotSent) {
   EXPECT_EQ(transact("4", write("AMX1000")).status, Status::ok);
   EXPECT_EQ(transact("4", write("RA[1]")).status, Status::ok);
