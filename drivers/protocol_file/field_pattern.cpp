@@ -320,7 +320,8 @@ std::optional<FieldPattern> FieldPattern::compile(std::string_view text, Pattern
       error = {"{addr} is the node's number: int or int(N)", i};
       return std::nullopt;
     }
-    if (f.name != "_" && !names.insert(f.name).second) {
+    // {addr} may stand in each command of a line, and in each part of its reply.
+    if (f.name != "_" && f.name != "addr" && !names.insert(f.name).second) {
       error = {fmt::format("field '{}' appears twice", f.name), i};
       return std::nullopt;
     }
@@ -351,6 +352,41 @@ std::optional<FieldPattern> FieldPattern::compile(std::string_view text, Pattern
     }
   }
   return p;
+}
+
+bool FieldPattern::declare_number(std::size_t piece, const NumberFormat& format, int width,
+                                  PatternError& error) {
+  if (piece >= pieces_.size() || !pieces_[piece].field) {
+    error = {"no field there to declare a number format of", 0};
+    return false;
+  }
+  Field& f = *pieces_[piece].field;
+  if ((f.type != FieldType::integer && f.type != FieldType::decimal) || f.name == "addr") {
+    error = {fmt::format("{{{}:{}}}: a number format is for the int and decimal(S) fields of a "
+                         "reply",
+                         f.name, to_string(f.type)),
+             f.offset};
+    return false;
+  }
+  const bool variable = width == 0 && f.width == 0;
+  const char next = piece + 1 < pieces_.size() && !pieces_[piece + 1].field
+                        ? pieces_[piece + 1].literal.front()
+                        : '\0';
+  const bool taken =
+      variable && ((next == '.' && format.form != NumberFormat::Form::integer) ||
+                   ((next == 'E' || next == 'e') && format.form == NumberFormat::Form::exponent));
+  if (taken) {
+    const std::string type = f.type == FieldType::decimal ? fmt::format("decimal({})", f.scale)
+                                                          : std::string(to_string(f.type));
+    error = {fmt::format("{{{}:{}}} in {} form would take the '{}' that follows it as its own, so "
+                         "the pattern could never match: give the field a width",
+                         f.name, type, to_string(format.form), next),
+             f.offset};
+    return false;
+  }
+  if (width > 0) f.width = width;
+  f.number = format;
+  return true;
 }
 
 std::vector<const Field*> FieldPattern::named_fields() const {
@@ -431,9 +467,26 @@ std::optional<std::vector<Capture>> FieldPattern::match(std::string_view text,
         return std::nullopt;
       }
     } else {
-      length = take_variable(f, rest);
+      length = f.number ? take_number(*f.number, rest) : take_variable(f, rest);
     }
     const std::string_view taken = rest.substr(0, length);
+    if (f.number) {
+      std::string reason = "beyond a 64-bit count";
+      const auto plain = read_number(*f.number, f.width, taken, reason);
+      const auto value =
+          plain ? decimal_value(*plain, f.type == FieldType::decimal ? f.scale : 0) : std::nullopt;
+      if (!value) {
+        why = fmt::format(
+            "{{{}:{}}} at character {}: '{}' is no number printed as declared ({}): "
+            "{}",
+            f.name, to_string(f.type), pos + 1, printable_bytes(taken.empty() ? rest : taken),
+            describe(*f.number, f.width), reason);
+        return std::nullopt;
+      }
+      if (f.name != "_") captures.push_back(Capture{f.name, std::string(taken), *value, f.type});
+      pos += length;
+      continue;
+    }
     const auto value = length == 0 && f.type != FieldType::text ? std::nullopt : value_of(f, taken);
     if (!value) {
       why = fmt::format("{{{}:{}}} at character {}: '{}' is not one", f.name, to_string(f.type),

@@ -6,6 +6,8 @@
 #include <string_view>
 #include <vector>
 
+#include "drivers/protocol_file/number_format.hpp"
+
 namespace fieldgate::protocol_file {
 
 // One typed field of a request or reply template, written `{name:type}` (docs/protocol-files.md):
@@ -28,6 +30,9 @@ struct Field {
   int width = 0;           // exact characters (digits for bits); 0: variable
   int scale = 0;           // decimal places of decimal(S)
   std::size_t offset = 0;  // where `{` stands in the template's text, for error marks
+  // How the controller prints this int or decimal(S) field of a reply, where the file says so
+  // (FieldPattern::declare_number); without it, the type's lenient reading.
+  std::optional<NumberFormat> number;
 };
 
 std::string_view to_string(FieldType type);
@@ -68,6 +73,12 @@ class FieldPattern {
   // node's address as the protocol writes it.
   std::optional<std::vector<Capture>> match(std::string_view text, std::string_view address,
                                             std::string& why) const;
+
+  // Declares how the controller prints the int or decimal(S) field of piece `piece` in a reply,
+  // and its width (0: the field's own). Fails (error set, at the field) for another type, or
+  // where what follows the field could no longer be told from it (an exponent before an 'E').
+  bool declare_number(std::size_t piece, const NumberFormat& format, int width,
+                      PatternError& error);
 
   // Writes the template with `values` for its named fields, in order, and `address` for
   // {addr}. Fails (nullopt, why set) for a value the field cannot carry (a width too small,

@@ -44,8 +44,8 @@ std::optional<std::string> encode_request(const ProtocolSpec& spec, const Comman
   return *body + spec.send_terminator;
 }
 
-FrameSplitter reply_splitter(const ProtocolSpec& spec, std::string request) {
-  return [&spec, request = std::move(request)](std::string_view input) -> std::size_t {
+FrameSplitter reply_splitter(const ProtocolSpec& spec, std::string request, std::size_t prompts) {
+  return [&spec, request = std::move(request), prompts](std::string_view input) -> std::size_t {
     std::size_t start = 0;
     if (spec.echo != ProtocolSpec::Echo::none) {
       // Until the echo could be told apart, wait for more.
@@ -56,14 +56,19 @@ FrameSplitter reply_splitter(const ProtocolSpec& spec, std::string request) {
       const std::size_t need = start + spec.reply_length + spec.reply_terminator.size();
       return input.size() >= need ? need : 0;
     }
-    const auto end = input.find(spec.reply_terminator, start);
-    std::size_t length = end == std::string_view::npos ? 0 : end + spec.reply_terminator.size();
-    if (!spec.error_terminator.empty()) {
-      const auto refused = input.find(spec.error_terminator, start);
-      if (refused != std::string_view::npos && (length == 0 || refused < end))
-        length = refused + spec.error_terminator.size();
+    // The reply ends after its last prompt, or at the first refusal before it.
+    std::size_t at = start;
+    for (std::size_t n = 0; n < prompts; ++n) {
+      const auto end = input.find(spec.reply_terminator, at);
+      if (!spec.error_terminator.empty()) {
+        const auto refused = input.find(spec.error_terminator, at);
+        if (refused != std::string_view::npos && (end == std::string_view::npos || refused < end))
+          return refused + spec.error_terminator.size();
+      }
+      if (end == std::string_view::npos) return 0;
+      at = end + spec.reply_terminator.size();
     }
-    return length;
+    return at;
   };
 }
 
@@ -90,14 +95,27 @@ ReplyReading interpret_reply(const ProtocolSpec& spec, const CommandSpec& comman
   if (!spec.error_terminator.empty() && line.ends_with(spec.error_terminator)) {
     line.remove_suffix(spec.error_terminator.size());
     std::string_view text = line;
+    // On a line of several commands, the prompts before the refusal are those the line's first
+    // commands took.
+    std::size_t taken = 0;
+    if (command.prompts() > 1)
+      for (auto at = text.find(spec.reply_terminator); at != std::string_view::npos;
+           at = text.find(spec.reply_terminator), ++taken)
+        text.remove_prefix(at + spec.reply_terminator.size());
     while (!text.empty() && (text.front() == '\r' || text.front() == '\n' || text.front() == ' '))
       text.remove_prefix(1);
     if (text.starts_with(spec.reply_prefix)) text.remove_prefix(spec.reply_prefix.size());
     while (!text.empty() && (text.back() == '\r' || text.back() == '\n' || text.back() == ' '))
       text.remove_suffix(1);
     r.line = std::string(line);
+    r.refusal_without_code = true;
+    const std::string where =
+        command.prompts() > 1
+            ? fmt::format(" at command {} of {} on its line", taken + 1, command.prompts())
+            : "";
     r.reply = Reply::of(Reply::Status::device_error,
-                        fmt::format("{} refused: {}", command.name, printable_bytes(text)),
+                        fmt::format("{} refused{}{}", command.name, where,
+                                    text.empty() ? "" : ": " + printable_bytes(text)),
                         kRefusedReply);
     return r;
   }
@@ -134,8 +152,9 @@ ReplyReading interpret_reply(const ProtocolSpec& spec, const CommandSpec& comman
     line = body;
   }
   r.line = std::string(line);
-  const bool has_text = !command.reply || !command.reply->pieces().empty();
-  if (!spec.reply_prefix.empty() && has_text) {
+  // A reply of several parts has the prefix in its pattern, before each part with text.
+  const bool has_text = !command.reply || command.reply_has_text();
+  if (!spec.reply_prefix.empty() && has_text && command.prompts() == 1) {
     if (!line.starts_with(spec.reply_prefix)) {
       r.reply = garbled(fmt::format("'{}' does not start with '{}'", printable_bytes(line),
                                     printable_bytes(spec.reply_prefix)));
@@ -153,6 +172,7 @@ ReplyReading interpret_reply(const ProtocolSpec& spec, const CommandSpec& comman
       }
       std::string meaning = text.text.empty() ? error_text(spec, code) : text.text;
       r.from_error_reply = true;
+      r.refusal_without_code = spec.error_reply_code.empty();
       r.captures = *refusal;
       r.reply = Reply::of(Reply::Status::device_error,
                           fmt::format("{} refused: {}{}", command.name, printable_bytes(line),
@@ -205,6 +225,34 @@ ReplyReading interpret_reply(const ProtocolSpec& spec, const CommandSpec& comman
     r.reply.values.push_back(word);
   }
   return r;
+}
+
+Reply explain_refusal(const ProtocolSpec& spec, const CommandSpec& query, const Reply& refusal,
+                      const ReplyReading& answer) {
+  const bool reported = answer.reply.status == Reply::Status::device_error &&
+                        !answer.from_error_reply && !answer.refusal_without_code && query.error;
+  const Capture* code = nullptr;
+  const Capture* text = nullptr;
+  if (reported)
+    for (const auto& c : answer.captures) {
+      if (c.name == query.error->capture) code = &c;
+      if (c.name == query.error->text_capture) text = &c;
+    }
+  if (code) {
+    const std::string meaning = text ? text->text : error_text(spec, *code);
+    return Reply::of(
+        Reply::Status::device_error,
+        fmt::format("{}; {} reports error {}{}", refusal.text, query.name,
+                    printable_bytes(code->text), meaning.empty() ? "" : ": " + meaning),
+        code->value);
+  }
+  const std::string why = answer.reply.status == Reply::Status::ok
+                              ? fmt::format("{} reports no error", query.name)
+                              : fmt::format("{} gave none: {} ({})", query.name,
+                                            to_string(answer.reply.status), answer.reply.text);
+  return Reply::of(Reply::Status::device_error,
+                   fmt::format("{}; the device's code is unknown: {}", refusal.text, why),
+                   kRefusalUnexplained);
 }
 
 Reply judge_confirmation(const ProtocolSpec&, const CommandSpec& confirmed,

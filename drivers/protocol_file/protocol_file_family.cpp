@@ -247,6 +247,27 @@ asio::awaitable<ReplyReading> ProtocolFileFamily::exchange(Link& link, const Com
                                                            const std::vector<int64_t>& arguments,
                                                            std::string_view address,
                                                            const LinkTiming& timing) {
+  ReplyReading reading = co_await exchange_once(link, command, arguments, address, timing);
+  const bool unexplained = reading.kind == ReplyReading::Kind::reply &&
+                           reading.reply.status == Reply::Status::device_error &&
+                           reading.refusal_without_code;
+  if (!unexplained || spec_->refusal_query.empty()) co_return reading;
+  const CommandSpec* query = spec_->find(spec_->refusal_query);
+  if (!query || query == &command) co_return reading;
+  link.discard_input();
+  const std::vector<int64_t> no_arguments;
+  const ReplyReading answer = co_await exchange_once(link, *query, no_arguments, address, timing);
+  reading.reply = explain_refusal(*spec_, *query, reading.reply, answer);
+  const bool out_of_step = answer.reply.status == Reply::Status::timeout ||
+                           answer.reply.status == Reply::Status::garbled;
+  // What the line may still carry of the query's reply must not answer the next request.
+  if (out_of_step) co_await let_the_line_settle(link, timing);
+  co_return reading;
+}
+
+asio::awaitable<ReplyReading> ProtocolFileFamily::exchange_once(
+    Link& link, const CommandSpec& command, const std::vector<int64_t>& arguments,
+    std::string_view address, const LinkTiming& timing) {
   ReplyReading reading;
   std::string why;
   const auto wire = encode_request(*spec_, command, arguments, address, why);
@@ -283,7 +304,7 @@ asio::awaitable<ReplyReading> ProtocolFileFamily::exchange(Link& link, const Com
     reading.reply = Reply::of(Reply::Status::ok);
     co_return reading;
   }
-  const auto splitter = reply_splitter(*spec_, *wire);
+  const auto splitter = reply_splitter(*spec_, *wire, command.prompts());
   for (int set_aside = 0;; ++set_aside) {
     const auto read = co_await link.read_frame(splitter, t);
     switch (read.status) {
@@ -498,7 +519,7 @@ std::optional<AlignmentProof> ProtocolFileFamily::alignment_proof(NodeContext& n
     proof.name += fmt::format("{} -> {}", command->name, expected);
     AlignmentStep step;
     step.request = *wire;
-    step.splitter = reply_splitter(*spec_, *wire);
+    step.splitter = reply_splitter(*spec_, *wire, command->prompts());
     step.matches = [spec = spec_, command, request = *wire, address,
                     error = spec_step.error](std::string_view frame) {
       const auto r = interpret_reply(*spec, *command, request, frame, address);

@@ -71,10 +71,14 @@ class ProtocolFileFamily final : public ProtocolFamily {
                              const LinkTiming& timing);
   // The start-up's bounded loop (StartupStep::discover), with what it found in the log.
   asio::awaitable<void> discover(Link& link, const StartupStep& step, const LinkTiming& timing);
-  // One request and its reply (none for a command the device does not answer).
+  // One request and its reply (none for a command the device does not answer); a refusal
+  // without a code is then explained by the file's refusal_query, where it has one.
   asio::awaitable<ReplyReading> exchange(Link& link, const CommandSpec& command,
                                          const std::vector<int64_t>& arguments,
                                          std::string_view address, const LinkTiming& timing);
+  asio::awaitable<ReplyReading> exchange_once(Link& link, const CommandSpec& command,
+                                              const std::vector<int64_t>& arguments,
+                                              std::string_view address, const LinkTiming& timing);
 
   ProtocolSpecPtr spec_;
   std::set<int> nodes_;  // bound node numbers, for start-up commands sent to every node

@@ -37,8 +37,8 @@ class ProtocolParser {
     spec->mark = r_.mark(root);
     r_.reject_unknown_keys(
         root,
-        {"protocol", "description", "manual", "framing", "address", "checksum", "errors",
-         "error_reply", "unsolicited", "startup", "alignment", "commands"},
+        {"protocol", "description", "manual", "framing", "address", "checksum", "errors", "numbers",
+         "error_reply", "refusal_query", "unsolicited", "startup", "alignment", "commands"},
         "protocol file");
     if (auto n = r_.require(root, "protocol", "protocol file"))
       if (auto s = r_.string(*n, "protocol")) {
@@ -58,11 +58,14 @@ class ProtocolParser {
     parse_address(root["address"], root, *spec);
     if (root["checksum"]) parse_checksum(root["checksum"], *spec);
     if (root["errors"]) parse_errors(root["errors"], *spec);
+    // Before every reply pattern: the file's number format applies to them all.
+    if (root["numbers"]) file_numbers_ = number_declaration(root["numbers"], "numbers", true);
     if (root["error_reply"]) parse_error_reply(root["error_reply"], *spec);
     if (auto c = r_.require(root, "commands", "protocol file"); c && r_.expect_map(*c, "commands"))
       for (const auto& item : *c) parse_command(item.first, item.second, *spec);
     // After the commands: these refer to them.
     for (auto& cmd : spec->commands) check_command_references(cmd, *spec);
+    if (root["refusal_query"]) parse_refusal_query(root["refusal_query"], *spec);
     if (root["unsolicited"]) parse_unsolicited(root["unsolicited"], *spec);
     if (root["startup"]) parse_startup(root["startup"], *spec);
     parse_alignment(root["alignment"], root, *spec);
@@ -103,10 +106,11 @@ class ProtocolParser {
 
   void parse_framing(const YAML::Node& node, ProtocolSpec& spec) {
     if (!r_.expect_map(node, "framing")) return;
-    r_.reject_unknown_keys(node,
-                           {"send_terminator", "reply_terminator", "error_terminator",
-                            "reply_length", "echo", "reply_prefix", "max_reply"},
-                           "framing");
+    r_.reject_unknown_keys(
+        node,
+        {"send_terminator", "reply_terminator", "error_terminator", "reply_length", "echo",
+         "reply_prefix", "max_reply", "command_separator"},
+        "framing");
     if (node["send_terminator"])
       spec.send_terminator = r_.string(node["send_terminator"], "send_terminator").value_or("");
     if (node["reply_terminator"])
@@ -132,6 +136,17 @@ class ProtocolParser {
     if (node["max_reply"])
       spec.max_reply = static_cast<std::size_t>(
           r_.integer(node["max_reply"], "max_reply", 8, 65536).value_or(256));
+    if (auto c = node["command_separator"]) {
+      spec.command_separator = r_.string(c, "command_separator").value_or("");
+      if (spec.command_separator.empty())
+        r_.error(c,
+                 "framing: command_separator is the text between two commands of a line, "
+                 "e.g. ';'");
+      else if (spec.reply_length > 0)
+        r_.error(c,
+                 "framing: command_separator: the commands of a line are each answered by "
+                 "their prompt, the reply_terminator, which fixed-length replies have none of");
+    }
   }
 
   // The reply splitter ends a reply at whichever terminator comes first, so each must be told
@@ -284,6 +299,7 @@ class ProtocolParser {
     if (!p) return;
     spec.error_reply = pattern(*p, "error_reply pattern");
     if (!spec.error_reply) return;
+    declare_file_numbers(*spec.error_reply, *p);
     const auto named = [&](const char* key, std::string& out) {
       if (!node[key]) return;
       out = r_.string(node[key], std::string("error_reply ") + key).value_or("");
@@ -346,8 +362,10 @@ class ProtocolParser {
       return;
     }
     if (!r_.expect_map(node, where)) return;
-    r_.reject_unknown_keys(
-        node, {"description", "send", "reply", "timeout", "error", "flags", "confirm"}, where);
+    r_.reject_unknown_keys(node,
+                           {"description", "send", "reply", "replies", "prompts", "numbers",
+                            "timeout", "error", "flags", "confirm"},
+                           where);
     if (node["description"])
       cmd.description = r_.string(node["description"], "description").value_or("");
     bool ok = true;
@@ -368,12 +386,19 @@ class ProtocolParser {
     } else {
       ok = false;
     }
-    if (auto rep = node["reply"]) {
+    const YAML::Node rep = node["reply"];
+    const YAML::Node parts = node["replies"];
+    if (rep && parts) {
+      r_.error(parts,
+               fmt::format("{}: 'reply' or 'replies' (one pattern per prompt), not both", where));
+      ok = false;
+    } else if (parts) {
+      ok = parse_reply_parts(parts, cmd, where) && ok;
+    } else if (rep) {
       if (rep.IsNull() || (rep.IsScalar() && rep.Scalar() == "none")) {
         // No reply: the confirmation below must prove the command was taken.
       } else if (auto p = pattern(rep, where + " reply")) {
-        cmd.reply = *p;
-        cmd.reply_mark = at(rep, 0);
+        cmd.reply_parts.push_back({p->source(), 0, at(rep, 0)});
       } else {
         ok = false;
       }
@@ -382,6 +407,12 @@ class ProtocolParser {
                                  "command the device does not answer)",
                                  where));
       ok = false;
+    }
+    if (ok) ok = frame_reply(node, cmd, spec, where);
+    if (ok && cmd.reply) {
+      declare_numbers(node["numbers"], cmd, where);
+    } else if (ok && node["numbers"]) {
+      r_.error(node["numbers"], fmt::format("{}: numbers: the command has no reply", where));
     }
     if (node["timeout"])
       cmd.timeout = r_.duration(node["timeout"], where + " timeout").value_or(cmd.timeout);
@@ -396,6 +427,304 @@ class ProtocolParser {
                                  "query or a read-back)",
                                  where));
     spec.commands.push_back(std::move(cmd));
+  }
+
+  // replies: [pattern, ...]: a reply of one part per prompt, each its own pattern.
+  bool parse_reply_parts(const YAML::Node& node, CommandSpec& cmd, const std::string& where) {
+    if (!r_.expect_sequence(node, where + " replies")) return false;
+    if (node.size() == 0 || node.size() > kMostPrompts) {
+      r_.error(node,
+               fmt::format("{} replies: 1 to {} patterns, one per prompt", where, kMostPrompts));
+      return false;
+    }
+    bool ok = true;
+    for (const auto& item : node) {
+      if (auto p = pattern(item, where + " replies"))
+        cmd.reply_parts.push_back({p->source(), 0, at(item, 0)});
+      else
+        ok = false;
+    }
+    return ok;
+  }
+
+  // How many prompts end the command's reply (`prompts:`, the parts of `replies:`, or one per
+  // command of its line where the file declares the command separator), and the reply's one
+  // pattern: the parts joined by the reply terminator, a bare prompt before a `reply:` for each
+  // command of the line before the last.
+  bool frame_reply(const YAML::Node& node, CommandSpec& cmd, const ProtocolSpec& spec,
+                   const std::string& where) {
+    const YAML::Node given = node["prompts"];
+    const bool listed = bool(node["replies"]);
+    if (given && (cmd.reply_parts.empty() || listed)) {
+      r_.error(given, fmt::format("{}: prompts: {}", where,
+                                  listed ? "replies gives the count, one pattern per prompt"
+                                         : "the device answers nothing"));
+      return false;
+    }
+    if (cmd.reply_parts.empty()) return true;
+    std::size_t prompts = cmd.reply_parts.size();
+    if (given) {
+      prompts = static_cast<std::size_t>(
+          r_.integer(given, where + " prompts", 1, kMostPrompts).value_or(1));
+    } else if (!spec.command_separator.empty()) {
+      std::size_t commands = 1;
+      for (const auto& piece : cmd.request.pieces()) {
+        if (piece.field) continue;
+        const std::string& text = piece.literal;
+        for (auto found = text.find(spec.command_separator); found != std::string::npos;
+             found = text.find(spec.command_separator, found + spec.command_separator.size()))
+          ++commands;
+      }
+      if (listed && commands != prompts) {
+        r_.error(node["replies"],
+                 fmt::format("{}: '{}' is a line of {} commands (separated by '{}'), each "
+                             "answered by its prompt, so its reply has {} parts; replies gives "
+                             "{}",
+                             where, cmd.request.source(), commands,
+                             printable_bytes(spec.command_separator), commands, prompts));
+        return false;
+      }
+      prompts = std::min<std::size_t>(commands, kMostPrompts);
+    }
+    if (prompts > 1 && spec.reply_length > 0) {
+      r_.error(given ? given : node, fmt::format("{}: a reply of {} prompts needs the "
+                                                 "reply_terminator, and this file's replies "
+                                                 "have a fixed length",
+                                                 where, prompts));
+      return false;
+    }
+    while (cmd.reply_parts.size() < prompts)
+      cmd.reply_parts.insert(cmd.reply_parts.begin(), CommandSpec::ReplyPart{});
+    std::string joined;
+    const std::string terminator = as_template(spec.reply_terminator);
+    // Of several parts, each with text has its own reply_prefix (one part: stripped as it comes).
+    const std::string prefix = prompts > 1 ? as_template(spec.reply_prefix) : "";
+    for (auto& part : cmd.reply_parts) {
+      if (&part != &cmd.reply_parts.front()) joined += terminator;
+      if (!part.text.empty()) joined += prefix;
+      part.offset = joined.size();
+      joined += part.text;
+    }
+    PatternError e;
+    auto p = FieldPattern::compile(joined, e);
+    if (!p) {
+      r_.diagnostics().error(cmd.reply_mark_at(e.offset),
+                             fmt::format("{} reply: {}", where, e.message));
+      return false;
+    }
+    cmd.reply = std::move(*p);
+    return true;
+  }
+
+  // Text as a template writes it: braces doubled.
+  static std::string as_template(std::string_view text) {
+    std::string out;
+    for (const char c : text) {
+      out += c;
+      if (c == '{' || c == '}') out += c;
+    }
+    return out;
+  }
+
+  // A `numbers:` declaration (the file's, or one capture's): what it gives, and where each key
+  // is written for errors.
+  struct NumberDeclaration {
+    std::optional<NumberFormat::Sign> sign;
+    std::optional<NumberFormat::Pad> pad;
+    std::optional<NumberFormat::Form> form;
+    std::optional<int> places;
+    int width = 0;
+    YAML::Node pad_node, form_node, places_node, width_node;
+  };
+
+  std::optional<NumberDeclaration> number_declaration(const YAML::Node& node,
+                                                      const std::string& what, bool file) {
+    if (!r_.expect_map(node, what)) return std::nullopt;
+    if (file)
+      r_.reject_unknown_keys(node, {"sign", "pad"}, what);
+    else
+      r_.reject_unknown_keys(node, {"sign", "pad", "width", "form", "places"}, what);
+    using F = NumberFormat;
+    NumberDeclaration d;
+    // A key in error drops the declaration: its error is enough, with none that follows from it.
+    bool ok = true;
+    const auto valid = [&ok](const auto& value) {
+      ok = ok && value.has_value();
+      return value;
+    };
+    if (auto n = node["sign"])
+      d.sign = valid(choice<F::Sign>(n, what + " sign",
+                                     {{"optional", F::Sign::optional},
+                                      {"minus", F::Sign::minus},
+                                      {"plus_or_minus", F::Sign::plus_or_minus},
+                                      {"space_or_minus", F::Sign::space_or_minus}}));
+    if (auto n = node["pad"]) {
+      d.pad_node.reset(n);
+      d.pad = valid(file ? choice<F::Pad>(n, what + " pad (of the fields with a width)",
+                                          {{"zeros", F::Pad::zeros}, {"spaces", F::Pad::spaces}})
+                         : choice<F::Pad>(n, what + " pad",
+                                          {{"none", F::Pad::none},
+                                           {"zeros", F::Pad::zeros},
+                                           {"spaces", F::Pad::spaces}}));
+    }
+    if (auto n = node["width"]) {
+      d.width_node.reset(n);
+      d.width = static_cast<int>(valid(r_.integer(n, what + " width", 1, 32)).value_or(0));
+    }
+    if (auto n = node["form"]) {
+      d.form_node.reset(n);
+      d.form = valid(choice<F::Form>(n, what + " form",
+                                     {{"integer", F::Form::integer},
+                                      {"decimal", F::Form::decimal},
+                                      {"exponent", F::Form::exponent}}));
+    }
+    if (auto n = node["places"]) {
+      d.places_node.reset(n);
+      if (const auto places = valid(r_.integer(n, what + " places", 0, 18)))
+        d.places = static_cast<int>(*places);
+    }
+    if (!ok) return std::nullopt;
+    return d;
+  }
+
+  // The format of one int or decimal(S) field from the file's declaration and the capture's
+  // (its keys over the file's), with the field's width; nullopt where neither declares one (the
+  // type's lenient reading stays) or where the capture's keys contradict the field (an error at
+  // the key).
+  std::optional<std::pair<NumberFormat, int>> resolve_number(const Field& f,
+                                                             const NumberDeclaration* capture,
+                                                             const std::string& what) {
+    if (!file_numbers_ && !capture) return std::nullopt;
+    const NumberDeclaration none;
+    const NumberDeclaration& file = file_numbers_ ? *file_numbers_ : none;
+    const NumberDeclaration& own = capture ? *capture : none;
+    const std::string field = fmt::format("{{{}:{}}}", f.name, describe_type(f));
+    NumberFormat n;
+    n.sign = own.sign.value_or(file.sign.value_or(NumberFormat::Sign::optional));
+    int width = f.width;
+    if (own.width > 0) {
+      if (f.width > 0 && f.width != own.width) {
+        r_.error(own.width_node, fmt::format("{} width {}: {} is {} characters already", what,
+                                             own.width, field, f.width));
+        return std::nullopt;
+      }
+      width = own.width;
+    }
+    if (own.pad) {
+      if (*own.pad == NumberFormat::Pad::none && width > 0) {
+        r_.error(own.pad_node, fmt::format("{} pad: none is a number without padding, but {} is "
+                                           "{} characters: pad zeros or spaces",
+                                           what, field, width));
+        return std::nullopt;
+      }
+      if (*own.pad != NumberFormat::Pad::none && width == 0) {
+        r_.error(own.pad_node, fmt::format("{} pad: {} fills a fixed width, and {} has none: "
+                                           "give width: N",
+                                           what, to_string(*own.pad), field));
+        return std::nullopt;
+      }
+      n.pad = *own.pad;
+    } else {
+      n.pad = width > 0 ? file.pad.value_or(NumberFormat::Pad::zeros) : NumberFormat::Pad::none;
+    }
+    n.form = own.form.value_or(f.type == FieldType::decimal ? NumberFormat::Form::decimal
+                                                            : NumberFormat::Form::integer);
+    if (n.form == NumberFormat::Form::decimal && f.type != FieldType::decimal) {
+      r_.error(own.form_node, fmt::format("{} form: decimal: {} counts whole units; a number with "
+                                          "decimals is a decimal(S) field (decimal(0) rounds it "
+                                          "to a whole count)",
+                                          what, field));
+      return std::nullopt;
+    }
+    if (own.places) {
+      if (n.form == NumberFormat::Form::integer) {
+        r_.error(own.places_node, fmt::format("{} places: an integer has no decimals (places "
+                                              "are for the decimal and exponent forms)",
+                                              what));
+        return std::nullopt;
+      }
+      n.places = *own.places;
+    }
+    return std::pair{n, width};
+  }
+
+  // The file's number format on every int and decimal(S) field of a pattern (error_reply,
+  // unsolicited) that has no capture declarations of its own.
+  void declare_file_numbers(FieldPattern& p, const YAML::Node& node) {
+    if (!file_numbers_) return;
+    for (std::size_t k = 0; k < p.pieces().size(); ++k) {
+      const auto& piece = p.pieces()[k];
+      if (!piece.field || !is_number(*piece.field)) continue;
+      const auto format = resolve_number(*piece.field, nullptr, "numbers");
+      PatternError e;
+      if (format && !p.declare_number(k, format->first, format->second, e))
+        r_.diagnostics().error(at(node, e.offset), e.message);
+    }
+  }
+
+  static bool is_number(const Field& f) {
+    return (f.type == FieldType::integer || f.type == FieldType::decimal) && f.name != "addr";
+  }
+
+  // A command's `numbers: {capture: {sign, pad, width, form, places}}`, and the file's, on its
+  // reply's int and decimal(S) fields.
+  void declare_numbers(const YAML::Node& node, CommandSpec& cmd, const std::string& where) {
+    std::map<std::string, NumberDeclaration, std::less<>> own;
+    if (node && r_.expect_map(node, where + " numbers")) {
+      for (const auto& item : node) {
+        const auto name = r_.string(item.first, where + " numbers capture").value_or("");
+        const Field* f = reply_field(cmd, item.first, name, "numbers");
+        if (!f) continue;
+        if (!is_number(*f)) {
+          r_.error(item.first, fmt::format("{} numbers: {{{}:{}}} is no int or decimal(S) field: "
+                                           "a number format is for those",
+                                           where, f->name, describe_type(*f)));
+          continue;
+        }
+        if (auto d = number_declaration(item.second, where + " numbers " + name, false))
+          own.emplace(name, std::move(*d));
+      }
+    }
+    for (std::size_t k = 0; k < cmd.reply->pieces().size(); ++k) {
+      const auto& piece = cmd.reply->pieces()[k];
+      if (!piece.field || !is_number(*piece.field)) continue;
+      const auto it = own.find(piece.field->name);
+      const bool declared = it != own.end();
+      const auto format =
+          resolve_number(*piece.field, declared ? &it->second : nullptr,
+                         where + " numbers" + (declared ? " " + it->first : std::string()));
+      PatternError e;
+      if (format && !cmd.reply->declare_number(k, format->first, format->second, e))
+        r_.diagnostics().error(cmd.reply_mark_at(e.offset),
+                               fmt::format("{} reply: {}", where, e.message));
+    }
+  }
+
+  // refusal_query: COMMAND, sent after a refusal that carries no code; its error check gives the
+  // code and text.
+  void parse_refusal_query(const YAML::Node& node, ProtocolSpec& spec) {
+    const auto name = r_.string(node, "refusal_query").value_or("");
+    const CommandSpec* q = spec.find(name);
+    if (!q) {
+      if (!name.empty())
+        r_.error(node, fmt::format("refusal_query: no command '{}' in this file", name));
+      return;
+    }
+    if (!q->reply || !q->error || !q->parameters().empty() || !q->confirm.empty()) {
+      r_.error(node, fmt::format("refusal_query: {} must be a query of the device's last error: a "
+                                 "reply, an error check whose capture is the code (error: "
+                                 "{{capture, ok, text}}), no parameters and no confirmation",
+                                 q->name));
+      return;
+    }
+    const bool codeless_error_reply = spec.error_reply && spec.error_reply_code.empty();
+    if (spec.error_terminator.empty() && !codeless_error_reply) {
+      r_.error(node,
+               "refusal_query: this file has no refusal without a code to explain (a "
+               "framing.error_terminator, or an error_reply without code)");
+      return;
+    }
+    spec.refusal_query = name;
   }
 
   void parse_error_check(const YAML::Node& node, CommandSpec& cmd) {
@@ -558,15 +887,24 @@ class ProtocolParser {
     return std::string(to_string(f.type));
   }
 
+  static std::string describe_type(const Field& f) {
+    if (f.type != FieldType::decimal && f.width > 0)
+      return fmt::format("{}({})", to_string(f.type), f.width);
+    return describe(f);
+  }
+
   void parse_unsolicited(const YAML::Node& node, ProtocolSpec& spec) {
     if (node.IsScalar()) {
       spec.unsolicited = pattern(node, "unsolicited");
+      if (spec.unsolicited) declare_file_numbers(*spec.unsolicited, node);
       return;
     }
     if (!r_.expect_map(node, "unsolicited")) return;
     r_.reject_unknown_keys(node, {"pattern", "quiet_after"}, "unsolicited");
-    if (auto p = r_.require(node, "pattern", "unsolicited"))
+    if (auto p = r_.require(node, "pattern", "unsolicited")) {
       spec.unsolicited = pattern(*p, "unsolicited pattern");
+      if (spec.unsolicited) declare_file_numbers(*spec.unsolicited, *p);
+    }
     if (node["quiet_after"])
       spec.quiet_after_unsolicited = r_.duration(node["quiet_after"], "unsolicited quiet_after")
                                          .value_or(spec.quiet_after_unsolicited);
@@ -735,7 +1073,10 @@ class ProtocolParser {
     return true;
   }
 
+  static constexpr std::size_t kMostPrompts = 16;
+
   YamlReader& r_;
+  std::optional<NumberDeclaration> file_numbers_;  // the file's `numbers:`
 };
 
 }  // namespace

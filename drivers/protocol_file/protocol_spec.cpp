@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+
 namespace fieldgate::protocol_file {
 
 bool capture_equals(const Capture& capture, const CaptureValue& value) {
@@ -23,9 +25,20 @@ std::vector<std::string> CommandSpec::value_names() const {
   return out;
 }
 
-SourceMark CommandSpec::capture_mark(const Field& capture) const {
-  SourceMark m = reply_mark;
-  if (m.line > 0) m.column += static_cast<int>(capture.offset);
+bool CommandSpec::reply_has_text() const {
+  if (!reply) return false;
+  if (reply_parts.empty()) return !reply->pieces().empty();
+  return std::any_of(reply_parts.begin(), reply_parts.end(),
+                     [](const ReplyPart& p) { return !p.text.empty(); });
+}
+
+SourceMark CommandSpec::reply_mark_at(std::size_t offset) const {
+  const ReplyPart* part = nullptr;
+  for (const auto& p : reply_parts)
+    if (p.mark.line > 0 && p.offset <= offset) part = &p;
+  if (!part) return {};
+  SourceMark m = part->mark;
+  m.column += static_cast<int>(offset - part->offset);
   return m;
 }
 

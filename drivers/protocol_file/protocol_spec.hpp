@@ -68,14 +68,28 @@ struct CommandSpec {
   std::vector<ConfirmStep> confirm;
   std::chrono::microseconds timeout{0};  // 0: the bus's reply timeout
   SourceMark mark;
-  // Where the reply's template text starts: a capture stands at this column plus its offset.
-  SourceMark reply_mark;
+  // The reply in its parts, each ended by the reply terminator (a line of several commands, each
+  // answered by its prompt; a data line and then a prompt): each part's template, where it
+  // starts in `reply` (the parts joined by the terminator) and where the file writes it. A bare
+  // prompt the file did not write has no mark. One part for a reply of one terminator.
+  struct ReplyPart {
+    std::string text;
+    std::size_t offset = 0;
+    SourceMark mark;
+  };
+  std::vector<ReplyPart> reply_parts;
+  // How many reply terminators end the reply.
+  std::size_t prompts() const { return reply_parts.empty() ? 1 : reply_parts.size(); }
+  // Whether a part of the reply has text (a reply_prefix then comes before it).
+  bool reply_has_text() const;
   // The parameters the request carries, in order (its named fields).
   std::vector<std::string> parameters() const;
   // The values a read of this command yields: its reply's named captures, then the flags word.
   std::vector<std::string> value_names() const;
-  // Where one of the reply's captures is written, for error marks.
-  SourceMark capture_mark(const Field& capture) const;
+  // Where one of the reply's captures (or the reply's character `offset`) is written, for
+  // error marks.
+  SourceMark capture_mark(const Field& capture) const { return reply_mark_at(capture.offset); }
+  SourceMark reply_mark_at(std::size_t offset) const;
 };
 
 // Why the command's parameter `index` (0-based) can never be sent with `value` (a char
@@ -116,6 +130,9 @@ struct ProtocolSpec {
   std::string error_terminator;
   std::size_t reply_length = 0;  // fixed-length replies (then no terminator is looked for)
   enum class Echo { none, always, optional } echo = Echo::none;
+  // Between the commands of one line (Galil's ';'), each answered by its own prompt: a command
+  // whose request holds it n times is answered by n + 1 reply terminators. Empty: not declared.
+  std::string command_separator;
   std::string reply_prefix;  // before every reply with text (Parker's '*')
   std::size_t max_reply = 256;
 
@@ -137,6 +154,11 @@ struct ProtocolSpec {
   std::optional<FieldPattern> error_reply;
   std::string error_reply_code;
   std::string error_reply_text;
+
+  // A query sent after a refusal that carries no code (the error terminator, an error_reply
+  // without code): its error check's code and text become the refusal's (Galil's TC1). Empty:
+  // none.
+  std::string refusal_query;
 
   std::optional<FieldPattern> unsolicited;  // lines the device sends on its own
   std::chrono::microseconds quiet_after_unsolicited{0};

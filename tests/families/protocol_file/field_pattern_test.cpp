@@ -137,6 +137,166 @@ TEST(FieldPattern, TemplatesThatCouldNeverMatchAreRefusedAtTheirField) {
   PatternError e;
   EXPECT_TRUE(FieldPattern::compile("{a:int(2)}{b:int}", e));
   EXPECT_TRUE(FieldPattern::compile("{a:int}{u:char}", e));
+  // The address in each command of a line.
+  std::string why;
+  EXPECT_EQ(compiled("{addr}GO;{addr}TPC").render({}, "2", why).value_or(why), "2GO;2TPC");
+  refusal("{addr}GO:{addr}TPC", "2GO:3TPC", "2");
+}
+
+// Numbers as controllers print them: a declared format takes exactly what it says, and anything
+// else is no value (a garbled reply), never another value.
+using Sign = NumberFormat::Sign;
+using Pad = NumberFormat::Pad;
+using Form = NumberFormat::Form;
+
+NumberFormat format(Sign sign, Pad pad = Pad::none, Form form = Form::integer, int places = -1) {
+  NumberFormat f;
+  f.sign = sign;
+  f.pad = pad;
+  f.form = form;
+  f.places = places;
+  return f;
+}
+
+// The pattern with `f` declared on its first field.
+FieldPattern declared(std::string_view text, const NumberFormat& f, int width = 0) {
+  auto p = compiled(text);
+  std::size_t k = 0;
+  while (k < p.pieces().size() && !p.pieces()[k].field) ++k;
+  PatternError e;
+  EXPECT_TRUE(p.declare_number(k, f, width, e)) << text << ": " << e.message;
+  return p;
+}
+
+// The first capture's value, or why there is none.
+std::string read(const FieldPattern& p, std::string_view text) {
+  std::string why;
+  const auto c = p.match(text, "1", why);
+  if (!c) return "no: " + why;
+  return c->empty() ? "no capture" : std::to_string(c->front().value);
+}
+
+void expect_refused(const FieldPattern& p, std::initializer_list<std::string_view> texts) {
+  for (const auto text : texts)
+    EXPECT_EQ(read(p, text).substr(0, 3), "no:") << "'" << text << "' read as " << read(p, text);
+}
+
+TEST(NumberFormats, SpaceOrMinusIsGalilsSign) {
+  const auto p = declared("{p:int}\r\n", format(Sign::space_or_minus));
+  EXPECT_EQ(read(p, " 1000\r\n"), "1000");
+  EXPECT_EQ(read(p, "-250\r\n"), "-250");
+  EXPECT_EQ(read(p, " 0\r\n"), "0");
+  expect_refused(p, {"1000\r\n", "+1000\r\n", "  1000\r\n", "- 250\r\n", " -250\r\n", "--250\r\n",
+                     " 01000\r\n", " \r\n", " 1.5\r\n"});
+  EXPECT_NE(read(p, "1000\r\n")
+                .find("'1000' is no number printed as declared (sign "
+                      "space_or_minus, no padding, integer): no sign before "
+                      "'1000'"),
+            std::string::npos)
+      << read(p, "1000\r\n");
+}
+
+TEST(NumberFormats, MinusOnlyAndPlusOrMinus) {
+  const auto minus = declared("P{p:int}", format(Sign::minus));
+  EXPECT_EQ(read(minus, "P1000"), "1000");
+  EXPECT_EQ(read(minus, "P-250"), "-250");
+  EXPECT_EQ(read(minus, "P0"), "0");
+  expect_refused(minus, {"P+1000", "P 1000", "P-", "P", "P007"});
+  const auto both = declared("P{p:int}", format(Sign::plus_or_minus));
+  EXPECT_EQ(read(both, "P+1000"), "1000");
+  EXPECT_EQ(read(both, "P-250"), "-250");
+  EXPECT_EQ(read(both, "P+0"), "0");
+  expect_refused(both, {"P1000", "P 1000", "P+-1", "P+"});
+}
+
+TEST(NumberFormats, PaddedWithSpacesToAWidth) {
+  const auto p = declared("P{p:int}X", format(Sign::minus, Pad::spaces), 8);
+  EXPECT_EQ(read(p, "P    1000X"), "1000");
+  EXPECT_EQ(read(p, "P    -250X"), "-250");
+  EXPECT_EQ(read(p, "P-1234567X"), "-1234567");
+  EXPECT_EQ(read(p, "P12345678X"), "12345678");
+  expect_refused(p, {"P   1000X", "P     1000X", "P   01000X", "P  - 250X", "P1000    X",
+                     "P   +1000X", "P        X"});
+  // With a space for a sign, the last space before the digits is the sign.
+  const auto galil = declared("{p:int}", format(Sign::space_or_minus, Pad::spaces), 6);
+  EXPECT_EQ(read(galil, "  1000"), "1000");
+  EXPECT_EQ(read(galil, "  -250"), "-250");
+  expect_refused(galil, {"123456", " -0250"});
+}
+
+TEST(NumberFormats, PaddedWithZerosAfterTheSign) {
+  const auto p = declared("{p:int}", format(Sign::space_or_minus, Pad::zeros), 8);
+  EXPECT_EQ(read(p, " 0001000"), "1000");
+  EXPECT_EQ(read(p, "-0000250"), "-250");
+  EXPECT_EQ(read(p, " 0000000"), "0");
+  expect_refused(p, {"00001000", "0-000250", "    1000", " 001000", " 00001000"});
+  // int(N) is a width already: the declaration pads it.
+  const auto fixed = declared("{p:int(5)}", format(Sign::plus_or_minus, Pad::zeros));
+  EXPECT_EQ(read(fixed, "+0042"), "42");
+  expect_refused(fixed, {"00042", " 0042"});
+}
+
+TEST(NumberFormats, DecimalsWithTheirPlaces) {
+  const auto three =
+      declared("{p:decimal(3)}", format(Sign::space_or_minus, Pad::none, Form::decimal, 3));
+  EXPECT_EQ(read(three, " 1.500"), "1500");
+  EXPECT_EQ(read(three, "-0.250"), "-250");
+  expect_refused(three, {" 1.5", " 1", " 1.5000", " 01.500", " .500", "1.500", " 1,500"});
+  // Places beyond the scale round half away from zero, as an undeclared decimal(S) does.
+  const auto rounded = declared("{p:decimal(2)}", format(Sign::minus, Pad::none, Form::decimal, 3));
+  EXPECT_EQ(read(rounded, "1.235"), "124");
+  EXPECT_EQ(read(rounded, "-1.235"), "-124");
+  // Without places: any decimals, the point optional, but never a bare point.
+  const auto any = declared("{p:decimal(4)}", format(Sign::minus, Pad::none, Form::decimal));
+  EXPECT_EQ(read(any, "12.3456"), "123456");
+  EXPECT_EQ(read(any, "7"), "70000");
+  expect_refused(any, {"5.", ".5", "+5", "1.2.3"});
+  // A decimal(S) field printed as a whole number.
+  const auto whole = declared("{p:decimal(2)}", format(Sign::minus, Pad::none, Form::integer));
+  EXPECT_EQ(read(whole, "12"), "1200");
+  expect_refused(whole, {"12.0"});
+}
+
+TEST(NumberFormats, ExponentForm) {
+  const auto p = declared("{p:decimal(3)}", format(Sign::minus, Pad::none, Form::exponent, 4));
+  EXPECT_EQ(read(p, "1.2345E+03"), "1234500");
+  EXPECT_EQ(read(p, "-2.5000e-01"), "-250");
+  EXPECT_EQ(read(p, "1.2345E3"), "1234500");
+  EXPECT_EQ(read(p, "0.0000E+00"), "0");
+  expect_refused(p, {"12.345E+02", "1.234E+03", "1.2345", "1.2345E+1234", "1.2345E+", "1.2345E",
+                     "+1.2345E+03", "1.2345F+03"});
+  // Too large for a 64-bit count: no value.
+  EXPECT_NE(read(p, "9.9999E+99").find("beyond a 64-bit count"), std::string::npos)
+      << read(p, "9.9999E+99");
+  // An int field in exponent form is rounded to the count.
+  const auto count = declared("{n:int},", format(Sign::minus, Pad::none, Form::exponent));
+  EXPECT_EQ(read(count, "1.5E0,"), "2");
+  EXPECT_EQ(read(count, "2.5E-1,"), "0");
+  EXPECT_EQ(read(count, "-4E2,"), "-400");
+}
+
+TEST(NumberFormats, WhatADeclarationCannotBeIsRefusedAtTheField) {
+  PatternError e;
+  auto hex = compiled("S{s:hex(2)}");
+  EXPECT_FALSE(hex.declare_number(1, format(Sign::minus), 0, e));
+  EXPECT_EQ(e.offset, 1u);
+  EXPECT_NE(e.message.find("int and decimal(S)"), std::string::npos) << e.message;
+  auto before_e = compiled("{p:decimal(2)}E");
+  EXPECT_FALSE(before_e.declare_number(0, format(Sign::minus, Pad::none, Form::exponent), 0, e));
+  EXPECT_NE(e.message.find("would take the 'E'"), std::string::npos) << e.message;
+  auto before_point = compiled("{p:int}.");
+  EXPECT_FALSE(
+      before_point.declare_number(0, format(Sign::minus, Pad::none, Form::exponent), 0, e));
+  // A width tells them apart.
+  EXPECT_TRUE(before_e.declare_number(0, format(Sign::minus, Pad::none, Form::exponent), 9, e))
+      << e.message;
+  EXPECT_EQ(read(before_e, "1.50E+002E"), "15000");
+}
+
+TEST(NumberFormats, WithoutADeclarationAFieldReadsAsBefore) {
+  EXPECT_EQ(read(compiled("{p:int}"), "+007"), "7");
+  EXPECT_EQ(read(compiled("{p:decimal(1)}"), "-.25"), "-3");
+  expect_refused(compiled("{p:int}"), {" 1000"});
 }
 
 }  // namespace

@@ -32,8 +32,12 @@ ProtocolSpecPtr smc100() {
 // and recording what it was sent.
 class AnsweringLine final : public test::FakeLine {
  public:
-  explicit AnsweringLine(asio::io_context& io, std::string terminator = "\r\n")
-      : FakeLine(io, "in-process line", 1e6 * 10 / 57600), terminator_(std::move(terminator)) {
+  // `terminator` ends each request; `reply_end` is added to each answer.
+  explicit AnsweringLine(asio::io_context& io, std::string terminator = "\r\n",
+                         std::string reply_end = "\r\n")
+      : FakeLine(io, "in-process line", 1e6 * 10 / 57600),
+        terminator_(std::move(terminator)),
+        reply_end_(std::move(reply_end)) {
     set_far_end([this](std::string_view written) {
       pending_ += written;
       for (auto end = pending_.find(terminator_); end != std::string::npos;
@@ -45,7 +49,7 @@ class AnsweringLine final : public test::FakeLine {
         if (queue.empty()) continue;
         std::string a = queue.front();
         if (queue.size() > 1) queue.pop_front();
-        if (!a.empty()) deliver(a + "\r\n");
+        if (!a.empty()) deliver(a + reply_end_);
       }
     });
   }
@@ -54,6 +58,7 @@ class AnsweringLine final : public test::FakeLine {
 
  private:
   std::string terminator_;  // of the requests
+  std::string reply_end_;
   std::string pending_;
 };
 
@@ -325,6 +330,160 @@ TEST_F(Esp301StartUp, AnEndThatIsNotTheExpectedErrorIsAWarningAndNamesNoNode) {
             std::string::npos)
       << notes;
   EXPECT_EQ(notes.find("node address 3"), std::string::npos) << notes;
+}
+
+// Issue 50's format on a Galil-style line (tests/families/protocol_file/galil-style.yaml): ':'
+// acknowledges, '?' refuses and TC1 says why, numbers carry a space or a minus, and a line of
+// two commands is answered by two prompts.
+class GalilStyle : public ::testing::Test {
+ protected:
+  GalilStyle() : line_(io_, "\r", ""), link_(line_) {
+    Diagnostics d;
+    family_ = std::make_unique<ProtocolFileFamily>(load_protocol_file(
+        std::string(FIELDGATE_SOURCE_DIR) + "/tests/families/protocol_file/galil-style.yaml", d));
+    EXPECT_TRUE(d.ok()) << d.to_text();
+  }
+  Reply transact(const Request& r) {
+    return test::run(io_, family_->transact(link_, NodeAddress::numbered(1), r, kTiming));
+  }
+  Request poll(const char* command) { return {command, Request::Expect::values}; }
+  Request command(const char* text, std::map<std::string, int64_t> values = {}) {
+    std::string error;
+    auto t = CommandTemplate::compile(text, error);
+    EXPECT_TRUE(t) << error;
+    auto compiled = family_->compile(*t, error);
+    EXPECT_TRUE(compiled) << error;
+    t->set_compiled(compiled);
+    return Request::of_template(*t, [&](std::string_view n) { return values.at(std::string(n)); });
+  }
+  // The position read from `answer`: its value, or the reply's status and text.
+  std::string position(const std::string& answer) {
+    line_.answers["TPA"] = {answer};
+    const auto r = transact(poll("read_position"));
+    if (r.status != Status::ok) return fmt::format("{}: {}", to_string(r.status), r.text);
+    return r.values.size() == 1 ? std::to_string(r.values[0]) : "values?";
+  }
+
+  asio::io_context io_;
+  AnsweringLine line_;
+  Link link_;
+  std::unique_ptr<ProtocolFileFamily> family_;
+};
+
+TEST_F(GalilStyle, PositionsCarryASpaceOrAMinus) {
+  EXPECT_EQ(position(" 1000\r\n:"), "1000");
+  EXPECT_EQ(position("-2500\r\n:"), "-2500");
+  EXPECT_EQ(position(" 0\r\n:"), "0");
+  // What the controller does not print is garbled, never a value.
+  for (const char* wrong : {"1000\r\n:", "+1000\r\n:", "  1000\r\n:", " 01000\r\n:", " 1000.0\r\n:",
+                            "- 2500\r\n:", " 1O00\r\n:"})
+    EXPECT_EQ(position(wrong).substr(0, 7), "garbled") << wrong << ": " << position(wrong);
+}
+
+TEST_F(GalilStyle, FixedWidthDecimalAndExponentNumbers) {
+  line_.answers["TDA"] = {"-0000002500\r\n:"};
+  EXPECT_EQ(transact(poll("read_padded")).values, std::vector<int64_t>{-2500});
+  line_.answers["TDA"] = {"-2500\r\n:"};
+  EXPECT_EQ(transact(poll("read_padded")).status, Status::garbled);
+  line_.answers["MG _BGA"] = {" 1.0000\r\n:"};
+  EXPECT_EQ(transact(poll("read_moving")).values, std::vector<int64_t>{10000});
+  line_.answers["MG _BGA"] = {" 1.00\r\n:"};
+  EXPECT_EQ(transact(poll("read_moving")).status, Status::garbled);
+  line_.answers["MG _SPA"] = {"2.5000E+04\r\n:"};
+  EXPECT_EQ(transact(poll("read_speed")).values, std::vector<int64_t>{25000000});
+  line_.answers["MG _SPA"] = {"25000.000\r\n:"};
+  EXPECT_EQ(transact(poll("read_speed")).status, Status::garbled);
+}
+
+TEST_F(GalilStyle, ALineOfTwoCommandsTakesTwoPrompts) {
+  line_.answers["PAA=-2500;BGA"] = {"::"};
+  const auto r = transact(command("move_absolute {target}", {{"target", -2500}}));
+  EXPECT_EQ(r.status, Status::ok) << r.text;
+  EXPECT_EQ(line_.lines, std::vector<std::string>{"PAA=-2500;BGA"});
+  EXPECT_EQ(link_.buffered(), 0u) << "the second prompt was left on the line";
+  // One prompt only: the line's second command went unanswered.
+  line_.answers["PAA=-2500;BGA"] = {":"};
+  const auto cut = transact(command("move_absolute {target}", {{"target", -2500}}));
+  EXPECT_EQ(cut.status, Status::timeout) << cut.text;
+  EXPECT_NE(cut.text.find("cut short: ':'"), std::string::npos) << cut.text;
+}
+
+TEST_F(GalilStyle, ADataLineAndThenAPromptAfterABarePrompt) {
+  line_.answers["PAA=5;TPA"] = {": 5\r\n:"};
+  const auto r = transact(command("move_and_read {target}", {{"target", 5}}));
+  ASSERT_EQ(r.status, Status::ok) << r.text;
+  EXPECT_EQ(r.values, std::vector<int64_t>{5});
+  line_.answers["PAA=5;TPA"] = {" 5\r\n::"};  // the parts the other way round
+  EXPECT_EQ(transact(command("move_and_read {target}", {{"target", 5}})).status, Status::garbled);
+}
+
+TEST_F(GalilStyle, ARefusalTakesItsCodeAndTextFromTheFollowUpQuery) {
+  line_.answers["STA"] = {"?"};
+  line_.answers["TC1"] = {"1 Unrecognized command\r\n:"};
+  const auto r = transact(command("stop"));
+  EXPECT_EQ(r.status, Status::device_error);
+  EXPECT_EQ(r.device_code, 1);
+  EXPECT_EQ(r.text, "stop refused; tell_error reports error 1: Unrecognized command");
+  EXPECT_EQ(line_.lines, (std::vector<std::string>{"STA", "TC1"}));
+}
+
+TEST_F(GalilStyle, ARefusalOnALineSaysWhichCommandAndTakesTheQuerysCode) {
+  line_.answers["PAA=99999999;BGA"] = {":?"};
+  line_.answers["TC1"] = {"22 Begin not valid with motor off\r\n:"};
+  const auto r = transact(command("move_absolute {target}", {{"target", 99999999}}));
+  EXPECT_EQ(r.status, Status::device_error);
+  EXPECT_EQ(r.device_code, 22);
+  EXPECT_EQ(r.text,
+            "move_absolute refused at command 2 of 2 on its line; tell_error reports error 22: "
+            "Begin not valid with motor off");
+}
+
+TEST_F(GalilStyle, AFailedFollowUpQueryStillReportsTheRefusalItsCodeUnknown) {
+  line_.answers["STA"] = {"?"};
+  line_.answers["TC1"] = {""};  // silence
+  const auto silent = transact(command("stop"));
+  EXPECT_EQ(silent.status, Status::device_error);
+  EXPECT_EQ(silent.device_code, kRefusalUnexplained);
+  EXPECT_EQ(silent.text,
+            "stop refused; the device's code is unknown: tell_error gave none: timeout (no reply "
+            "to tell_error)");
+  line_.answers["TC1"] = {"?"};  // the query refused too: asked once, not again
+  line_.lines.clear();
+  const auto refused = transact(command("stop"));
+  EXPECT_EQ(refused.device_code, kRefusalUnexplained);
+  EXPECT_NE(refused.text.find("tell_error gave none: device error (tell_error refused)"),
+            std::string::npos)
+      << refused.text;
+  EXPECT_EQ(line_.lines, (std::vector<std::string>{"STA", "TC1"}));
+  line_.answers["TC1"] = {"1 Unrecognized\x01command\r\n:"};  // garbled
+  EXPECT_EQ(transact(command("stop")).device_code, kRefusalUnexplained);
+  line_.answers["TC1"] = {"0 \r\n:"};  // no error on record
+  const auto none = transact(command("stop"));
+  EXPECT_EQ(none.device_code, kRefusalUnexplained);
+  EXPECT_EQ(none.text, "stop refused; the device's code is unknown: tell_error reports no error");
+}
+
+TEST_F(GalilStyle, TheQueryItselfAnswersAsAnyErrorQuery) {
+  line_.answers["TC1"] = {"7 Command not valid in program\r\n:"};
+  const auto r = transact(poll("tell_error"));
+  EXPECT_EQ(r.status, Status::device_error);
+  EXPECT_EQ(r.device_code, 7);
+  EXPECT_EQ(line_.lines, std::vector<std::string>{"TC1"});
+}
+
+TEST(GalilStyleReplies, TheSplitterCountsPromptsAndStopsAtARefusal) {
+  Diagnostics d;
+  const auto spec = load_protocol_file(
+      std::string(FIELDGATE_SOURCE_DIR) + "/tests/families/protocol_file/galil-style.yaml", d);
+  ASSERT_TRUE(spec) << d.to_text();
+  const auto two = reply_splitter(*spec, "PAA=1;BGA\r", 2);
+  EXPECT_EQ(two(":"), 0u);
+  EXPECT_EQ(two("::"), 2u);
+  EXPECT_EQ(two("::: 5"), 2u);
+  EXPECT_EQ(two("?"), 1u);
+  EXPECT_EQ(two(":?:"), 2u);
+  const auto one = reply_splitter(*spec, "TPA\r");
+  EXPECT_EQ(one(" 5\r\n:"), 5u);
 }
 
 TEST(ProtocolFileFamilyModels, ModelCommandsAreCheckedAgainstTheProtocolAtLoad) {

@@ -345,5 +345,245 @@ actions:
             "{letter:char}: 300 is not the code of a printable character (32..126)");
 }
 
+// Issue 50's format: numbers as the controller prints them, a refusal explained by a follow-up
+// query, a line of several commands answered by a prompt each.
+ProtocolSpecPtr galil_style(Diagnostics& d) {
+  return load_protocol_file(
+      std::string(FIELDGATE_SOURCE_DIR) + "/tests/families/protocol_file/galil-style.yaml", d);
+}
+
+const Field& reply_field_of(const ProtocolSpec& spec, std::string_view command,
+                            std::string_view name) {
+  static const Field none;
+  const CommandSpec* c = spec.find(command);
+  if (!c || !c->reply) return none;
+  for (const auto& piece : c->reply->pieces())
+    if (piece.field && piece.field->name == name) return *piece.field;
+  return none;
+}
+
+TEST(ProtocolFileFormat, TheFilesNumbersApplyToEveryReplyAndACapturesKeysOverrideThem) {
+  Diagnostics d;
+  const auto spec = galil_style(d);
+  ASSERT_TRUE(spec) << d.to_text();
+  using Sign = NumberFormat::Sign;
+  const Field& position = reply_field_of(*spec, "read_position", "position");
+  ASSERT_TRUE(position.number);
+  EXPECT_EQ(position.number->sign, Sign::space_or_minus);
+  EXPECT_EQ(position.number->pad, NumberFormat::Pad::none);
+  EXPECT_EQ(position.width, 0);
+  const Field& padded = reply_field_of(*spec, "read_padded", "position");
+  ASSERT_TRUE(padded.number);
+  EXPECT_EQ(padded.number->sign, Sign::space_or_minus);
+  EXPECT_EQ(padded.number->pad, NumberFormat::Pad::zeros);
+  EXPECT_EQ(padded.width, 11);
+  const Field& code = reply_field_of(*spec, "tell_error", "code");
+  ASSERT_TRUE(code.number);
+  EXPECT_EQ(code.number->sign, Sign::minus);
+  const Field& moving = reply_field_of(*spec, "read_moving", "moving");
+  ASSERT_TRUE(moving.number);
+  EXPECT_EQ(moving.number->form, NumberFormat::Form::decimal);
+  EXPECT_EQ(moving.number->places, 4);
+  const Field& speed = reply_field_of(*spec, "read_speed", "speed");
+  ASSERT_TRUE(speed.number);
+  EXPECT_EQ(speed.number->form, NumberFormat::Form::exponent);
+  EXPECT_EQ(spec->refusal_query, "tell_error");
+}
+
+TEST(ProtocolFileFormat, WithoutNumbersNoFieldIsDeclared) {
+  Diagnostics d;
+  const auto spec = load_protocol_text(kGood, "good.yaml", d);
+  ASSERT_TRUE(spec) << d.to_text();
+  for (const auto& c : spec->commands)
+    for (const auto& piece : c.reply->pieces())
+      EXPECT_FALSE(piece.field && piece.field->number) << c.name;
+  Diagnostics shipped;
+  ProtocolLibrary library;
+  library.load_directory(std::string(FIELDGATE_SOURCE_DIR) + "/config/protocols", shipped);
+  for (const auto& p : library.all())
+    for (const auto& c : p->commands) {
+      EXPECT_EQ(c.prompts(), 1u) << p->name << " " << c.name;
+      if (!c.reply) continue;
+      for (const auto& piece : c.reply->pieces())
+        EXPECT_FALSE(piece.field && piece.field->number) << p->name << " " << c.name;
+    }
+}
+
+TEST(ProtocolFileFormat, PromptsComeFromTheLineTheListOrTheCount) {
+  Diagnostics d;
+  const auto spec = galil_style(d);
+  ASSERT_TRUE(spec) << d.to_text();
+  // PAA=..;BGA: two commands by the separator, each a bare prompt.
+  const CommandSpec& move = *spec->find("move_absolute");
+  EXPECT_EQ(move.prompts(), 2u);
+  EXPECT_EQ(move.reply->source(), ":");
+  EXPECT_FALSE(move.reply_has_text());
+  const CommandSpec& both = *spec->find("move_and_read");
+  EXPECT_EQ(both.prompts(), 2u);
+  EXPECT_EQ(both.reply->source(), ":{position:int}\r\n");
+  EXPECT_TRUE(both.reply_has_text());
+  EXPECT_EQ(spec->find("stop")->prompts(), 1u);
+  EXPECT_EQ(spec->find("motor_off")->prompts(), 1u);
+  // A capture in a later part is marked where that part is written.
+  const auto mark = both.capture_mark(reply_field_of(*spec, "move_and_read", "position"));
+  EXPECT_EQ(mark.line, 45);
+  EXPECT_EQ(mark.column, 20);
+}
+
+TEST(ProtocolFileFormat, AnExplicitCountPutsBarePromptsBeforeTheReply) {
+  Diagnostics d;
+  const auto spec = load_protocol_text(
+      with(kGood, "alignment:",
+           "  two:\n    send: \"{addr}PA{t:int}\"\n    reply: \"{addr}PA{t:int}\"\n"
+           "    prompts: 3\nalignment:"),
+      "count.yaml", d);
+  ASSERT_TRUE(spec) << d.to_text();
+  const CommandSpec& two = *spec->find("two");
+  EXPECT_EQ(two.prompts(), 3u);
+  EXPECT_EQ(two.reply->source(), "\r\n\r\n{addr}PA{t:int}");
+}
+
+// A reply prefix (Parker's '*') comes before each part with text, not before a bare prompt.
+TEST(ProtocolFileFormat, EachPartWithTextHasTheReplyPrefix) {
+  Diagnostics d;
+  const auto spec = load_protocol_text(
+      with(with(kGood, "address:",
+                "framing: {reply_terminator: \"\\r\\n> \", reply_prefix: \"*\", "
+                "command_separator: \";\"}\naddress:"),
+           "alignment:",
+           "  go_and_read:\n    send: \"{addr}GO;{addr}TPC\"\n    reply: \"{addr}TPC{p:int}\"\n"
+           "alignment:"),
+      "prefix.yaml", d);
+  ASSERT_TRUE(spec) << d.to_text();
+  const CommandSpec& c = *spec->find("go_and_read");
+  EXPECT_EQ(c.reply->source(), "\r\n> *{addr}TPC{p:int}");
+  const auto r = interpret_reply(*spec, c, "1GO;1TPC\r", "\r\n> *1TPC-5\r\n> ", "1");
+  ASSERT_EQ(r.reply.status, Reply::Status::ok) << r.reply.text;
+  EXPECT_EQ(r.reply.values, std::vector<int64_t>{-5});
+  EXPECT_EQ(interpret_reply(*spec, c, "1GO;1TPC\r", "*\r\n> *1TPC-5\r\n> ", "1").reply.status,
+            Reply::Status::garbled);
+  const auto mark = c.capture_mark(*c.reply->named_fields().front());
+  EXPECT_EQ(mark.line, 14);
+  EXPECT_EQ(mark.column, 22);
+}
+
+// Each of the format's load errors, at its file:line:column (the broken/ files hold one each).
+std::string error_of(const std::string& text) {
+  Diagnostics d;
+  EXPECT_FALSE(load_protocol_text(text, "f.yaml", d));
+  return only_error(d, "f.yaml");
+}
+
+std::string with_command(const std::string& command, const std::string& top = "") {
+  return with(with(kGood, "alignment:", command + "alignment:"), "commands:", top + "commands:");
+}
+
+TEST(ProtocolFileFormat, NumberDeclarationsAreCheckedAgainstTheirField) {
+  const std::string position = "  position:\n    send: \"{addr}TP\"\n    reply: ";
+  EXPECT_EQ(error_of(with_command(position + "\"{addr}TP{p:int}\"\n    numbers: {q: {}}\n")),
+            "14:15: command position: numbers names capture 'q', which its reply '{addr}TP{p:int}' "
+            "does not have (captures: p)");
+  EXPECT_NE(error_of(with_command(position + "\"{addr}TP{p:int}\"\n    numbers: {p: {sign: "
+                                             "minus, spin: up}}\n"))
+                .find("14:32: command position numbers p: unknown key 'spin'"),
+            std::string::npos);
+  EXPECT_EQ(
+      error_of(with_command(position + "\"{addr}TP{p:int}\"\n    numbers: {p: {pad: spaces}}\n")),
+      "14:24: command position numbers p pad: spaces fills a fixed width, and {p:int} has "
+      "none: give width: N");
+  EXPECT_EQ(error_of(with_command(position + "\"{addr}TP{p:int}\"\n    numbers: {p: {width: 0, "
+                                             "pad: zeros}}\n")),
+            "14:26: command position numbers p width: 0 is out of range 1..32");
+  EXPECT_EQ(error_of(with_command(position + "\"{addr}TP{p:int}\"\n    numbers: {p: {form: "
+                                             "decimal}}\n")),
+            "14:25: command position numbers p form: decimal: {p:int} counts whole units; a "
+            "number with decimals is a decimal(S) field (decimal(0) rounds it to a whole count)");
+  // The file's numbers take sign and pad only: a width is one capture's.
+  EXPECT_NE(error_of(with_command("", "numbers: {sign: minus, width: 4}\n")).find("width"),
+            std::string::npos);
+  EXPECT_NE(error_of(with_command("", "numbers: {pad: none}\n")).find("is one of zeros, spaces"),
+            std::string::npos);
+}
+
+TEST(ProtocolFileFormat, AFileLevelFormatAppliesToErrorReplies) {
+  Diagnostics d;
+  const auto spec = load_protocol_text(
+      with(kGood, "commands:",
+           "numbers: {sign: plus_or_minus}\nerror_reply: {pattern: \"E{n:int}\", code: n}\n"
+           "commands:"),
+      "e.yaml", d);
+  ASSERT_TRUE(spec) << d.to_text();
+  const auto& f = *spec->error_reply->pieces()[1].field;
+  ASSERT_TRUE(f.number);
+  EXPECT_EQ(f.number->sign, NumberFormat::Sign::plus_or_minus);
+  const auto refused = interpret_reply(*spec, *spec->find("state"), "1TS\r", "E+5\r\n", "1");
+  EXPECT_EQ(refused.reply.device_code, 5);
+  // An error reply printed otherwise is no refusal: the reply is garbled.
+  EXPECT_EQ(interpret_reply(*spec, *spec->find("state"), "1TS\r", "E5\r\n", "1").reply.status,
+            Reply::Status::garbled);
+}
+
+TEST(ProtocolFileFormat, ARefusalQueryMustBeAnErrorQueryOfAFileWithCodelessRefusals) {
+  const std::string framing = "framing: {reply_terminator: \":\", error_terminator: \"?\"}\n";
+  EXPECT_EQ(error_of(with_command("", framing + "refusal_query: state\n")),
+            "4:16: refusal_query: state must be a query of the device's last error: a reply, an "
+            "error check whose capture is the code (error: {capture, ok, text}), no parameters "
+            "and no confirmation");
+  EXPECT_EQ(error_of(with_command("", "refusal_query: error\n")),
+            "3:16: refusal_query: this file has no refusal without a code to explain (a "
+            "framing.error_terminator, or an error_reply without code)");
+  Diagnostics d;
+  EXPECT_TRUE(load_protocol_text(with_command("", framing + "refusal_query: error\n"), "q.yaml", d))
+      << d.to_text();
+  Diagnostics codeless;
+  const auto spec = load_protocol_text(
+      with_command("", "error_reply: {pattern: \"NAK {m:text}\", text: m}\nrefusal_query: error\n"),
+      "n.yaml", codeless);
+  ASSERT_TRUE(spec) << codeless.to_text();
+  // An error reply without a code is explained by the query's error check: its code, and the
+  // meaning the errors table or the query's text gives.
+  const auto refusal = interpret_reply(*spec, *spec->find("state"), "1TS\r", "NAK busy\r\n", "1");
+  ASSERT_TRUE(refusal.refusal_without_code);
+  const CommandSpec& query = *spec->find("error");
+  const auto answer = interpret_reply(*spec, query, "1TE\r", "1TEC\r\n", "1");
+  const auto explained = explain_refusal(*spec, query, refusal.reply, answer);
+  EXPECT_EQ(explained.status, Reply::Status::device_error);
+  EXPECT_EQ(explained.device_code, 'C');
+  EXPECT_EQ(explained.text, "state refused: NAK busy (busy); error reports error C");
+  const auto clean = interpret_reply(*spec, query, "1TE\r", "1TE@\r\n", "1");
+  EXPECT_EQ(explain_refusal(*spec, query, refusal.reply, clean).device_code, kRefusalUnexplained);
+  // A refusal with a code of its own needs no query.
+  Diagnostics coded;
+  const auto with_code = load_protocol_text(
+      with_command("", "error_reply: {pattern: \"E{n:int}\", code: n}\n"), "c.yaml", coded);
+  ASSERT_TRUE(with_code) << coded.to_text();
+  EXPECT_FALSE(interpret_reply(*with_code, *with_code->find("state"), "1TS\r", "E5\r\n", "1")
+                   .refusal_without_code);
+}
+
+TEST(ProtocolFileFormat, PromptsAndTheirListAreCheckedAgainstTheLine) {
+  const std::string framing = "framing: {reply_terminator: \":\", command_separator: \";\"}\n";
+  EXPECT_EQ(error_of(with_command("  move:\n    send: \"PA{t:int};BG\"\n    replies: [\"\", "
+                                  "\"\", \"\"]\n",
+                                  framing)),
+            "14:14: command move: 'PA{t:int};BG' is a line of 2 commands (separated by ';'), each "
+            "answered by its prompt, so its reply has 2 parts; replies gives 3");
+  EXPECT_EQ(error_of(with_command("  move:\n    send: \"PA{t:int};BG\"\n    reply: \"\"\n    "
+                                  "prompts: 17\n",
+                                  framing)),
+            "15:14: command move prompts: 17 is out of range 1..16");
+  EXPECT_EQ(error_of(with_command("", "framing: {command_separator: \"\"}\n")),
+            "3:30: framing: command_separator is the text between two commands of a line, e.g. "
+            "';'");
+  // An explicit count is the count, whatever the line holds.
+  Diagnostics d;
+  const auto spec = load_protocol_text(
+      with_command("  move:\n    send: \"PA{t:int};BG\"\n    reply: \"\"\n    prompts: 1\n",
+                   framing),
+      "one.yaml", d);
+  ASSERT_TRUE(spec) << d.to_text();
+  EXPECT_EQ(spec->find("move")->prompts(), 1u);
+}
+
 }  // namespace
 }  // namespace fieldgate::protocol_file
