@@ -141,7 +141,7 @@ CanBus::CanBus(asio::any_io_executor executor, std::shared_ptr<const void> confi
                const BusConfig& config, int first_node_index, NodeUpdated on_update,
                std::unique_ptr<CanChannel> channel)
     : executor_(executor),
-      config_owners_{std::move(config_owner)},
+      config_owners_(config_owner),
       config_(&config),
       family_(frame_family(config)),
       first_node_index_(first_node_index),
@@ -222,7 +222,7 @@ bool CanBus::reconfigure(std::shared_ptr<const void> config_owner, const BusConf
     if (nodes_[i]->config->name != config.nodes[i].name ||
         nodes_[i]->config->identity != config.nodes[i].identity)
       return false;
-  config_owners_.push_back(std::move(config_owner));
+  config_owners_.push(config_owner);
   config_ = &config;
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     auto& n = *nodes_[i];

@@ -22,6 +22,7 @@
 #include "gateway/bus/bus.hpp"
 #include "gateway/bus/pending_command.hpp"
 #include "gateway/bus/poll_plan.hpp"
+#include "gateway/bus/retained_configs.hpp"
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/config/gateway_config.hpp"
 #include "gateway/image/process_image.hpp"
@@ -106,10 +107,7 @@ class CanBus final : public Bus, public FramePort, public std::enable_shared_fro
   const NodeRuntime& node(int node_index) const;
 
   asio::any_io_executor executor_;
-  // Every configuration this bus has run: the first owns family_ and what each node's runtime
-  // was built from (its model, name and address, the same in a later one), a later one
-  // (reconfigure) the nodes' configurations.
-  std::vector<std::shared_ptr<const void>> config_owners_;
+  RetainedConfigs config_owners_;
   const BusConfig* config_;
   const FrameFamily& family_;
   int first_node_index_;

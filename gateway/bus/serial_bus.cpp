@@ -53,7 +53,7 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
                      std::unique_ptr<ByteTransport> transport, TimeSource now)
     : executor_(executor),
       now_(now ? std::move(now) : TimeSource([] { return Clock::now(); })),
-      config_owners_{std::move(config_owner)},
+      config_owners_(config_owner),
       config_(&config),
       family_(stream_family(config)),
       first_node_index_(first_node_index),
@@ -76,12 +76,14 @@ SerialBus::SerialBus(asio::any_io_executor executor, std::shared_ptr<const void>
     if (trace_collecting_ && !traced_.empty()) traced_.back().label = label;
   });
   int index = 0;  // local: position on this bus; the gateway's number is first_node_index_ + index
-  for (const auto& n : config.nodes) nodes_.push_back(bind(n, index++));
+  for (const auto& n : config.nodes) nodes_.push_back(bind(n, index++, config_owner));
   plan_polls();
 }
 
-std::shared_ptr<SerialBus::NodeRuntime> SerialBus::bind(const NodeConfig& node, int index) {
+std::shared_ptr<SerialBus::NodeRuntime> SerialBus::bind(const NodeConfig& node, int index,
+                                                        std::shared_ptr<const void> owner) {
   auto rt = std::make_shared<NodeRuntime>();
+  rt->bound_owner = std::move(owner);
   rt->index = index;
   rt->config = &node;
   rt->timing = node_link_timing(*config_, node);
@@ -141,14 +143,14 @@ bool SerialBus::reconfigure(std::shared_ptr<const void> config_owner, const BusC
   }
   if (kept != nodes_.size()) return false;  // a node was taken away
 
-  config_owners_.push_back(std::move(config_owner));
+  config_owners_.push(config_owner);
   config_ = &config;
   std::vector<int> moved_to(nodes_.size());
   for (std::size_t i = 0; i < next.size(); ++i) {
     const NodeConfig& n = config.nodes[i];
     const int index = static_cast<int>(i);
     if (!next[i]) {
-      next[i] = bind(n, index);
+      next[i] = bind(n, index, config_owner);
       log::notice("bus {}: node {} ({}) added", config.name, n.name, n.address.text);
       continue;
     }

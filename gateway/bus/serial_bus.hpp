@@ -19,6 +19,7 @@
 #include "gateway/bus/pending_command.hpp"
 #include "gateway/bus/poll_failure_report.hpp"
 #include "gateway/bus/poll_plan.hpp"
+#include "gateway/bus/retained_configs.hpp"
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/config/gateway_config.hpp"
 #include "gateway/image/process_image.hpp"
@@ -76,7 +77,8 @@ class SerialBus final : public Bus {
   struct NodeRuntime {
     int index = 0;  // position on this bus
     const NodeConfig* config = nullptr;
-    NodeContextPtr family_context;  // the family's, from bind_node
+    NodeContextPtr family_context;            // the family's, from bind_node
+    std::shared_ptr<const void> bound_owner;  // the configuration family_context was bound from
     std::shared_ptr<NodeImage> image;
     SteadyTime next_probe{};
     LinkTiming timing;      // the bus's, with the node's reply timeout
@@ -88,7 +90,8 @@ class SerialBus final : public Bus {
   static constexpr std::chrono::milliseconds kCommandPatience{1000};
 
   // A node's runtime, bound to the family (which may learn from it, e.g. a chain's units).
-  std::shared_ptr<NodeRuntime> bind(const NodeConfig& node, int index);
+  std::shared_ptr<NodeRuntime> bind(const NodeConfig& node, int index,
+                                    std::shared_ptr<const void> owner);
   // The poll plan of nodes_: one poll item per distinct request (points that share a reply share
   // a transaction), and each image's polled points.
   void plan_polls();
@@ -126,9 +129,7 @@ class SerialBus final : public Bus {
 
   asio::any_io_executor executor_;
   TimeSource now_;
-  // Every configuration this bus has run: the first owns family_ and the node contexts it bound,
-  // a later one (reconfigure) the nodes' configurations.
-  std::vector<std::shared_ptr<const void>> config_owners_;
+  RetainedConfigs config_owners_;
   const BusConfig* config_;
   ProtocolFamily& family_;  // the stream shape of the first configuration's family
   int first_node_index_;

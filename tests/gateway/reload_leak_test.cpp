@@ -45,7 +45,8 @@ class ReloadLeakTest : public test::ConfigFileTest {
  protected:
   // Two serial buses of two nodes each, on ports that do not exist (each bus keeps trying to open
   // its own), the Modbus listener, the metrics and the console on free ports.
-  std::shared_ptr<const LoadedConfig> config() {
+  // `poll`: a node setting of a1 that a reload applies in place (its bus is reconfigured).
+  std::shared_ptr<const LoadedConfig> config(const std::string& poll = "") {
     const auto serial = [&](const char* name) {
       return "{device: " + (dir_ / name).string() + ", baud: 115200}";
     };
@@ -56,9 +57,11 @@ class ReloadLeakTest : public test::ConfigFileTest {
                    "buses:\n" +
                        test::copley_bus_item("a", serial("ttyA"), "",
                                              "      - {name: a1, address: 1, model: "
-                                             "copley-amplifier, unit_id: 1}\n"
-                                             "      - {name: a2, address: 2, model: "
-                                             "copley-amplifier, unit_id: 2}\n") +
+                                             "copley-amplifier, unit_id: 1" +
+                                                 poll +
+                                                 "}\n"
+                                                 "      - {name: a2, address: 2, model: "
+                                                 "copley-amplifier, unit_id: 2}\n") +
                        test::copley_bus_item("b", serial("ttyB"), "",
                                              "      - {name: b1, address: 1, model: "
                                              "copley-amplifier, unit_id: 3}\n"
@@ -104,6 +107,29 @@ TEST_F(ReloadLeakTest, AHundredUnchangedReloadsLeaveNothingBehind) {
   RecordProperty("live_allocation_growth", std::to_string(g_live_allocations.load() - before));
   // A generation of this configuration is some thousands of allocations.
   EXPECT_LT(g_live_allocations.load() - before, 100) << "live allocations grew across 100 reloads";
+}
+
+// A site that changes a node's settings on every reload: its bus is reconfigured in place each
+// time and keeps only the configurations it may still read (the first and the last few).
+TEST_F(ReloadLeakTest, AHundredReloadsWithNodeChangesKeepABoundedFew) {
+  Gateway g(io_, config());
+  g.start();
+  settle();
+  std::vector<std::weak_ptr<const LoadedConfig>> applied;
+  for (int i = 0; i < 100; ++i) {
+    auto next = config(i % 2 ? ", poll: {fast: 200ms}" : ", poll: {fast: 300ms}");
+    applied.push_back(next);
+    const auto summary = g.apply(std::move(next));
+    ASSERT_EQ(summary,
+              "2 bus(es) kept running, 0 started, 0 stopped (1 of them with node changes applied "
+              "in place)");
+    settle();
+  }
+  std::size_t alive = 0;
+  for (const auto& c : applied) alive += c.expired() ? 0 : 1;
+  // The one in force and the two before it (bus a keeps its last three; the first is not here).
+  EXPECT_LE(alive, 3u) << "configurations kept of the 100 applied";
+  EXPECT_GE(alive, 1u);
 }
 
 TEST_F(ReloadLeakTest, ARequestUnderWayKeepsItsConfigurationUntilItEnds) {
