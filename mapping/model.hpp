@@ -113,7 +113,9 @@ struct ActionDef {
   uint16_t code = 0;  // written to the node's command register
   std::vector<ActionStep> steps;
   std::optional<Condition> done;
-  std::optional<Condition> failed;
+  // Written as one condition or a list: the action fails when any holds, with the error code of
+  // the first that holds, in the order written. Empty: none.
+  std::vector<Condition> failed;
   std::chrono::microseconds timeout{std::chrono::seconds(30)};
   bool bus_wide = false;  // affects every node on the bus (e.g. a broadcast stop)
   SourceMark mark;

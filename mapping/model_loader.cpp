@@ -346,6 +346,31 @@ class ModelParser {
     return c;
   }
 
+  // One condition, or a list of them.
+  std::vector<Condition> parse_failed(const YAML::Node& node, const Model& model,
+                                      const std::string& where) {
+    std::vector<Condition> conditions;
+    if (!node.IsSequence()) {
+      if (auto c = parse_condition(node, model, where)) conditions.push_back(std::move(*c));
+      return conditions;
+    }
+    if (node.size() == 0)
+      r_.error(node,
+               fmt::format("{}: an empty list; give a condition, or a list of one or more", where));
+    int number = 0;
+    for (const auto& entry : node) {
+      const std::string entry_where = fmt::format("{} condition {}", where, ++number);
+      if (!entry.IsMap()) {
+        r_.error(entry, fmt::format("{}: expected a condition such as {{point: status, bit: "
+                                    "fault, equals: 1}}, found {}",
+                                    entry_where, kind_name(entry)));
+        continue;
+      }
+      if (auto c = parse_condition(entry, model, entry_where)) conditions.push_back(std::move(*c));
+    }
+    return conditions;
+  }
+
   void parse_actions(const YAML::Node& node, Model& model) {
     std::map<int64_t, std::string> codes;
     for_each_entry(
@@ -368,7 +393,7 @@ class ModelParser {
               steps && r_.expect_sequence(*steps, where))
             for (const auto& step : *steps) parse_step(step, model, a, where);
           if (spec["done"]) a.done = parse_condition(spec["done"], model, where + " done");
-          if (spec["failed"]) a.failed = parse_condition(spec["failed"], model, where + " failed");
+          if (spec["failed"]) a.failed = parse_failed(spec["failed"], model, where + " failed");
           if (spec["timeout"])
             a.timeout = r_.duration(spec["timeout"], where + " timeout").value_or(a.timeout);
           if (spec["bus_wide"])

@@ -15,8 +15,6 @@
 
 namespace fieldgate {
 
-namespace {
-
 std::string kind_name(const YAML::Node& node) {
   switch (node.Type()) {
     case YAML::NodeType::Null:
@@ -31,6 +29,8 @@ std::string kind_name(const YAML::Node& node) {
       return "nothing";
   }
 }
+
+namespace {
 
 // Walks the parser's events (no alias is expanded, so the walk is linear in the text) and
 // records every mapping key that repeats an earlier key of the same mapping: yaml-cpp keeps

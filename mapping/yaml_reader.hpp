@@ -78,6 +78,8 @@ auto parse_yaml_text(const std::string& text, const std::string& name_for_errors
 std::vector<std::string> yaml_files_in(const std::string& directory, std::string_view what,
                                        Diagnostics& diagnostics);
 
+// What an error says it found: 'text', a list, a mapping or nothing.
+std::string kind_name(const YAML::Node& node);
 // Parses integer text as the reader does ("0x1A", "-12", "12"); nullopt on anything else.
 std::optional<int64_t> parse_integer_text(std::string_view text);
 // A number with one of the units us, ms, s, min; nullopt without a unit or on anything else.

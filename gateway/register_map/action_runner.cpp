@@ -296,7 +296,7 @@ asio::awaitable<Reply> ActionRunner::run_steps(int node_index, ModelPtr model_pt
   }
   turn.reset();
   if (confirmation) confirmation->give(reply);
-  if (!action.done && !action.failed) {
+  if (!action.done && action.failed.empty()) {
     if (state.generation == generation) state.status = ActionStatus::done;
     co_return reply;
   }
@@ -318,10 +318,18 @@ std::optional<bool> ActionRunner::evaluate(const NodeImage& node, const Model& m
   return std::nullopt;
 }
 
+const Condition* ActionRunner::first_holding(const NodeImage& node, const Model& model,
+                                             const std::vector<Condition>& conditions,
+                                             SteadyTime acknowledged) const {
+  for (const auto& c : conditions)
+    if (evaluate(node, model, c, acknowledged).value_or(false)) return &c;
+  return nullptr;
+}
+
 namespace {
 
 const std::string& action_condition_point(const ActionDef& action) {
-  return action.done ? action.done->point : action.failed->point;
+  return action.done ? action.done->point : action.failed.front().point;
 }
 
 // When a watch gives up on seeing the action's end: its condition point not read for twenty poll
@@ -379,10 +387,10 @@ asio::awaitable<void> ActionRunner::watch(int node_index, ModelPtr model_ptr,
                    action.name);
       break;
     }
-    if (action.failed && evaluate(node, model, *action.failed, acknowledged).value_or(false)) {
+    if (const Condition* failed = first_holding(node, model, action.failed, acknowledged)) {
       state.status = ActionStatus::error;
       state.error = kActionErrorFailedCondition;
-      if (const auto code = point_value(node, model, action.failed->error_from); code && *code > 0)
+      if (const auto code = point_value(node, model, failed->error_from); code && *code > 0)
         state.error = static_cast<uint16_t>(*code);
       break;
     }

@@ -19,7 +19,7 @@ class Bus;
 struct CommandOptions;
 
 // Runs a model's action for a node: sends its steps through the node's bus, each confirmed
-// before the next, then watches the done/failed condition on freshly polled values and keeps
+// before the next, then watches the done/failed conditions on freshly polled values and keeps
 // the node's action status (busy, done, error) up to date for the PLC's handshake.
 //
 // A step with confirm_after answers the Modbus write early: once it has been on the wire that long
@@ -79,6 +79,10 @@ class ActionRunner {
                        const std::string& condition_point, SteadyTime since) const;
   std::optional<bool> evaluate(const NodeImage& node, const Model& model, const Condition& c,
                                SteadyTime acknowledged) const;
+  // The first of `conditions` that holds on values read after `acknowledged`, if any.
+  const Condition* first_holding(const NodeImage& node, const Model& model,
+                                 const std::vector<Condition>& conditions,
+                                 SteadyTime acknowledged) const;
 
   asio::any_io_executor executor_;
   ProcessImage& image_;

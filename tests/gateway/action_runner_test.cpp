@@ -336,5 +336,84 @@ actions:
   runner.stop();
 }
 
+// Issue 50: a list of failed conditions (motor off or limit stop). Any one ends the action, with
+// the error code of the first that holds.
+class ActionRunnerFailedList : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Diagnostics d;
+    model_ = load_model_text(R"(model: m
+family: techno-c
+poll_classes: {fast: 10ms}
+points:
+  moving: {type: int32, read: "@0M", poll: fast}
+  enabled: {type: int32, read: "@0E", poll: fast}
+  limits: {type: int32, read: "@0L", poll: fast, bits: {stop: 2}}
+  fault_code: {type: int32, read: "@0F", poll: fast}
+  limit_code: {type: int32, read: "@0C", poll: fast}
+actions:
+  move:
+    code: 1
+    steps: ["M1"]
+    done: {point: moving, equals: 0}
+    failed:
+      - {point: enabled, equals: 0, error_from: fault_code}
+      - {point: limits, bit: stop, equals: 1, error_from: limit_code}
+)",
+                             "m.yaml", d);
+    ASSERT_TRUE(model_) << d.to_text();
+    set({1, 1, 0, 0, 0});
+    runner_.emplace(io_.get_executor(), image_, [&](int) -> Bus& { return bus_; });
+    asio::co_spawn(
+        io_,
+        [&]() -> asio::awaitable<void> { co_await runner_->start(0, model_, model_->actions[0]); },
+        asio::detached);
+    io_.run_for(20ms);
+    ASSERT_EQ(node_->action.status, ActionStatus::busy);
+  }
+  void TearDown() override { runner_->stop(); }
+  // Every point (moving, enabled, limits, fault_code, limit_code) read now.
+  void set(const std::vector<int64_t>& values) {
+    node_->points.clear();
+    for (const int64_t v : values)
+      node_->points.push_back(PointValue{v, std::chrono::steady_clock::now(), true});
+  }
+  // A poll the runner is told of.
+  void poll(const std::vector<int64_t>& values) {
+    set(values);
+    runner_->node_updated(0);
+    io_.run_for(20ms);
+  }
+
+  asio::io_context io_;
+  std::shared_ptr<NodeImage> node_ = std::make_shared<NodeImage>();
+  ProcessImage image_{{node_}};
+  test::ScriptedBus bus_{{node_}};
+  ModelPtr model_;
+  std::optional<ActionRunner> runner_;
+};
+
+TEST_F(ActionRunnerFailedList, TheSecondConditionEndsTheActionWithItsOwnCode) {
+  // Still enabled, still moving: the limit stop (bit 2) alone ends it, with limit_code's 0x42
+  // and not fault_code's 7.
+  poll({1, 1, 0b100, 7, 0x42});
+  EXPECT_EQ(node_->action.status, ActionStatus::error);
+  EXPECT_EQ(node_->action.error, 0x42);
+}
+
+TEST_F(ActionRunnerFailedList, WhenBothHoldTheFirstGivesTheCode) {
+  poll({1, 0, 0b100, 7, 0x42});
+  EXPECT_EQ(node_->action.status, ActionStatus::error);
+  EXPECT_EQ(node_->action.error, 7);
+}
+
+TEST_F(ActionRunnerFailedList, WhenNeitherHoldsDoneWins) {
+  poll({1, 1, 0b011, 7, 0x42});
+  EXPECT_EQ(node_->action.status, ActionStatus::busy);
+  poll({0, 1, 0b011, 7, 0x42});
+  poll({0, 1, 0b011, 7, 0x42});
+  EXPECT_EQ(node_->action.status, ActionStatus::done);
+}
+
 }  // namespace
 }  // namespace fieldgate

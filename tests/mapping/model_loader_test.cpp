@@ -51,6 +51,44 @@ TEST(ModelLoader, DelayStepsLoad) {
   EXPECT_EQ(m->actions[0].steps[1].duration, std::chrono::milliseconds(500));
 }
 
+// Issue 50: `failed:` takes one condition or a list; each entry has its own error_from.
+TEST(ModelLoader, FailedTakesOneConditionOrAList) {
+  const std::string points =
+      "points:\n  s: {type: uint32, read: g r0xa0, poll: fast, bits: {limit: 3}}\n"
+      "  e: {type: int32, read: g r0xa4, poll: fast}\n"
+      "  c: {type: int32, read: g r0xa5, poll: fast}\n";
+  Diagnostics d;
+  auto one = load_model_text(kHeader + points +
+                                 "actions:\n  go:\n    code: 1\n    steps: [t 1]\n"
+                                 "    failed: {point: e, equals: 0, error_from: c}\n",
+                             "m.yaml", d);
+  ASSERT_TRUE(d.ok()) << d.to_text();
+  ASSERT_EQ(one->actions[0].failed.size(), 1u);
+  EXPECT_EQ(one->actions[0].failed[0].point, "e");
+  EXPECT_EQ(one->actions[0].failed[0].error_from, "c");
+
+  auto list = load_model_text(kHeader + points +
+                                  "actions:\n  go:\n    code: 1\n    steps: [t 1]\n"
+                                  "    failed:\n      - {point: e, equals: 0}\n"
+                                  "      - {point: s, bit: limit, equals: 1, error_from: c}\n",
+                              "m.yaml", d);
+  ASSERT_TRUE(d.ok()) << d.to_text();
+  const auto& failed = list->actions[0].failed;
+  ASSERT_EQ(failed.size(), 2u);
+  EXPECT_EQ(failed[0].point, "e");
+  EXPECT_EQ(failed[0].equals, 0);
+  EXPECT_EQ(failed[0].error_from, "");
+  EXPECT_EQ(failed[1].point, "s");
+  EXPECT_EQ(failed[1].bit, 3);
+  EXPECT_EQ(failed[1].equals, 1);
+  EXPECT_EQ(failed[1].error_from, "c");
+
+  auto none =
+      load_model_text(kHeader + points + "actions:\n  go: {code: 1, steps: [t 1]}\n", "m.yaml", d);
+  ASSERT_TRUE(d.ok()) << d.to_text();
+  EXPECT_TRUE(none->actions[0].failed.empty());
+}
+
 // A model with one mistake: the first error names it (all of `expected`, position included).
 // A model of the header's family and poll class, then `body`.
 std::string with_header(const std::string& body) {
@@ -113,6 +151,26 @@ INSTANTIATE_TEST_SUITE_P(
         BadModel{"WriteTakesOnlyValue",
                  with_header("points:\n  p:\n    type: int16\n    write: s r0x1 {v}\n"),
                  {"only {value}"}},
+        BadModel{"FailedListMustNotBeEmpty",
+                 with_header("points:\n  s: {type: int32, read: g r0xa0, poll: fast}\n"
+                             "actions:\n  go:\n    code: 1\n    steps: [t 1]\n    failed: []\n"),
+                 {"action go failed: an empty list", "@10:13"}},
+        BadModel{"FailedListEntryMustBeACondition",
+                 with_header("points:\n  s: {type: int32, read: g r0xa0, poll: fast}\n"
+                             "actions:\n  go:\n    code: 1\n    steps: [t 1]\n    failed:\n"
+                             "      - {point: s, equals: 1}\n      - s\n"),
+                 {"action go failed condition 2: expected a condition", "found 's'", "@12:9"}},
+        BadModel{"FailedListEntryIsCheckedAsACondition",
+                 with_header("points:\n  s: {type: int32, read: g r0xa0, poll: fast}\n"
+                             "actions:\n  go:\n    code: 1\n    steps: [t 1]\n    failed:\n"
+                             "      - {point: s, equals: 1}\n      - {point: t, equals: 1}\n"),
+                 {"action go failed condition 2: unknown point 't'", "@12:17"}},
+        BadModel{"FailedListEntryErrorFromMustBePolled",
+                 with_header("points:\n  s: {type: int32, read: g r0xa0, poll: fast}\n"
+                             "actions:\n  go:\n    code: 1\n    steps: [t 1]\n    failed:\n"
+                             "      - {point: s, equals: 1, error_from: e}\n"),
+                 {"action go failed condition 1: error_from names 'e', which is no polled point",
+                  "@11:43"}},
         BadModel{"SyntaxErrorHasPosition", "model: m\nfamily: [unclosed\n", {"YAML syntax"}}),
     [](const auto& info) { return std::string(info.param.name); });
 
