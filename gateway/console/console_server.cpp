@@ -15,6 +15,7 @@
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/console/console_access.hpp"
 #include "gateway/console/console_assets.hpp"
+#include "gateway/console/console_port.hpp"
 #include "gateway/http/accept_loop.hpp"
 #include "gateway/http/request_reading.hpp"
 #include "gateway/lifecycle/log.hpp"
@@ -38,7 +39,7 @@ struct TraceEntry {
 
 struct ConsoleServer::State : std::enable_shared_from_this<ConsoleServer::State> {
   State(asio::any_io_executor ex, ConsoleConfig c, Snapshot s)
-      : acceptor(ex, asio::ip::tcp::endpoint(asio::ip::make_address(c.address), c.port)),
+      : acceptor(ex, asio::ip::tcp::endpoint(asio::ip::make_address(c.address), console_port(c))),
         accept_retry(ex),
         config(std::move(c)),
         snapshot(std::move(s)) {}
@@ -174,12 +175,15 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& 
                                HttpConnection& connection) {
   beast::flat_buffer buffer;
   http_request::Parser parser;
-  const bool request = co_await http_request::read_or_answer(
-      stream, buffer, parser, ConsoleServer::exchange_timeout, state.stats.bad_requests,
-      [](http::response<http::string_body>& res) { common_headers(res); });
+  const auto decorate = [](http::response<http::string_body>& res) { common_headers(res); };
+  // The header alone decides a refusal (address, token, method): a request refused is answered
+  // 403 or 405 whatever its body, which is not read (curl's Expect: 100-continue gets the
+  // answer before it sends one).
+  const bool request = co_await http_request::read_header_or_answer(
+      stream, buffer, parser, ConsoleServer::exchange_timeout, state.stats.bad_requests, decorate);
   if (!request) co_return;
   ++state.stats.requests;
-  const auto& req = parser.get();
+  const auto& req = parser.get();  // its header; the body follows only for a request served
   const std::string_view target(req.target().data(), req.target().size());
   const std::string_view path = path_of(target);
   http::response<http::string_body> res;
@@ -203,13 +207,21 @@ asio::awaitable<void> exchange(beast::tcp_stream& stream, ConsoleServer::State& 
     access = ConsoleAccess::allowed;
   connection.admitted = access == ConsoleAccess::allowed;
   const bool head = req.method() == http::verb::head;
+  const bool readable = req.method() == http::verb::get || head;
+  if (access == ConsoleAccess::allowed && readable) {
+    // A GET or HEAD with a body: the body is read (and ignored) under the limits.
+    const bool whole = co_await http_request::read_rest_or_answer(
+        stream, buffer, parser, ConsoleServer::exchange_timeout, state.stats.bad_requests,
+        decorate);
+    if (!whole) co_return;
+  }
   if (access != ConsoleAccess::allowed) {
     ++state.stats.denied;
     res.result(http::status::forbidden);
     res.body() =
         std::string("fieldgate console: ") + std::string(to_string(access)) +
         (access == ConsoleAccess::token_missing ? " (open the page with ?token=...)" : "") + "\n";
-  } else if (req.method() != http::verb::get && !head) {
+  } else if (!readable) {
     // Read-only: nothing on the console changes the plant.
     res.result(http::status::method_not_allowed);
     res.set(http::field::allow, "GET, HEAD");

@@ -52,7 +52,8 @@ class ConsoleServer {
   static constexpr std::size_t trace_ring = 4000;      // frames kept for late readers
   static constexpr std::size_t trace_per_event = 500;  // frames sent per stream per tick
 
-  // Binds at once; throws boost::system::system_error if it cannot.
+  // Binds at once, on console_port(config) (the command line's or the environment's port, if
+  // given); throws boost::system::system_error if it cannot.
   ConsoleServer(asio::any_io_executor executor, ConsoleConfig config, Snapshot snapshot);
   ~ConsoleServer();
   void start();

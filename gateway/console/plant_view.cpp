@@ -2,6 +2,8 @@
 
 #include <boost/json.hpp>
 
+#include <cstdint>
+
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/console/fleet_watch.hpp"
 #include "gateway/gateway.hpp"
@@ -13,9 +15,9 @@ namespace json = boost::json;
 
 namespace {
 
-double epoch_ms(std::chrono::system_clock::time_point t) {
-  return static_cast<double>(
-      std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count());
+// An integer: as a double, Boost.JSON writes it in exponent notation (1.7966E12).
+std::int64_t epoch_ms(std::chrono::system_clock::time_point t) {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count();
 }
 
 std::string link_of(const BusConfig& bus) {

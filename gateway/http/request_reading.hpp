@@ -26,7 +26,8 @@ namespace http = beast::http;
 // Request line and headers together; beyond it 431.
 inline constexpr std::size_t header_limit = 8192;
 // No request needs a body; a small one (a form sent along with a POST) is read and ignored so
-// the reply is not lost to a reset, a larger one gets 413.
+// the reply is not lost to a reset, a larger one gets 413. (The console refuses a request on its
+// header, before its body: read_header_or_answer.)
 inline constexpr std::size_t body_limit = 8192;
 
 using Parser = http::request_parser<http::string_body>;
@@ -75,6 +76,34 @@ inline asio::awaitable<beast::error_code> read(beast::tcp_stream& stream,
   co_return ec;
 }
 
+// Reads the request line and headers only, within `timeout`: a server may refuse a request on
+// them (its method, its token) without taking its body. read_rest then reads the body.
+inline asio::awaitable<beast::error_code> read_header(beast::tcp_stream& stream,
+                                                      beast::flat_buffer& buffer, Parser& parser,
+                                                      std::chrono::steady_clock::duration timeout) {
+  parser.header_limit(header_limit);
+  // Beast weighs a Content-Length against the body limit as the header ends: read_rest does.
+  parser.body_limit(boost::none);
+  stream.expires_after(timeout);
+  auto [ec, n] =
+      co_await http::async_read_header(stream, buffer, parser, asio::as_tuple(asio::use_awaitable));
+  (void)n;
+  co_return ec;
+}
+
+// Reads the body of a request whose header read_header took, within what is left of its
+// deadline, under body_limit (a Content-Length beyond it is refused before a byte is read).
+inline asio::awaitable<beast::error_code> read_rest(beast::tcp_stream& stream,
+                                                    beast::flat_buffer& buffer, Parser& parser) {
+  parser.body_limit(body_limit);
+  const auto length = parser.content_length();
+  if (length && *length > body_limit) co_return http::make_error_code(http::error::body_limit);
+  auto [ec, n] =
+      co_await http::async_read(stream, buffer, parser, asio::as_tuple(asio::use_awaitable));
+  (void)n;
+  co_return ec;
+}
+
 // A reply of its own for a request that could not be taken (no request object to echo).
 inline http::response<http::string_body> error_response(http::status status) {
   http::response<http::string_body> res{status, 11};
@@ -113,21 +142,56 @@ asio::awaitable<void> reply_and_finish(beast::tcp_stream& stream, http::response
   if (!ec) co_await finish(stream);
 }
 
+// After a read that failed with `ec`: the status its error stands for, if there is a request
+// to answer (counted in `bad_requests`, with the headers `decorate` adds), and the connection
+// ends.
+template <typename Decorate>
+asio::awaitable<void> answer_refused(beast::tcp_stream& stream, const beast::error_code& ec,
+                                     const Parser& parser,
+                                     std::chrono::steady_clock::duration timeout,
+                                     std::uint64_t& bad_requests, Decorate decorate) {
+  const auto status = status_for(ec, parser);
+  if (!status) co_return;
+  ++bad_requests;
+  auto res = error_response(*status);
+  decorate(res);
+  co_await reply_and_finish(stream, res, timeout);
+}
+
 // Reads one request within `timeout`; true when there is one to serve. A request the parser
-// refused gets the status its error stands for (counted in `bad_requests`, with the headers
-// `decorate` adds) and the connection ends; false then, as when there is nothing to answer.
+// refused gets the status its error stands for (answer_refused) and the connection ends; false
+// then, as when there is nothing to answer.
 template <typename Decorate>
 asio::awaitable<bool> read_or_answer(beast::tcp_stream& stream, beast::flat_buffer& buffer,
                                      Parser& parser, std::chrono::steady_clock::duration timeout,
                                      std::uint64_t& bad_requests, Decorate decorate) {
   const auto ec = co_await read(stream, buffer, parser, timeout);
   if (!ec) co_return true;
-  if (const auto status = status_for(ec, parser)) {
-    ++bad_requests;
-    auto res = error_response(*status);
-    decorate(res);
-    co_await reply_and_finish(stream, res, timeout);
-  }
+  co_await answer_refused(stream, ec, parser, timeout, bad_requests, decorate);
+  co_return false;
+}
+
+// As read_or_answer, for the request line and headers alone (read_header).
+template <typename Decorate>
+asio::awaitable<bool> read_header_or_answer(beast::tcp_stream& stream, beast::flat_buffer& buffer,
+                                            Parser& parser,
+                                            std::chrono::steady_clock::duration timeout,
+                                            std::uint64_t& bad_requests, Decorate decorate) {
+  const auto ec = co_await read_header(stream, buffer, parser, timeout);
+  if (!ec) co_return true;
+  co_await answer_refused(stream, ec, parser, timeout, bad_requests, decorate);
+  co_return false;
+}
+
+// As read_or_answer, for the body of a request whose header read_header_or_answer took.
+template <typename Decorate>
+asio::awaitable<bool> read_rest_or_answer(beast::tcp_stream& stream, beast::flat_buffer& buffer,
+                                          Parser& parser,
+                                          std::chrono::steady_clock::duration timeout,
+                                          std::uint64_t& bad_requests, Decorate decorate) {
+  const auto ec = co_await read_rest(stream, buffer, parser);
+  if (!ec) co_return true;
+  co_await answer_refused(stream, ec, parser, timeout, bad_requests, decorate);
   co_return false;
 }
 

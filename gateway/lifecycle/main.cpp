@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <cstdint>
 #include <filesystem>
 #include <iostream>
 
@@ -9,6 +10,7 @@
 #include "drivers/protocol_file/protocol_loader.hpp"
 #include "gateway/config/config_loader.hpp"
 #include "gateway/config/device_writes.hpp"
+#include "gateway/console/console_port.hpp"
 #include "gateway/lifecycle/daemon.hpp"
 #include "gateway/lifecycle/log.hpp"
 #include "gateway/lifecycle/reload_command.hpp"
@@ -166,6 +168,14 @@ int main(int argc, char** argv) {
   std::string runtime_dir;
   app.add_option("--runtime-dir", runtime_dir,
                  "where the reload verdict is written (default: $RUNTIME_DIRECTORY)");
+  // The command line over the environment over the configuration's console: listen: port.
+  std::uint16_t console_port_option = 0;
+  auto* console_port_given =
+      app.add_option("--console-port", console_port_option,
+                     "the web console's port, in place of the configuration's console: listen: "
+                     "port (also FIELDGATE_CONSOLE_PORT)")
+          ->envname("FIELDGATE_CONSOLE_PORT")
+          ->check(CLI::Range(1, 65535));
   auto* check = app.add_subcommand("check", "validate a configuration without opening any port");
   std::string check_path = FIELDGATE_DEFAULT_CONFIG;
   auto* check_given = check->add_option("config", check_path, "gateway configuration (YAML)")
@@ -250,6 +260,14 @@ int main(int argc, char** argv) {
   if (!config) {
     std::cerr << "nothing was started\n";
     return 1;
+  }
+  if (console_port_given->count() > 0) {
+    set_console_port_override(console_port_option);
+    if (!config->gateway.console.enabled)
+      log::warning(
+          "console port {}: {} has the console off (no console: section, or "
+          "enabled: false), so nothing listens on it",
+          console_port_option, config_path);
   }
   Daemon daemon(config_path, std::move(config), runtime_directory(runtime_dir));
   return daemon.run();

@@ -21,6 +21,7 @@
 
 #include "gateway/bus/wire_trace.hpp"
 #include "gateway/console/console_access.hpp"
+#include "gateway/console/console_port.hpp"
 #include "gateway/console/console_server.hpp"
 #include "gateway/metrics/metrics_server.hpp"
 
@@ -176,7 +177,7 @@ TEST_F(ConsoleServerTest, EventStreamCarriesThePlantAndTraceFrames) {
 // Exactly `bytes` to `port` (from `source`, a loopback address), then everything the server
 // sends until it closes.
 std::string exchange_raw(std::uint16_t port, const std::string& bytes,
-                         const char* source = "127.0.0.1") {
+                         const char* source = "127.0.0.1", bool then_shutdown = false) {
   asio::io_context io;
   tcp::socket s(io);
   s.open(tcp::v4());
@@ -184,15 +185,22 @@ std::string exchange_raw(std::uint16_t port, const std::string& bytes,
   s.connect({asio::ip::make_address("127.0.0.1"), port});
   boost::system::error_code ec;
   asio::write(s, asio::buffer(bytes), ec);
+  if (then_shutdown) s.shutdown(tcp::socket::shutdown_send, ec);  // nothing more: no drain wait
   std::string reply;
   asio::read(s, asio::dynamic_buffer(reply), ec);
   return reply;
 }
 
 // Requests Beast cannot take, and requests for a method neither server has: each gets a status
-// line, never a bare close.
-const std::vector<std::pair<std::string, std::string>>& bad_requests() {
-  static const std::vector<std::pair<std::string, std::string>> cases = {
+// line, never a bare close. The console refuses a method on the request's header, before its
+// body: a third status where that gives the console another one.
+struct BadRequest {
+  std::string request;
+  std::string status;
+  std::string console_status = status;
+};
+const std::vector<BadRequest>& bad_requests() {
+  static const std::vector<BadRequest> cases = {
       {"GARBAGE\r\n\r\n", "400"},                                 // bad request line
       {"GET / HTTP/1.1\r\nHost x\r\n\r\n", "400"},                // header without colon
       {"GET / HTTP/1.1\r\nHo st: x\r\n\r\n", "400"},              // bad header name
@@ -201,7 +209,7 @@ const std::vector<std::pair<std::string, std::string>>& bad_requests() {
       {"GET / HTTP/2.5x\r\nHost: x\r\n\r\n", "400"},              // bad version
       {"GET / HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\nxx\r\n",
        "400"},  // chunked garbage
-      {"POST / HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n5;\x01\r\n", "400"},
+      {"POST / HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n5;\x01\r\n", "400", "405"},
       {"POST / HTTP/1.1\r\nHost: x\r\nContent-Length: 5\r\nTransfer-Encoding: chunked\r\n\r\n"
        "5\r\nhello\r\n0\r\n\r\n",
        "400"},  // CL and TE together
@@ -209,6 +217,8 @@ const std::vector<std::pair<std::string, std::string>>& bad_requests() {
       {"GET / HTTP/1.1\r\nHost: x\r\nContent-Length: -1\r\n\r\n", "400"},
       {"GET / HTTP/1.1\r\nHost: x\r\nX-Big: " + std::string(9000, 'a') + "\r\n\r\n", "431"},
       {"POST / HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\n" + std::string(1000, 'b'),
+       "413", "405"},
+      {"GET / HTTP/1.1\r\nHost: x\r\nContent-Length: 100000\r\n\r\n" + std::string(1000, 'b'),
        "413"},
       {"POST / HTTP/1.1\r\nHost: x\r\nContent-Length: 11\r\n\r\nhello world", "405"},
       {"POST / HTTP/1.1\r\nHost: x\r\n\r\n", "405"},
@@ -222,7 +232,9 @@ const std::vector<std::pair<std::string, std::string>>& bad_requests() {
 
 TEST_F(ConsoleServerTest, EveryBadRequestGetsAStatusLine) {
   start();
-  for (const auto& [request, status] : bad_requests()) {
+  for (const auto& c : bad_requests()) {
+    const std::string& request = c.request;
+    const std::string& status = c.console_status;
     const std::string reply = exchange_raw(port_, request);
     EXPECT_TRUE(reply.starts_with("HTTP/1.") && reply.substr(8, 4) == " " + status)
         << request.substr(0, 80) << " -> '" << reply.substr(0, 80) << "'";
@@ -238,6 +250,68 @@ TEST_F(ConsoleServerTest, EveryBadRequestGetsAStatusLine) {
   boost::system::error_code ec;
   asio::read(s, asio::dynamic_buffer(reply), ec);
   EXPECT_TRUE(reply.starts_with("HTTP/1.1 400")) << reply;
+}
+
+// Issue 52: a POST with a body got no reply at all. The console decides on the request's header
+// (address, token, method): 403 without the token or with a wrong one, 405 with it, whatever the
+// method and however large the body, which it does not wait for.
+TEST_F(ConsoleServerTest, ARequestWithABodyGets403Or405) {
+  ConsoleConfig c;
+  c.token_sha256 = sha256_hex("s3cret");
+  start(c);
+  const std::vector<std::string> bodies = {
+      "Content-Type: application/x-www-form-urlencoded\r\nContent-Length: 7\r\n\r\nstate=1",
+      "Content-Type: application/json\r\nContent-Length: 20000\r\n\r\n" + std::string(20000, 'x'),
+      "Transfer-Encoding: chunked\r\n\r\n5\r\nhello\r\n0\r\n\r\n",
+      // curl's way with a large body: the body only once the server says 100 Continue, or
+      // after a second. The answer comes first.
+      "Content-Length: 2000000\r\nExpect: 100-continue\r\n\r\n",
+  };
+  const std::vector<std::pair<std::string, std::string>> tokens = {
+      {"", "403"},
+      {"Authorization: Bearer guess\r\n", "403"},
+      {"Authorization: Bearer s3cret\r\n", "405"}};
+  for (const char* method : {"POST", "PUT", "PATCH", "DELETE", "OPTIONS"})
+    for (const auto& body : bodies)
+      for (const auto& [token, status] : tokens) {
+        const auto begin = std::chrono::steady_clock::now();
+        const std::string reply = exchange_raw(
+            port_, std::string(method) + " /api/plant HTTP/1.1\r\nHost: x\r\n" + token + body,
+            "127.0.0.1", true);
+        EXPECT_TRUE(reply.starts_with("HTTP/1.1 " + status))
+            << method << " " << token << body.substr(0, 60) << " -> '" << reply.substr(0, 80)
+            << "'";
+        EXPECT_LT(std::chrono::steady_clock::now() - begin, 2s) << "answered on the header";
+        EXPECT_EQ(reply.find("Allow: GET, HEAD") != std::string::npos, status == "405");
+      }
+  // A GET with a small body is served; with a large one, 413.
+  EXPECT_TRUE(exchange_raw(port_,
+                           "GET /api/plant HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer s3cret\r\n"
+                           "Content-Length: 3\r\n\r\nabc")
+                  .starts_with("HTTP/1.1 200"));
+  EXPECT_TRUE(exchange_raw(port_,
+                           "GET /api/plant HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer s3cret\r\n"
+                           "Content-Length: 9000\r\n\r\n" +
+                               std::string(9000, 'a'))
+                  .starts_with("HTTP/1.1 413"));
+}
+
+// The console's port from the command line or the environment takes the place of the
+// configuration's (main sets it once; a reload keeps it).
+TEST_F(ConsoleServerTest, ThePortOverrideTakesThePlaceOfTheConfigurations) {
+  asio::io_context io;
+  tcp::acceptor probe(io, {asio::ip::make_address("127.0.0.1"), 0});
+  const auto wanted = probe.local_endpoint().port();
+  probe.close();
+  ConsoleConfig c;
+  c.port = 9580;
+  EXPECT_EQ(console_port(c), 9580);
+  set_console_port_override(wanted);
+  EXPECT_EQ(console_port(c), wanted);
+  ConsoleServer server(io_.get_executor(), c, [] { return std::string("{}"); });
+  set_console_port_override(std::nullopt);
+  EXPECT_EQ(server.local_endpoint().port(), wanted);
+  EXPECT_EQ(console_port(c), 9580);
 }
 
 class MetricsServerTest : public ::testing::Test {
@@ -271,7 +345,9 @@ class MetricsServerTest : public ::testing::Test {
 
 TEST_F(MetricsServerTest, EveryBadRequestGetsAStatusLine) {
   start();
-  for (const auto& [request, status] : bad_requests()) {
+  for (const auto& c : bad_requests()) {
+    const std::string& request = c.request;
+    const std::string& status = c.status;
     const std::string reply = exchange_raw(port_, request);
     EXPECT_TRUE(reply.starts_with("HTTP/1.") && reply.substr(8, 4) == " " + status)
         << request.substr(0, 80) << " -> '" << reply.substr(0, 80) << "'";

@@ -6,12 +6,16 @@ table's rows and states, a unit switched off at its simulator turning offline on
 move's position plot advancing, wire-trace lines arriving, the Fleet tab showing the gateway's
 own Sparkplug edge node and its devices born with their metrics (a real Mosquitto broker); and
 that Modbus keeps answering while 100 live views are open and one client has stopped reading.
+Issue 52's trips: the console's port from --console-port over FIELDGATE_CONSOLE_PORT over the
+configuration, time_ms an integer, a sticky header with a UTC 24 h clock, no overflow at 1024 px
+wide, and codes in hex.
 The console has a token, as scripts/demo gives it in QEMU: the page is opened with it, and its
 style and script load without it. Screenshots of every tab go to OUT_DIR.
 
 Usage: console_browser.py FIELDGATE BUILD_DIR MODELS_DIR DEMO_YAML OUT_DIR
 """
 import base64
+import calendar
 import hashlib
 import json
 import os
@@ -57,6 +61,9 @@ class Plant:
         for link in self.sims:
             assert wait_for(lambda: os.path.exists(os.path.join(d, link)), 10), link
         self.modbus_port, self.console_port = free_port(), free_port()
+        # The configuration's and the environment's ports are not the console's: the command
+        # line's wins (docs/console.md, The port).
+        self.config_console_port, self.env_console_port = free_port(), free_port()
         self.broker = Broker(d, free_port())
         self.broker.start()
         token_file = os.path.join(d, "console-token.sha256")
@@ -66,7 +73,7 @@ class Plant:
         config.update({"modbus": {**demo["modbus"], "listen": f"127.0.0.1:{self.modbus_port}",
                                   "max_clients": 64},
                        "models": MODELS, "buses": buses,
-                       "console": {"listen": f"127.0.0.1:{self.console_port}",
+                       "console": {"listen": f"127.0.0.1:{self.config_console_port}",
                                    "token_file": token_file},
                        "sparkplug": {"broker": f"mqtt://127.0.0.1:{self.broker.port}",
                                      "group_id": "console-test", "edge_node_id": EDGE}})
@@ -74,8 +81,10 @@ class Plant:
         with open(self.config, "w") as f:
             yaml.safe_dump(config, f, sort_keys=False)
         self.log_path = os.path.join(d, "daemon.log")
-        self.daemon = subprocess.Popen([FIELDGATE, "--config", self.config],
-                                       stdout=open(self.log_path, "w"), stderr=subprocess.STDOUT)
+        self.daemon = subprocess.Popen(
+            [FIELDGATE, "--config", self.config, "--console-port", str(self.console_port)],
+            env={**os.environ, "FIELDGATE_CONSOLE_PORT": str(self.env_console_port)},
+            stdout=open(self.log_path, "w"), stderr=subprocess.STDOUT)
         self.url = f"http://127.0.0.1:{self.console_port}/"
         self.page = self.url + "?token=" + TOKEN
 
@@ -138,6 +147,10 @@ class Browser:
         self.call("Page.navigate", url=url)
         wait_for(lambda: self.eval("document.readyState") == "complete", 20)
 
+    def viewport(self, width, height):
+        self.call("Emulation.setDeviceMetricsOverride", width=width, height=height,
+                  deviceScaleFactor=1, mobile=False)
+
     def screenshot(self, name):
         data = self.call("Page.captureScreenshot", format="png")["data"]
         path = os.path.join(OUT, name + ".png")
@@ -173,8 +186,10 @@ def main():
     plant = Plant(d)
     browser = None
     try:
-        check("the daemon prints the console's address",
+        check("the daemon prints the console's address, on the port of --console-port",
               wait_for(lambda: plant.url in plant.log(), 15), plant.log()[-2000:])
+        raw = urllib.request.urlopen(plant.url + "api/plant?token=" + TOKEN).read().decode()
+        check("time_ms is an integer", re.match(r'\{"time_ms":\d+,', raw), raw[:60])
         browser = Browser(d)
         browser.open(plant.page)
         check("the page goes live", wait_for(
@@ -198,6 +213,29 @@ def main():
                               ".cells[6].textContent")
         check("an offline node says why", bool(reason), reason)
         browser.screenshot("plant")
+
+        # The header's clock: UTC, 24 h, as the trace; the header stays in view when scrolled.
+        clock = browser.eval("document.getElementById('clock').textContent")
+        m = re.fullmatch(r"(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d) UTC", clock or "")
+        shown = m and calendar.timegm(time.strptime(m.group(1), "%Y-%m-%d %H:%M:%S"))
+        check("the header's clock is UTC, 24 h, and now",
+              m and abs(shown - time.time()) < 5, f"{clock} at {time.time()}")
+        # 1024 px wide, 500 px high: the Plant tab fits the width and scrolls under its header.
+        browser.viewport(1024, 500)
+        time.sleep(1.5)
+        widths = browser.eval("[document.documentElement.scrollWidth, innerWidth, Math.max("
+                              "...[...document.querySelectorAll('#plant table')]"
+                              ".map(t => t.getBoundingClientRect().right))]")
+        check("at 1024 px the Plant tab fits: no sideways scroll, its tables within the window",
+              widths[0] <= widths[1] and widths[2] <= widths[1], widths)
+        browser.screenshot("plant-1024")
+        header = browser.eval("(() => { scrollTo(0, 100000); return [scrollY,"
+                              " document.querySelector('header').getBoundingClientRect().top]; })()")
+        check("the header stays at the top when the page is scrolled",
+              header[0] > 0 and header[1] == 0, header)
+        browser.screenshot("plant-1024-scrolled")
+        browser.eval("scrollTo(0, 0)")
+        browser.call("Emulation.clearDeviceMetricsOverride")
 
         # A unit switched off at its simulator turns offline on the page, without a reload.
         plant.control("ims0", "axis-off B")
@@ -237,6 +275,22 @@ def main():
               state in ("DiscreteMotion", "Standstill"), state)
         browser.screenshot("axes-moving")
         wait_for(lambda: browser.eval(f"{card}.dataset.state") == "Standstill", 30)
+
+        # A move refused on a Disabled axis: command_error 0xfff0 on the card, in hex as
+        # docs/axis-profile.md gives it (65520 in decimal).
+        disabled = browser.eval(
+            "[...document.querySelectorAll('.axis[data-state=Disabled]')].map(c => [c.dataset.axis,"
+            " +c.querySelector('h3').textContent.match(/unit (\\d+)/)[1]])")
+        check("an axis stands Disabled (before its power-on)", disabled, disabled)
+        if disabled:
+            axis, unit = disabled[0]
+            profile_move(mb, unit, 1000, 1000, 1)
+            command = (f"document.querySelector('.axis[data-axis=\"{axis}\"]"
+                       " dd[data-field=command]')")
+            check(f"{axis}: a refused command's error shows in hex", wait_for(
+                lambda: (browser.eval(f"{command}.textContent") or "").endswith("(error 0xfff0)"),
+                10), browser.eval(f"{command}.textContent"))
+        browser.screenshot("axes-refused")
 
         # Bus: trace lines arrive, with wall-clock time, filterable.
         browser.eval("document.querySelector('nav button[data-tab=bus]').click()")

@@ -23,6 +23,16 @@ function cell(row, text, cls) {
   return td;
 }
 
+// A code as the docs give it: hex, 4 digits at least (65530 -> 0xfffa).
+function hex(code) {
+  return "0x" + (code >>> 0).toString(16).padStart(4, "0");
+}
+
+// The wall clock as the trace gives it: UTC, 24 h.
+function utcTime(ms) {
+  return new Date(ms).toISOString().slice(0, 19).replace("T", " ") + " UTC";
+}
+
 function age(ms) {
   if (ms === null || ms === undefined) return "never";
   return ms < 1000 ? ms + " ms" : (ms / 1000).toFixed(1) + " s";
@@ -41,12 +51,13 @@ function renderNodes(plant) {
     cell(row, n.model);
     cell(row, n.unit, "num");
     cell(row, n.state, "state state-" + n.state);
-    cell(row, n.reason || "");
+    cell(row, n.reason || "", "text");
     cell(row, n.transactions, "num");
     cell(row, n.timeouts, "num");
     cell(row, n.errors, "num");
     cell(row, age(n.last_good_age_ms), "num");
-    cell(row, n.last_device_error ? n.last_device_error + ": " + n.last_error_text : "");
+    cell(row, n.last_device_error ? hex(n.last_device_error) + ": " + n.last_error_text : "",
+         "text");
   }
 }
 
@@ -59,7 +70,7 @@ function renderBuses(plant) {
     row.dataset.bus = b.name;
     cell(row, b.name);
     cell(row, b.protocol);
-    cell(row, b.link);
+    cell(row, b.link, "text");
     cell(row, b.link_up ? "yes" : "no");
     cell(row, b.transactions, "num");
     cell(row, b.timeouts, "num");
@@ -141,9 +152,9 @@ function renderAxes(plant) {
         a.name + " (unit " + a.unit + (a.listener ? ", " + a.listener : "") + ")";
     const fields = [
       ["state", a.state], ["position", a.position], ["velocity", a.velocity],
-      ["status", a.status.join(" ")], ["error", a.error_id || ""],
+      ["status", a.status.join(" ")], ["error", a.error_id ? hex(a.error_id) : ""],
       ["command", a.command + " " + a.command_status +
-                  (a.command_error ? " (error " + a.command_error + ")" : "")],
+                  (a.command_error ? " (error " + hex(a.command_error) + ")" : "")],
     ];
     const dl = card.querySelector("dl");
     dl.replaceChildren();
@@ -257,7 +268,7 @@ function onTrace(event) {
 function onPlant(event) {
   const plant = JSON.parse(event.data);
   lastPlant = plant;
-  document.getElementById("clock").textContent = new Date(plant.time_ms).toLocaleTimeString();
+  document.getElementById("clock").textContent = utcTime(plant.time_ms);
   renderNodes(plant);
   renderBuses(plant);
   renderAxes(plant);
