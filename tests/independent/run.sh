@@ -134,6 +134,14 @@ case $family in
     axis_family_bus parker-6k "$dir/port" 200ms 20ms
     axis_args=(--distance 20000 --refused-target 600000 --expect-homed)
     ;;
+  galil)
+    # Galil DMC axes A and B of one controller, run by its protocol file
+    # (config/protocols/galil-dmc.yaml). A refusal ('?') is explained by TC1.
+    unit=(galil_unit.py --axes AB "${control[@]}")
+    axis_family_bus galil-dmc "$dir/port" 200ms 20ms
+    axis_args=(--distance 20000 --refused-target 2000000)
+    scenario_args=(--unit-axes 81=A,82=B --reset-codes 0xffec,0xfffa)
+    ;;
   *)
     echo "unknown family $family"
     exit 2

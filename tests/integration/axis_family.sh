@@ -110,6 +110,15 @@ axis_family_bus() {
          limits: {target: {min: -$limit, max: $limit}}}"
       units=$first,$((first + 1))
       ;;
+    galil-dmc)
+      # A Galil DMC described by its protocol file (config/protocols/galil-dmc.yaml): axes A and
+      # B of one controller on one node (address 0: RS-232 has none).
+      protocol=galil-dmc baud=115200
+      timing="reply_timeout: ${reply:-100ms}, byte_timeout: ${byte:-20ms}"
+      nodes="      - {name: dmc, address: 0, model: galil-dmc, unit_id: 1, axis_units: {a: 81, b: 82},
+         limits: {a_target: $target, b_target: $target}}"
+      units=81,82
+      ;;
     canopen)
       # Needs a kernel SocketCAN interface: run under scripts/vcan-run (tests/vcan).
       bus="protocol: canopen
@@ -181,6 +190,14 @@ axis_family_start() {
       axis_args=(--distance 20000 --velocity 20000 --jog-velocity 2000 --home-velocity 2000
                  --refused-target 2000000 --fault-command
                  "case {unit} in $letters *) a=${axes: -1} ;; esac; echo \"fault 4 \$a 3\" >$dir/sim.in")
+      ;;
+    galil-dmc)
+      # The Galil protocol file against its independent unit (tests/independent/galil_unit.py).
+      axis_family_bus "$family" "$dir/port" 200ms 20ms
+      protocols=$(cd "$(dirname "${BASH_SOURCE[0]}")/../../config/protocols" && pwd)
+      sim=(/usr/bin/python3 "$(cd "$(dirname "${BASH_SOURCE[0]}")/../independent" && pwd)/galil_unit.py"
+           --axes AB)
+      axis_args=(--distance 20000 --refused-target 2000000 --no-device-error)
       ;;
     newport-smc100 | newport-esp301 | parker-6k)
       # Controllers described by protocol files, against the simulators written apart from those

@@ -628,9 +628,13 @@ def dcmd_move(host, g, dev, axis, distance, setpoints, tolerance):
     ends = ("done", "failed", "error", "unknown", "rejected")
     # A node that goes offline meanwhile (a starved host) publishes the result in its next DBIRTH.
     results = [topic("DDATA", e, dev), topic("DBIRTH", e, dev)]
+
+    def action(command):  # a profile command may run a list of actions: the last one is its own
+        return command[-1] if isinstance(command, list) else command
+
     if "power_on" in cmds:
         mark = host.count()
-        name = "Actions/" + cmds["power_on"]
+        name = "Actions/" + action(cmds["power_on"])
         host.command(topic("DCMD", e, dev), [(name, 11, True)])
         r = host.wait_any(results, lambda p: value(p, "Command/Metric") == name and
                           value(p, "Command/Result") in ends, after=mark)
@@ -648,7 +652,7 @@ def dcmd_move(host, g, dev, axis, distance, setpoints, tolerance):
         values.append((metric_name(k), latest(host, e, dev, source)))
     values += [(metric_name(ap["setpoints"][k]), v) for k, v in setpoints.items()]
     values.append((metric_name(ap["setpoints"]["target"]), target))
-    move = "Actions/" + cmds["move_absolute"]
+    move = "Actions/" + action(cmds["move_absolute"])
     mark = host.count()
     host.command(topic("DCMD", e, dev), [(n, types[n], v) for n, v in values] + [(move, 11, True)])
     confirmed = host.wait_any(results, lambda p: value(p, "Command/Metric") == move and
@@ -1002,8 +1006,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 PROTOCOLS = os.path.normpath(os.path.join(HERE, "..", "..", "config", "protocols"))
 INDEPENDENT = os.path.normpath(os.path.join(HERE, "..", "independent"))
 # Bus, protocol (model of the same name), baud, unit script and its options, nodes (name,
-# address), the node moved by DCMD, whether it must be homed first (an SMC100 takes PA only in
-# READY), the move's distance.
+# address), the node moved by DCMD ("node:axis" for a node of several axes), whether it must be
+# homed first (an SMC100 takes PA only in READY), the move's distance.
 PROTOCOL_FILE_BUSES = [
     ("smc100", "newport-smc100", 57600, "smc100_unit.py", ["--addresses", "1,2"],
      [("smc_1", 1), ("smc_2", 2)], "smc_1", True, 20000),
@@ -1011,6 +1015,9 @@ PROTOCOL_FILE_BUSES = [
      [("esp_1", 1), ("esp_2", 2)], "esp_2", False, 20000),
     ("parker6k", "parker-6k", 9600, "parker6k_unit.py", ["--axes", "2"],
      [("axis_1", 1), ("axis_2", 2)], "axis_1", False, 20000),
+    # Galil: one node, axes A and B; axis B is moved, to a negative target (" 1000" / "-250").
+    ("galil", "galil-dmc", 115200, "galil_unit.py", ["--axes", "AB"], [("dmc", 0)], "dmc:b",
+     False, -20000),
 ]
 
 
@@ -1072,9 +1079,10 @@ def protocol_files(d):
         check_devices(host, "DBIRTH", "gw1", list(gw.nodes),
                       lambda dev: f"DBIRTH of {dev} ({gw.nodes[dev]}, a protocol file)")
         for _, protocol, _, _, _, _, moved, home_first, distance in PROTOCOL_FILE_BUSES:
+            moved, _, axis = moved.partition(":")  # "node:axis" for a node of several axes
             if home_first and not dcmd_action(host, "gw1", moved, "home"):
                 continue
-            dcmd_move(host, gw, moved, "axis", distance, {}, 0)
+            dcmd_move(host, gw, moved, axis or "axis", distance, {}, 0)
     finally:
         check_sequences(host, "gw1")
         check_lifecycle(host, "gw1", list(gw.nodes))

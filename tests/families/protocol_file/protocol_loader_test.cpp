@@ -400,13 +400,18 @@ TEST(ProtocolFileFormat, WithoutNumbersNoFieldIsDeclared) {
   Diagnostics shipped;
   ProtocolLibrary library;
   library.load_directory(std::string(FIELDGATE_SOURCE_DIR) + "/config/protocols", shipped);
-  for (const auto& p : library.all())
+  // Galil declares its numbers and its compound lines; every other shipped file declares none,
+  // and reads as it did before those keys existed.
+  for (const auto& p : library.all()) {
+    if (p->name == "galil-dmc") continue;
     for (const auto& c : p->commands) {
       EXPECT_EQ(c.prompts(), 1u) << p->name << " " << c.name;
       if (!c.reply) continue;
       for (const auto& piece : c.reply->pieces())
         EXPECT_FALSE(piece.field && piece.field->number) << p->name << " " << c.name;
     }
+  }
+  EXPECT_NE(library.find("galil-dmc"), nullptr);
 }
 
 TEST(ProtocolFileFormat, PromptsComeFromTheLineTheListOrTheCount) {
